@@ -1,0 +1,31 @@
+# The two commands a newcomer needs: `make test` and `make demo`.
+# Everything runs through scripts/fenicsx, which provides dolfinx (building a cached Debian
+# trixie root on hosts that lack it).
+FENICSX := scripts/fenicsx
+NP ?= 2
+PYTEST := python3 -m pytest -q
+DEMO_ARGS ?=
+
+.PHONY: test test-serial test-mpi test-slow demo env lint
+
+test: test-serial test-mpi
+
+test-serial:
+	$(FENICSX) $(PYTEST) -m "not slow" tests
+
+# The tests marked `mpi` run again on $(NP) ranks; mpi4py's runner aborts all ranks on an error.
+test-mpi:
+	$(FENICSX) mpirun -n $(NP) python3 -m mpi4py -m pytest -q --color=no -m "mpi and not slow" tests
+
+test-slow:
+	$(FENICSX) $(PYTEST) -m slow tests
+
+demo:
+	$(FENICSX) mpirun -n $(NP) python3 demos/bar_2d.py $(DEMO_ARGS)
+
+env:
+	$(FENICSX) python3 -c "import dolfinx; print('dolfinx', dolfinx.__version__)"
+
+lint:
+	@command -v ruff >/dev/null 2>&1 || python3 -m pip install --quiet ruff
+	ruff check .

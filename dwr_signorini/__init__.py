@@ -1,0 +1,9 @@
+"""dwr_signorini: goal-oriented adaptive finite elements for Signorini's contact problem.
+
+Signorini's problem (frictionless contact of a linear-elastic body with a rigid obstacle) in mixed
+form, solved by a semi-smooth Newton (primal-dual active set) method; the error in a user's quantity
+of interest J(u, lambda) estimated by the dual weighted residual method with the NCP-based error
+identities (13) and (15); adaptive refinement in parallel.
+"""
+
+__version__ = "0.1.0"
