@@ -6,4 +6,19 @@ of interest J(u, lambda) estimated by the dual weighted residual method with the
 identities (13) and (15); adaptive refinement in parallel.
 """
 
+from .newton import ConvergenceError, Solution, solve
+from .problem import SignoriniProblem
+from .spaces import Discretization, Measures, discretize
+
 __version__ = "0.1.0"
+
+__all__ = [
+    "ConvergenceError",
+    "Discretization",
+    "Measures",
+    "SignoriniProblem",
+    "Solution",
+    "__version__",
+    "discretize",
+    "solve",
+]

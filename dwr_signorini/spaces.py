@@ -1,0 +1,271 @@
+"""The discretisation of Section 4: macro mesh T_H, fine mesh T_h, V_h (P1/Q1) and Lambda_H (P0).
+
+The mesh the user passes is the macro mesh T_H. Its uniform refinement is the fine mesh T_h, on
+which the displacement lives (vector P1 on simplices, Q1 on quadrilaterals/hexahedra). The normal
+contact force is piecewise constant on the macro contact facets (so H = 2h, the stable choice of
+the paper): ``Q`` is DG0 on the facet submesh Sigma_H of the macro contact facets, and forms on
+the fine mesh reach it through an entity map that sends each fine contact facet to its *parent*
+macro facet. For a piecewise constant field that is exact, so no aggregation matrix is needed.
+
+The same structure gives the paper's patches: the children of a macro cell form a patch, and the
+fine P1 values on a patch are the P2 (Q2) nodal values of the macro cell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from mpi4py import MPI
+
+import numpy as np
+import numpy.typing as npt
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from dolfinx.cpp import mesh as _cpp_mesh
+
+from .problem import SignoriniProblem
+
+__all__ = ["Discretization", "Measures", "discretize"]
+
+
+@dataclass(frozen=True)
+class Measures:
+    """What a goal functional may use, all on the fine mesh T_h.
+
+    Attributes:
+        x: Spatial coordinate.
+        dx: Cell measure.
+        ds_contact: Measure of the possible contact boundary Gamma_C.
+        ds: Boundary measure with the facet tags (``m.ds(tag)``).
+        n: Outer unit normal.
+        mesh: The fine mesh.
+        problem: The problem (for material data).
+    """
+
+    x: Any
+    dx: ufl.Measure
+    ds_contact: ufl.Measure
+    ds: ufl.Measure
+    n: Any
+    mesh: dmesh.Mesh
+    problem: SignoriniProblem
+
+    def sigma(self, u: Any) -> Any:
+        """Stress sigma(u) of the problem's material law."""
+        return self.problem.sigma(u)
+
+    def epsilon(self, u: Any) -> Any:
+        """Strain eps(u) = sym(grad u)."""
+        return self.problem.epsilon(u)
+
+
+def _num_entities(msh: dmesh.Mesh, dim: int) -> int:
+    imap = msh.topology.index_map(dim)
+    return imap.size_local + imap.num_ghosts
+
+
+def refine_uniform(
+    macro: dmesh.Mesh,
+) -> tuple[dmesh.Mesh, npt.NDArray[np.int32], npt.NDArray[np.int8]]:
+    """One uniform refinement, children kept on their parent's process.
+
+    Simplices use ``dolfinx.mesh.refine``; quadrilaterals and hexahedra, which dolfinx cannot
+    refine, are split into 4 / 8 by :func:`dwr_signorini.tensor_refine.refine_uniform_tensor`.
+
+    Returns:
+        The fine mesh, the parent cell of each fine cell and, per fine cell and local facet, the
+        local index of the parent facet in the parent cell (-1 for facets inside the parent).
+    """
+    tdim = macro.topology.dim
+    if macro.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
+        macro.topology.create_entities(1)
+        fine, parent_cell, parent_facet = dmesh.refine(
+            macro, partitioner=None, option=dmesh.RefinementOption.parent_cell_and_facet
+        )
+        # dolfinx 0.9 returns the parent maps in the order of the cells *before* create_mesh
+        # reordered them; bring them into the fine mesh's local cell order.
+        num_local = fine.topology.index_map(tdim).size_local
+        offset = fine.comm.exscan(num_local) or 0
+        order = np.asarray(fine.topology.original_cell_index[:num_local], dtype=np.int64) - offset
+        if order.size and (order.min() < 0 or order.max() >= len(parent_cell)):
+            raise RuntimeError("unexpected cell numbering of the refined mesh")
+        nf = _cpp_mesh.cell_num_entities(fine.topology.cell_type, tdim - 1)
+        parent_cell = np.asarray(parent_cell)[order]
+        parent_facet = np.asarray(parent_facet).reshape(-1, nf)[order].ravel()
+    else:
+        from .tensor_refine import refine_uniform_tensor
+
+        fine, parent_cell, parent_facet = refine_uniform_tensor(macro)
+    fine.topology.create_entities(tdim - 1)
+    return fine, np.asarray(parent_cell, dtype=np.int32), np.asarray(parent_facet, dtype=np.int8)
+
+
+def fine_to_macro_facets(
+    macro: dmesh.Mesh, fine: dmesh.Mesh, parent_cell: npt.NDArray[np.int32]
+) -> npt.NDArray[np.int32]:
+    """For each fine facet, the macro facet containing it (-1 for facets inside macro cells).
+
+    Decided geometrically from the parent cell: a facet of a child lies on a facet of its (convex)
+    parent iff its midpoint lies in that facet's hyperplane. Only facets of local fine cells are
+    set. (The ``parent_facet`` array of ``dolfinx.mesh.refine`` is not used: with dolfinx 0.9 it
+    did not match the refined topology's local facet numbering in our checks.)
+    """
+    tdim = macro.topology.dim
+    fdim = tdim - 1
+    macro.topology.create_connectivity(tdim, fdim)
+    fine.topology.create_connectivity(tdim, fdim)
+    nf = _cpp_mesh.cell_num_entities(fine.topology.cell_type, fdim)
+    nfm = _cpp_mesh.cell_num_entities(macro.topology.cell_type, fdim)
+    num_fine_cells = fine.topology.index_map(tdim).size_local
+    fine_c2f = fine.topology.connectivity(tdim, fdim).array.reshape(-1, nf)[:num_fine_cells]
+    macro_c2f = macro.topology.connectivity(tdim, fdim).array.reshape(-1, nfm)
+
+    mids = dmesh.compute_midpoints(fine, fdim, fine_c2f.ravel()).reshape(-1, nf, 1, 3)
+    candidates = macro_c2f[parent_cell[:num_fine_cells]]  # (cells, nfm)
+    nodes = dmesh.entities_to_geometry(macro, fdim, candidates.ravel().astype(np.int32), False)
+    x = macro.geometry.x[nodes[:, :tdim]].reshape(-1, 1, nfm, tdim, 3)
+    a = x[..., 0, :]
+    if tdim == 2:
+        t = x[..., 1, :] - a
+        normal = np.stack([-t[..., 1], t[..., 0], np.zeros_like(t[..., 0])], axis=-1)
+    else:
+        normal = np.cross(x[..., 1, :] - a, x[..., 2, :] - a)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    h = np.linalg.norm(x[..., 1, :] - a, axis=-1)
+    dist = np.abs(np.sum((mids - a) * normal, axis=-1))  # (cells, nf, nfm)
+    on = dist <= 1e-8 * h
+    if np.any(on.sum(axis=2) > 1):
+        raise RuntimeError("a fine facet lies on two facets of its parent cell")
+    cells, local, k = np.nonzero(on)
+    out = np.full(_num_entities(fine, fdim), -1, dtype=np.int32)
+    out[fine_c2f[cells, local]] = candidates[cells, k]
+    return out
+
+
+def _facet_tags_on_fine(
+    macro_tags: dmesh.MeshTags, fine: dmesh.Mesh, to_macro: npt.NDArray[np.int32], num_macro: int
+) -> dmesh.MeshTags:
+    """Carry facet tags from T_H to T_h through the parent-facet map."""
+    fdim = fine.topology.dim - 1
+    tag_of = np.full(num_macro, -1, dtype=np.int32)
+    tag_of[macro_tags.indices] = macro_tags.values
+    fine_facets = np.flatnonzero(to_macro >= 0)
+    values = tag_of[to_macro[fine_facets]]
+    keep = values >= 0
+    return dmesh.meshtags(fine, fdim, fine_facets[keep].astype(np.int32), values[keep])
+
+
+class Discretization:
+    """Macro mesh, fine mesh, the spaces V_h and Lambda_H and the maps between them.
+
+    Attributes:
+        problem: The problem on the macro mesh.
+        macro_mesh: T_H.
+        mesh: T_h, one uniform refinement of T_H.
+        parent_cell: Parent macro cell of each local fine cell.
+        facet_tags: Facet tags carried to T_h.
+        V: Vector P1 (Q1) on T_h.
+        contact_mesh: Sigma_H, the submesh of macro contact facets.
+        Q: DG0 on Sigma_H (the multiplier space Lambda_H).
+        entity_maps: For forms on T_h that use Q: fine facet -> Sigma_H cell.
+        macro_entity_maps: For forms on T_H that use Q: macro facet -> Sigma_H cell.
+        bcs: Homogeneous Dirichlet conditions on V.
+        m: The :class:`Measures` on T_h.
+    """
+
+    def __init__(self, problem: SignoriniProblem) -> None:
+        self.problem = problem
+        macro = problem.mesh
+        tdim = macro.topology.dim
+        fdim = tdim - 1
+        self.macro_mesh = macro
+        self.comm: MPI.Comm = macro.comm
+        macro.topology.create_entities(fdim)
+        macro.topology.create_connectivity(fdim, tdim)
+
+        fine, parent_cell, parent_facet = refine_uniform(macro)
+        self.mesh = fine
+        self.parent_cell = parent_cell
+        self.parent_facet = parent_facet
+        fine.topology.create_connectivity(fdim, tdim)
+
+        to_macro = fine_to_macro_facets(macro, fine, parent_cell)
+        self.fine_to_macro_facet = to_macro
+        self.facet_tags = _facet_tags_on_fine(
+            problem.facet_tags, fine, to_macro, _num_entities(macro, fdim)
+        )
+
+        # Sigma_H: the macro contact facets (exterior facets only).
+        exterior = dmesh.exterior_facet_indices(macro.topology)
+        contact_macro = np.intersect1d(problem.facet_tags.find(problem.contact), exterior)
+        self.contact_macro_facets = contact_macro.astype(np.int32)
+        sub, sub_to_macro, _, _ = dmesh.create_submesh(macro, fdim, self.contact_macro_facets)
+        self.contact_mesh = sub
+        macro_to_sub = np.full(_num_entities(macro, fdim), -1, dtype=np.int32)
+        macro_to_sub[sub_to_macro] = np.arange(len(sub_to_macro), dtype=np.int32)
+        fine_to_sub = np.full(len(to_macro), -1, dtype=np.int32)
+        fine_contact = self.facet_tags.find(problem.contact)
+        fine_to_sub[fine_contact] = macro_to_sub[to_macro[fine_contact]]
+        if np.any(fine_to_sub[fine_contact] < 0):
+            raise RuntimeError("a fine contact facet has no parent macro contact facet")
+        self.entity_maps = {sub: fine_to_sub}
+        self.macro_entity_maps = {sub: macro_to_sub}
+
+        gdim = fine.geometry.dim
+        self.V = fem.functionspace(fine, ("Lagrange", 1, (gdim,)))
+        self.Q = fem.functionspace(sub, ("DG", 0))
+
+        dirichlet_facets = np.concatenate(
+            [self.facet_tags.find(t) for t in problem.dirichlet] or [np.zeros(0, np.int32)]
+        ).astype(np.int32)
+        dofs = fem.locate_dofs_topological(self.V, fdim, dirichlet_facets)
+        self.bcs = [fem.dirichletbc(np.zeros(gdim, dtype=fine.geometry.x.dtype), dofs, self.V)]
+
+        dx = ufl.Measure("dx", domain=fine)
+        ds = ufl.Measure("ds", domain=fine, subdomain_data=self.facet_tags)
+        self.m = Measures(
+            x=ufl.SpatialCoordinate(fine),
+            dx=dx,
+            ds_contact=ds(problem.contact),
+            ds=ds,
+            n=ufl.FacetNormal(fine),
+            mesh=fine,
+            problem=problem,
+        )
+
+    # -- sizes, as in the paper's tables -----------------------------------------------------
+    @property
+    def num_cells(self) -> int:
+        """M_Omega: number of cells of T_h."""
+        return self.mesh.topology.index_map(self.mesh.topology.dim).size_global
+
+    @property
+    def num_macro_cells(self) -> int:
+        """Number of cells of T_H."""
+        return self.macro_mesh.topology.index_map(self.macro_mesh.topology.dim).size_global
+
+    @property
+    def num_contact_elements(self) -> int:
+        """M_C: number of macro contact facets (multiplier unknowns)."""
+        return self.Q.dofmap.index_map.size_global
+
+    @property
+    def num_dofs(self) -> int:
+        """Displacement plus multiplier unknowns."""
+        V_map = self.V.dofmap.index_map
+        return V_map.size_global * self.V.dofmap.index_map_bs + self.num_contact_elements
+
+    def form(self, expr: ufl.Form) -> fem.Form:
+        """Compile a form on T_h that may use functions of Q (through the entity maps)."""
+        return fem.form(expr, entity_maps=self.entity_maps)
+
+    def macro_form(self, expr: ufl.Form) -> fem.Form:
+        """Compile a form on T_H that may use functions of Q."""
+        return fem.form(expr, entity_maps=self.macro_entity_maps)
+
+
+def discretize(problem: SignoriniProblem) -> Discretization:
+    """Build T_h, V_h and Lambda_H for ``problem`` (Section 4, H = 2h)."""
+    return Discretization(problem)
