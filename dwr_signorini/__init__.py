@@ -6,6 +6,7 @@ of interest J(u, lambda) estimated by the dual weighted residual method with the
 identities (13) and (15); adaptive refinement in parallel.
 """
 
+from .estimator import Estimate, estimate
 from .newton import ConvergenceError, Solution, solve
 from .problem import SignoriniProblem
 from .spaces import Discretization, Measures, discretize
@@ -14,11 +15,13 @@ __version__ = "0.1.0"
 
 __all__ = [
     "ConvergenceError",
+    "Estimate",
     "Discretization",
     "Measures",
     "SignoriniProblem",
     "Solution",
     "__version__",
     "discretize",
+    "estimate",
     "solve",
 ]

@@ -91,10 +91,17 @@ class NewtonSystem:
     mesh and reused in every Newton step and for the dual problem.
     """
 
-    def __init__(self, disc: Discretization, petsc_options: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        disc: Discretization,
+        petsc_options: dict[str, Any] | None = None,
+        V: fem.FunctionSpace | None = None,
+    ) -> None:
         self.disc = disc
         problem = disc.problem
-        V, Q, m = disc.V, disc.Q, disc.m
+        V = disc.V if V is None else V
+        Q, m = disc.Q, disc.m
+        self.V = V
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         mu = ufl.TestFunction(Q)
 
@@ -113,7 +120,8 @@ class NewtonSystem:
             "M": disc.form(mu * m.ds_contact),
             "g": disc.form(problem.gap_expr(m.x) * mu * m.ds_contact),
         }
-        bcs = disc.bcs
+        bcs = disc.bcs if V is disc.V else disc.dirichlet_bcs(V)
+        self.bcs = bcs
         self.K = fem_petsc.assemble_matrix(self._forms["a"], bcs=bcs)
         self.K.assemble()
         self.N = fem_petsc.assemble_matrix(self._forms["N"], bcs=bcs)

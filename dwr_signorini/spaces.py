@@ -217,11 +217,10 @@ class Discretization:
         self.V = fem.functionspace(fine, ("Lagrange", 1, (gdim,)))
         self.Q = fem.functionspace(sub, ("DG", 0))
 
-        dirichlet_facets = np.concatenate(
+        self._dirichlet_facets = np.concatenate(
             [self.facet_tags.find(t) for t in problem.dirichlet] or [np.zeros(0, np.int32)]
         ).astype(np.int32)
-        dofs = fem.locate_dofs_topological(self.V, fdim, dirichlet_facets)
-        self.bcs = [fem.dirichletbc(np.zeros(gdim, dtype=fine.geometry.x.dtype), dofs, self.V)]
+        self.bcs = self.dirichlet_bcs(self.V)
 
         dx = ufl.Measure("dx", domain=fine)
         ds = ufl.Measure("ds", domain=fine, subdomain_data=self.facet_tags)
@@ -234,6 +233,13 @@ class Discretization:
             mesh=fine,
             problem=problem,
         )
+
+    def dirichlet_bcs(self, V: fem.FunctionSpace) -> list[fem.DirichletBC]:
+        """Homogeneous Dirichlet conditions on Gamma_D for a vector space V on T_h."""
+        fdim = self.mesh.topology.dim - 1
+        dofs = fem.locate_dofs_topological(V, fdim, self._dirichlet_facets)
+        zero = np.zeros(self.mesh.geometry.dim, dtype=self.mesh.geometry.x.dtype)
+        return [fem.dirichletbc(zero, dofs, V)]
 
     # -- sizes, as in the paper's tables -----------------------------------------------------
     @property

@@ -1,0 +1,92 @@
+"""The discrete dual problem: the transposed system of the last Newton step (Section 4).
+
+With the Newton matrix of the final active set A (see :mod:`dwr_signorini.newton`),
+
+    [ K        -N^T D_A ] [y ]   [ J'_u      ]
+    [ N         D_I M   ] [xi] = [ J'_lambda ],
+
+which is the discrete form of the dual problem (11)-(12):
+``a(v, y) - int chi xi v_n = J'_u(v)`` and ``int mu y_n + int (1 - chi) xi mu = J'_lambda(mu)``,
+chi the indicator of the active macro facets. It is solved with the factorisation of the last
+Newton step (``KSP.solveTranspose``), so it costs two triangular solves and no factorisation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from petsc4py import PETSc
+
+import numpy as np
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+
+from .goal import GoalForms
+from .newton import NewtonSystem
+
+__all__ = ["DualSolution", "dual_rhs", "solve_dual"]
+
+
+@dataclass
+class DualSolution:
+    """z_h = (y_h, xi_H), the discrete dual solution."""
+
+    y: fem.Function
+    xi: fem.Function
+
+
+def dual_rhs(system: NewtonSystem, goal: GoalForms, out: PETSc.Vec) -> PETSc.Vec:
+    """Assemble [J'_u(w_h); J'_lambda(w_h)] into the block vector ``out`` (zero on Gamma_D)."""
+    disc = system.disc
+    arr = out.array_w
+    arr[:] = 0.0
+    V = system.V
+    if goal.has_u:
+        form = goal.dJ_u
+        if V is not goal.u.function_space:
+            import ufl
+
+            form = ufl.replace(form, {form.arguments()[0]: ufl.TestFunction(V)})
+        b = fem_petsc.assemble_vector(disc.form(form))
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem_petsc.set_bc(b, system.bcs)
+        arr[: system.n_u] = b.array
+        b.destroy()
+    if goal.has_lam:
+        b = fem_petsc.assemble_vector(disc.form(goal.dJ_lam))
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        arr[system.n_u :] = b.array
+        b.destroy()
+    return out
+
+
+def solve_dual(system: NewtonSystem, goal: GoalForms) -> DualSolution:
+    """Solve the dual problem (11)-(12) with the transposed last Newton matrix.
+
+    Args:
+        system: The Newton system whose last factorisation is kept (``system.ksp``).
+        goal: The goal's derivatives at w_h.
+
+    Returns:
+        z_h = (y_h, xi_H) on the system's displacement space and Lambda_H.
+    """
+    if system.A is None:
+        raise RuntimeError("the Newton system has not been solved: no matrix to transpose")
+    rhs = system.A.createVecLeft()
+    z = system.A.createVecRight()
+    dual_rhs(system, goal, rhs)
+    system.ksp.solveTranspose(rhs, z)
+    reason = system.ksp.getConvergedReason()
+    if reason < 0:
+        raise RuntimeError(f"the dual solve failed (KSP reason {reason})")
+    y = fem.Function(system.V, name="y")
+    xi = fem.Function(system.disc.Q, name="xi")
+    y.x.array[: system.n_u] = z.array_r[: system.n_u]
+    y.x.scatter_forward()
+    xi.x.array[: system.n_lam] = z.array_r[system.n_u :]
+    xi.x.scatter_forward()
+    if not (np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi.x.array))):
+        raise RuntimeError("NaN or Inf in the dual solution")
+    rhs.destroy()
+    z.destroy()
+    return DualSolution(y=y, xi=xi)

@@ -1,0 +1,242 @@
+"""The error estimators eta_p and eta of Section 4, localised to the cells of T_h.
+
+With w_h = (u_h, lambda_H), z_h = (y_h, xi_H) and the reconstruction operator A,
+
+    eta_p = rho(w_h)(A z_h - z_h) - C(w_h)(xi_H)                                     (from (13))
+    eta   = 1/2 rho(w_h)(A z_h - z_h) + 1/2 rho*(w_h, z_h)(A w_h - w_h) - C(w_h)(xi_H)  (from (15))
+
+Every term is a UFL functional; multiplying its integrands by a DG0 test function on T_h gives the
+cell indicators (facet terms go to the adjacent cell), whose signed sum is the estimate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+
+from .dual import DualSolution, solve_dual
+from .goal import Goal, GoalForms, localize
+from .newton import NewtonSystem, Solution
+from .reconstruction import Reconstructor
+
+__all__ = [
+    "ESTIMATORS",
+    "WEIGHTS",
+    "Estimate",
+    "contact_violation",
+    "dual_residual",
+    "estimate",
+    "primal_residual",
+]
+
+ESTIMATORS = ("eta", "eta_p")
+WEIGHTS = ("patch", "higher_order")
+
+
+def ncp_argument(u: Any, lam: Any, gap: Any, n: Any) -> Any:
+    """lambda + u_n - g, whose sign decides contact in the NCP function (8)."""
+    return lam + ufl.dot(u, n) - gap
+
+
+def contact_violation(u: Any, lam: Any, mu: Any, gap: Any, n: Any, ds_c: ufl.Measure) -> ufl.Form:
+    """C(w)(mu) = (mu, lambda - max(0, lambda + u_n - g))_GC (Section 2, after eq. 8)."""
+    return mu * (lam - ufl.max_value(0.0, ncp_argument(u, lam, gap, n))) * ds_c
+
+
+def primal_residual(sol: Solution, v: Any, mu: Any) -> ufl.Form:
+    """rho(w_h)(v, mu) = l(v) - a(u_h, v) - (lambda_H, v_n)_GC - C(w_h)(mu) (Proposition 4)."""
+    problem, m = sol.disc.problem, sol.disc.m
+    f = problem.vector(problem.body_force, m.x)
+    form = -ufl.inner(problem.sigma(sol.u), problem.epsilon(v)) * m.dx
+    if f is not None:
+        form += ufl.inner(f, v) * m.dx
+    for tag, t in problem.traction.items():
+        form += ufl.inner(problem.vector(t, m.x), v) * m.ds(tag)
+    form -= sol.lam * ufl.dot(v, m.n) * m.ds_contact
+    return form - contact_violation(sol.u, sol.lam, mu, problem.gap_expr(m.x), m.n, m.ds_contact)
+
+
+def dual_residual(sol: Solution, goal: GoalForms, z: DualSolution, v: Any, mu: Any) -> ufl.Form:
+    """rho*(w_h, z_h)(v, mu) of Proposition 8.
+
+    ``J'(w_h)(v, mu) - a(v, y_h) + b_h(xi_H, v) - (mu, y_h,n) - c_h(xi_H, mu)`` with
+    ``b_h(xi, v) = int xi chi_h v_n``, ``c_h(xi, mu) = int xi (1 - chi_h) mu`` and the pointwise
+    ``chi_h = [lambda_H + u_h,n - g > 0]``.
+    """
+    problem, m = sol.disc.problem, sol.disc.m
+    chi = ufl.conditional(
+        ufl.gt(ncp_argument(sol.u, sol.lam, problem.gap_expr(m.x), m.n), 0.0), 1.0, 0.0
+    )
+    form = -ufl.inner(problem.sigma(v), problem.epsilon(z.y)) * m.dx
+    form += z.xi * chi * ufl.dot(v, m.n) * m.ds_contact
+    form -= mu * ufl.dot(z.y, m.n) * m.ds_contact
+    form -= z.xi * (1.0 - chi) * mu * m.ds_contact
+    dJ = goal.directional(v, mu)
+    return form if dJ is None else dJ + form
+
+
+@dataclass
+class Estimate:
+    """The estimated error in J and its parts.
+
+    Attributes:
+        J_h: J(w_h).
+        eta_p: The primal estimator (always computed).
+        eta: The primal-dual estimator, or ``None`` when only eta_p was asked for.
+        contact_term: C(w_h)(xi_H) (the estimators contain it with a minus sign).
+        rho: rho(w_h)(A z_h - z_h).
+        rho_star: rho*(w_h, z_h)(A w_h - w_h), or ``None``.
+        estimator: Which estimator the indicators belong to ("eta" or "eta_p").
+        weights: "patch" or "higher_order".
+        indicators: DG0 function on T_h of signed cell indicators; their sum is the estimate.
+        dual: z_h = (y_h, xi_H).
+        goal_is_linear: Whether J is linear in (u, lambda) (then R_J vanishes).
+    """
+
+    J_h: float
+    eta_p: float
+    eta: float | None
+    contact_term: float
+    rho: float
+    rho_star: float | None
+    estimator: str
+    weights: str
+    indicators: fem.Function = field(repr=False)
+    dual: DualSolution = field(repr=False)
+    goal_is_linear: bool = False
+
+    @property
+    def value(self) -> float:
+        """The estimate of J(w) - J(w_h) of the chosen estimator."""
+        return self.eta if self.estimator == "eta" else self.eta_p
+
+
+def _assemble_indicators(disc: Any, form: ufl.Form, q: ufl.Argument) -> np.ndarray:
+    vec = fem_petsc.assemble_vector(disc.form(localize(form, q)))
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    out = vec.array.copy()
+    vec.destroy()
+    return out
+
+
+def _higher_order_solutions(
+    sol: Solution, goal: GoalForms, rec: Reconstructor, primal: bool, petsc_options: Any
+) -> tuple[DualSolution, tuple[fem.Function, fem.Function] | None]:
+    """Dual (and primal) solved in P2 on T_h with Lambda_H and the final active set."""
+    system2 = NewtonSystem(sol.disc, petsc_options, V=rec.V2h)
+    system2.solve_active(sol.active)
+    z2 = solve_dual(system2, goal)
+    w2 = None
+    if primal:
+        u2 = fem.Function(rec.V2h, name="u2")
+        lam2 = fem.Function(sol.disc.Q, name="lambda2")
+        u_arr, lam_arr = system2.split(system2.x)
+        u2.x.array[: system2.n_u] = u_arr
+        u2.x.scatter_forward()
+        lam2.x.array[: system2.n_lam] = lam_arr
+        lam2.x.scatter_forward()
+        w2 = (u2, lam2)
+    del system2
+    return z2, w2
+
+
+def estimate(
+    sol: Solution,
+    goal: Goal,
+    estimator: str = "eta",
+    weights: str = "patch",
+    petsc_options: dict[str, Any] | None = None,
+) -> Estimate:
+    """Estimate J(w) - J(w_h) by eta_p or eta (Section 4).
+
+    Args:
+        sol: The discrete solution (its last Newton factorisation serves the dual solve).
+        goal: ``goal(u, lam, m) -> ufl.Form``.
+        estimator: ``"eta"`` (primal and dual residual, (15)) or ``"eta_p"`` (primal residual,
+            (13)). eta_p is reported in both cases.
+        weights: ``"patch"`` (the paper's patch-wise reconstructions) or ``"higher_order"`` (dual,
+            and for eta the primal, solved in P2 with Lambda_H and the final active set).
+        petsc_options: Linear solver options for the higher-order solves.
+
+    Returns:
+        The :class:`Estimate`.
+    """
+    if estimator not in ESTIMATORS:
+        raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+    if weights not in WEIGHTS:
+        raise ValueError(f"weights must be one of {WEIGHTS}, got {weights!r}")
+    if not isinstance(sol, Solution):
+        raise TypeError(
+            f"estimate() takes the Solution returned by solve(), got {type(sol).__name__}"
+        )
+    disc = sol.disc
+    comm: MPI.Comm = disc.comm
+    goal_forms = GoalForms(goal, sol.u, sol.lam, disc)
+    z = solve_dual(sol.system, goal_forms)
+    rec = Reconstructor(disc)
+    want_eta = estimator == "eta"
+
+    if weights == "patch":
+        y_plus = rec.patch_quadratic(z.y)
+        xi_plus = rec.patch_linear_multiplier(z.xi)
+    else:
+        z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
+        y_plus = z2.y
+        xi_plus = rec.patch_linear_multiplier(z2.xi)
+    w_y = y_plus - rec.as_fine_p2(z.y)
+    w_xi = xi_plus - z.xi
+
+    gap, m = disc.problem.gap_expr(disc.m.x), disc.m
+    rho_form = primal_residual(sol, w_y, w_xi)
+    c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact)
+
+    DG0 = fem.functionspace(disc.mesh, ("DG", 0))
+    q = ufl.TestFunction(DG0)
+    ind_rho = _assemble_indicators(disc, rho_form, q)
+    ind_c = _assemble_indicators(disc, c_form, q)
+    ind_star = None
+    if want_eta:
+        if weights == "patch":
+            u_plus = rec.patch_quadratic(sol.u)
+            lam_plus = rec.patch_linear_multiplier(sol.lam)
+        else:
+            u_plus = w2[0]
+            lam_plus = rec.patch_linear_multiplier(w2[1])
+        w_u = u_plus - rec.as_fine_p2(sol.u)
+        w_lam = lam_plus - sol.lam
+        ind_star = _assemble_indicators(disc, dual_residual(sol, goal_forms, z, w_u, w_lam), q)
+
+    def total(a: np.ndarray) -> float:
+        return comm.allreduce(float(a.sum()), op=MPI.SUM)
+
+    rho, contact = total(ind_rho), total(ind_c)
+    rho_star = None if ind_star is None else total(ind_star)
+    eta_p = rho - contact
+    eta = None if rho_star is None else 0.5 * rho + 0.5 * rho_star - contact
+
+    indicators = fem.Function(DG0, name="indicators")
+    n_local = DG0.dofmap.index_map.size_local
+    local = ind_rho - ind_c if not want_eta else 0.5 * ind_rho + 0.5 * ind_star - ind_c
+    indicators.x.array[:n_local] = local[:n_local]
+    indicators.x.scatter_forward()
+    return Estimate(
+        J_h=goal_forms.value(),
+        eta_p=eta_p,
+        eta=eta,
+        contact_term=contact,
+        rho=rho,
+        rho_star=rho_star,
+        estimator=estimator,
+        weights=weights,
+        indicators=indicators,
+        dual=z,
+        goal_is_linear=goal_forms.is_linear,
+    )
