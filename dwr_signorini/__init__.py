@@ -15,8 +15,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     "ConvergenceError",
-    "Estimate",
     "Discretization",
+    "Estimate",
     "Measures",
     "SignoriniProblem",
     "Solution",

@@ -42,7 +42,7 @@ WEIGHTS = ("patch", "higher_order")
 
 
 def ncp_argument(u: Any, lam: Any, gap: Any, n: Any) -> Any:
-    """lambda + u_n - g, whose sign decides contact in the NCP function (8)."""
+    """Lambda + u_n - g, whose sign decides contact in the NCP function (8)."""
     return lam + ufl.dot(u, n) - gap
 
 
