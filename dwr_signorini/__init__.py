@@ -6,6 +6,7 @@ of interest J(u, lambda) estimated by the dual weighted residual method with the
 identities (13) and (15); adaptive refinement in parallel.
 """
 
+from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
 from .estimator import Estimate, estimate
 from .newton import ConvergenceError, Solution, solve
 from .problem import SignoriniProblem
@@ -14,9 +15,11 @@ from .spaces import Discretization, Measures, discretize
 __version__ = "0.1.0"
 
 __all__ = [
+    "AdaptiveResult",
     "ConvergenceError",
     "Discretization",
     "Estimate",
+    "LevelRecord",
     "Measures",
     "SignoriniProblem",
     "Solution",
@@ -24,4 +27,5 @@ __all__ = [
     "discretize",
     "estimate",
     "solve",
+    "solve_adaptive",
 ]

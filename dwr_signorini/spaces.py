@@ -67,12 +67,13 @@ def _num_entities(msh: dmesh.Mesh, dim: int) -> int:
 
 
 def refine_uniform(
-    macro: dmesh.Mesh,
+    macro: dmesh.Mesh, edges: npt.NDArray[np.int32] | None = None
 ) -> tuple[dmesh.Mesh, npt.NDArray[np.int32], npt.NDArray[np.int8]]:
-    """One uniform refinement, children kept on their parent's process.
+    """One refinement (uniform, or of the given edges), children kept on their parent's process.
 
-    Simplices use ``dolfinx.mesh.refine``; quadrilaterals and hexahedra, which dolfinx cannot
-    refine, are split into 4 / 8 by :func:`dwr_signorini.tensor_refine.refine_uniform_tensor`.
+    Simplices use ``dolfinx.mesh.refine`` (Plaza's algorithm, which keeps the mesh conforming);
+    quadrilaterals and hexahedra, which dolfinx cannot refine, are split into 4 / 8 by
+    :func:`dwr_signorini.tensor_refine.refine_uniform_tensor` (uniform refinement only).
 
     Returns:
         The fine mesh, the parent cell of each fine cell and, per fine cell and local facet, the
@@ -82,7 +83,7 @@ def refine_uniform(
     if macro.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
         macro.topology.create_entities(1)
         fine, parent_cell, parent_facet = dmesh.refine(
-            macro, partitioner=None, option=dmesh.RefinementOption.parent_cell_and_facet
+            macro, edges, partitioner=None, option=dmesh.RefinementOption.parent_cell_and_facet
         )
         # dolfinx 0.9 returns the parent maps in the order of the cells *before* create_mesh
         # reordered them; bring them into the fine mesh's local cell order.
@@ -95,6 +96,11 @@ def refine_uniform(
         parent_cell = np.asarray(parent_cell)[order]
         parent_facet = np.asarray(parent_facet).reshape(-1, nf)[order].ravel()
     else:
+        if edges is not None:
+            raise ValueError(
+                "adaptive refinement needs a simplex mesh (triangles/tetrahedra); "
+                "quadrilateral and hexahedral meshes can only be refined uniformly"
+            )
         from .tensor_refine import refine_uniform_tensor
 
         fine, parent_cell, parent_facet = refine_uniform_tensor(macro)
@@ -116,6 +122,7 @@ def fine_to_macro_facets(
     fdim = tdim - 1
     macro.topology.create_connectivity(tdim, fdim)
     fine.topology.create_connectivity(tdim, fdim)
+    fine.topology.create_connectivity(fdim, tdim)
     nf = _cpp_mesh.cell_num_entities(fine.topology.cell_type, fdim)
     nfm = _cpp_mesh.cell_num_entities(macro.topology.cell_type, fdim)
     num_fine_cells = fine.topology.index_map(tdim).size_local
@@ -147,7 +154,7 @@ def fine_to_macro_facets(
 def _facet_tags_on_fine(
     macro_tags: dmesh.MeshTags, fine: dmesh.Mesh, to_macro: npt.NDArray[np.int32], num_macro: int
 ) -> dmesh.MeshTags:
-    """Carry facet tags from T_H to T_h through the parent-facet map."""
+    """Carry facet tags from a mesh to its refinement through the parent-facet map."""
     fdim = fine.topology.dim - 1
     tag_of = np.full(num_macro, -1, dtype=np.int32)
     tag_of[macro_tags.indices] = macro_tags.values
@@ -155,6 +162,35 @@ def _facet_tags_on_fine(
     values = tag_of[to_macro[fine_facets]]
     keep = values >= 0
     return dmesh.meshtags(fine, fdim, fine_facets[keep].astype(np.int32), values[keep])
+
+
+def refine_marked(
+    problem: SignoriniProblem, cells: npt.NDArray[np.int32] | None
+) -> tuple[SignoriniProblem, npt.NDArray[np.int32]]:
+    """Refine the macro mesh at the marked cells (all their edges) and carry the facet tags.
+
+    Args:
+        problem: The problem on the current macro mesh T_H.
+        cells: Local indices of marked macro cells (simplices), or ``None`` for a uniform
+            refinement (any cell type).
+
+    Returns:
+        The problem on the refined macro mesh, and the parent of each new macro cell.
+    """
+    macro = problem.mesh
+    tdim = macro.topology.dim
+    edges = None
+    if cells is not None:
+        macro.topology.create_entities(1)
+        macro.topology.create_connectivity(tdim, 1)
+        edges = np.unique(dmesh.compute_incident_entities(macro.topology, cells, tdim, 1))
+        edges = edges.astype(np.int32)
+    fine, parent_cell, _ = refine_uniform(macro, edges)
+    fdim = tdim - 1
+    macro.topology.create_entities(fdim)
+    to_macro = fine_to_macro_facets(macro, fine, parent_cell)
+    tags = _facet_tags_on_fine(problem.facet_tags, fine, to_macro, _num_entities(macro, fdim))
+    return problem.with_mesh(fine, tags), parent_cell
 
 
 class Discretization:

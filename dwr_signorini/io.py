@@ -1,0 +1,141 @@
+"""Output of an adaptive run: table rows (CSV, JSON) and fields for ParaView (XDMF).
+
+Every row is written as soon as its level ends, so a run that is interrupted later keeps every
+finished level: the CSV is appended and flushed, the JSON is rewritten atomically (temporary file
+and rename), and each level's fields go to their own XDMF files.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from mpi4py import MPI
+
+from dolfinx import io
+
+__all__ = ["OutputDirectory", "check_output_dir", "write_csv", "write_json"]
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe value (NaN/Inf become None)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    return value
+
+
+def _flatten(row: dict[str, Any]) -> dict[str, Any]:
+    """Nested dicts (the timings) become ``time_<phase>`` columns."""
+    flat: dict[str, Any] = {}
+    for key, value in row.items():
+        if isinstance(value, dict):
+            for sub, v in value.items():
+                flat[f"{key}_{sub}"] = v
+        else:
+            flat[key] = value
+    return flat
+
+
+def write_csv(path: str | os.PathLike, rows: Sequence[dict[str, Any]]) -> None:
+    """Write rows (dicts with the same keys) as CSV."""
+    flat = [_flatten(r) for r in rows]
+    with open(path, "w", newline="") as fh:
+        if not flat:
+            return
+        writer = csv.DictWriter(fh, fieldnames=list(flat[0]))
+        writer.writeheader()
+        writer.writerows(flat)
+
+
+def write_json(path: str | os.PathLike, data: Any) -> None:
+    """Write JSON atomically: a reader never sees a half-written file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        json.dump(_clean(data), fh, indent=1)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def check_output_dir(output_dir: str | os.PathLike, comm: MPI.Comm) -> Path:
+    """Check that ``output_dir`` can be created and written, without creating anything.
+
+    Raises:
+        ValueError: If the path is a file, or its nearest existing ancestor is not writable.
+    """
+    path = Path(output_dir)
+    error = None
+    if comm.rank == 0:
+        if path.exists() and not path.is_dir():
+            error = f"output_dir {str(path)!r} exists and is not a directory"
+        else:
+            probe = path
+            while not probe.exists():
+                probe = probe.parent
+            if not os.access(probe, os.W_OK | os.X_OK):
+                error = f"output_dir {str(path)!r} is not writable (no write access to {probe})"
+    error = comm.bcast(error, root=0)
+    if error:
+        raise ValueError(error)
+    return path
+
+
+class OutputDirectory:
+    """Writes the table rows and fields of each level of an adaptive run."""
+
+    def __init__(self, output_dir: str | os.PathLike, comm: MPI.Comm, name: str = "adaptive"):
+        self.path = check_output_dir(output_dir, comm)
+        self.comm = comm
+        self.name = name
+        self.rows: list[dict[str, Any]] = []
+        if comm.rank == 0:
+            self.path.mkdir(parents=True, exist_ok=True)
+            (self.path / f"{name}.csv").unlink(missing_ok=True)
+        comm.Barrier()
+
+    @property
+    def csv_path(self) -> Path:
+        """The CSV table."""
+        return self.path / f"{self.name}.csv"
+
+    @property
+    def json_path(self) -> Path:
+        """The JSON table."""
+        return self.path / f"{self.name}.json"
+
+    def append(self, row: dict[str, Any], meta: dict[str, Any] | None = None) -> None:
+        """Append a finished level's row to the CSV and rewrite the JSON (rank 0)."""
+        self.rows.append(row)
+        if self.comm.rank == 0:
+            flat = _flatten(row)
+            new = not self.csv_path.exists()
+            with open(self.csv_path, "a", newline="") as fh:
+                writer = csv.DictWriter(fh, fieldnames=list(flat))
+                if new:
+                    writer.writeheader()
+                writer.writerow(flat)
+                fh.flush()
+                os.fsync(fh.fileno())
+            write_json(self.json_path, {"meta": meta or {}, "levels": self.rows})
+        self.comm.Barrier()
+
+    def write_fields(self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]) -> None:
+        """Write the fine-mesh fields and the contact-facet fields of one level (XDMF)."""
+        for suffix, funcs in (("", fields), ("_contact", contact_fields)):
+            if not funcs:
+                continue
+            msh = funcs[0].function_space.mesh
+            path = self.path / f"level_{level:02d}{suffix}.xdmf"
+            with io.XDMFFile(self.comm, path, "w") as xdmf:
+                xdmf.write_mesh(msh)
+                for f in funcs:
+                    xdmf.write_function(f)

@@ -1,0 +1,75 @@
+"""Patch indicators and marking of macro cells (Section 4: localisation, patch structure).
+
+The cell indicators on T_h are summed over the children of each macro cell (the paper's patches);
+macro cells are marked globally across MPI ranks, by a fixed fraction of the cells with the largest
+|eta_K| or by Doerfler's bulk criterion on the indicator mass.
+"""
+
+from __future__ import annotations
+
+from mpi4py import MPI
+
+import numpy as np
+import numpy.typing as npt
+
+from .spaces import Discretization
+
+__all__ = ["STRATEGIES", "mark", "patch_indicators"]
+
+STRATEGIES = ("fixed_fraction", "doerfler")
+
+
+def patch_indicators(disc: Discretization, indicators: npt.NDArray[np.floating]) -> np.ndarray:
+    """Sum signed fine-cell indicators over the children of each owned macro cell.
+
+    Args:
+        disc: The discretisation (gives the parent of every local fine cell).
+        indicators: Values on the owned fine cells.
+
+    Returns:
+        One value per owned macro cell.
+    """
+    num_macro = disc.macro_mesh.topology.index_map(disc.macro_mesh.topology.dim).size_local
+    n = len(disc.parent_cell)
+    return np.bincount(disc.parent_cell, weights=indicators[:n], minlength=num_macro)[:num_macro]
+
+
+def _global_threshold(comm: MPI.Comm, values: np.ndarray, strategy: str, fraction: float) -> float:
+    """The smallest |eta_K| that is marked, identical on every rank."""
+    all_values = np.concatenate(comm.allgather(np.abs(values)))
+    if all_values.size == 0 or not np.any(all_values > 0):
+        return np.inf
+    order = np.sort(all_values)[::-1]
+    if strategy == "fixed_fraction":
+        k = max(1, int(np.ceil(fraction * order.size)))
+    else:
+        mass = np.cumsum(order)
+        k = int(np.searchsorted(mass, fraction * mass[-1] * (1 - 1e-14))) + 1
+    return float(order[min(k, order.size) - 1])
+
+
+def mark(
+    disc: Discretization,
+    indicators: npt.NDArray[np.floating],
+    strategy: str = "fixed_fraction",
+    fraction: float = 0.2,
+) -> npt.NDArray[np.int32]:
+    """Mark macro cells for refinement.
+
+    Args:
+        disc: The discretisation.
+        indicators: Signed indicators on the owned fine cells.
+        strategy: ``"fixed_fraction"`` (the fraction of macro cells with the largest |eta_K|)
+            or ``"doerfler"`` (the fewest cells holding ``fraction`` of sum |eta_K|).
+        fraction: In (0, 1].
+
+    Returns:
+        Local indices of the marked (owned) macro cells.
+    """
+    if strategy not in STRATEGIES:
+        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
+    if not 0.0 < fraction <= 1.0:
+        raise ValueError(f"fraction must lie in (0, 1], got {fraction!r}")
+    eta_K = patch_indicators(disc, indicators)
+    threshold = _global_threshold(disc.comm, eta_K, strategy, fraction)
+    return np.flatnonzero(np.abs(eta_K) >= threshold).astype(np.int32)
