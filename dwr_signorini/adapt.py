@@ -30,6 +30,7 @@ from .newton import Solution, solve
 from .problem import SignoriniProblem
 from .reconstruction import Reconstructor
 from .spaces import Discretization, discretize, refine_marked
+from .timing import timed
 
 __all__ = ["AdaptiveResult", "LevelRecord", "solve_adaptive", "transfer_solution"]
 
@@ -99,7 +100,9 @@ def transfer_solution(
     recovery i_2H^(1) lambda_H of the old solution.
     """
     u0 = fem.Function(disc.V, name="u")
-    cells = np.arange(disc.mesh.topology.index_map(disc.mesh.topology.dim).size_local, dtype=np.int32)
+    cells = np.arange(
+        disc.mesh.topology.index_map(disc.mesh.topology.dim).size_local, dtype=np.int32
+    )
     data = fem.create_interpolation_data(disc.V, old.u.function_space, cells, padding=1e-10)
     u0.interpolate_nonmatching(old.u, cells, data)
     u0.x.scatter_forward()
@@ -128,8 +131,18 @@ def transfer_solution(
 
 
 def _validate(
-    problem: Any, goal: Any, refinement: str, fraction: Any, strategy: str, max_levels: Any,
-    max_cells: Any, tol: Any, estimator: str, weights: str, exact: Any, callback: Any,
+    problem: Any,
+    goal: Any,
+    refinement: str,
+    fraction: Any,
+    strategy: str,
+    max_levels: Any,
+    max_cells: Any,
+    tol: Any,
+    estimator: str,
+    weights: str,
+    exact: Any,
+    callback: Any,
 ) -> None:
     if not isinstance(problem, SignoriniProblem):
         raise TypeError(f"problem must be a SignoriniProblem, got {type(problem).__name__}")
@@ -219,12 +232,28 @@ def solve_adaptive(
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level.
     """
-    _validate(problem, goal, refinement, fraction, strategy, max_levels, max_cells, tol,
-              estimator, weights, exact, callback)
+    _validate(
+        problem,
+        goal,
+        refinement,
+        fraction,
+        strategy,
+        max_levels,
+        max_cells,
+        tol,
+        estimator,
+        weights,
+        exact,
+        callback,
+    )
     comm = problem.mesh.comm
     meta = {
-        "refinement": refinement, "fraction": fraction, "strategy": strategy,
-        "estimator": estimator, "weights": weights, "exact": exact,
+        "refinement": refinement,
+        "fraction": fraction,
+        "strategy": strategy,
+        "estimator": estimator,
+        "weights": weights,
+        "exact": exact,
         "num_processes": comm.size,
     }
     out = None
@@ -237,8 +266,10 @@ def solve_adaptive(
     current = problem
     for level in range(max_levels):
         t_start = time.perf_counter()
-        disc = discretize(current)
-        guess = None if previous is None else transfer_solution(previous, disc)
+        with timed("discretize"):
+            disc = discretize(current)
+        with timed("transfer"):
+            guess = None if previous is None else transfer_solution(previous, disc)
         t_setup = time.perf_counter() - t_start
 
         tic = time.perf_counter()
@@ -247,22 +278,24 @@ def solve_adaptive(
         est = estimate(sol, goal, estimator=estimator, weights=weights, petsc_options=petsc_options)
 
         value = est.value
-        stop = (
-            (tol is not None and abs(value) <= tol)
-            or level == max_levels - 1
-        )
+        stop = (tol is not None and abs(value) <= tol) or level == max_levels - 1
         marked = np.zeros(0, dtype=np.int32)
         t_refine = 0.0
         next_problem = None
         if not stop:
             tic = time.perf_counter()
             if refinement == "adaptive":
-                marked = mark(disc, est.indicators.x.array, strategy, fraction)
-            next_problem, _ = refine_marked(current, marked if refinement == "adaptive" else None)
+                with timed("mark"):
+                    marked = mark(disc, est.indicators.x.array, strategy, fraction)
+            with timed("refine"):
+                next_problem, _ = refine_marked(
+                    current, marked if refinement == "adaptive" else None
+                )
             t_refine = time.perf_counter() - tic
-            next_cells = next_problem.mesh.topology.index_map(
-                next_problem.mesh.topology.dim
-            ).size_global * 2 ** next_problem.mesh.topology.dim
+            next_cells = (
+                next_problem.mesh.topology.index_map(next_problem.mesh.topology.dim).size_global
+                * 2**next_problem.mesh.topology.dim
+            )
             if max_cells is not None and next_cells > max_cells:
                 stop = True
 
@@ -297,9 +330,10 @@ def solve_adaptive(
                 record.ieff = err / est.eta if est.eta != 0 else math.inf
         result.levels.append(record)
         if out is not None:
-            out.append(record.as_dict(), meta)
-            fields = [sol.u, est.indicators, est.dual.y]
-            out.write_fields(level, fields, [sol.lam, est.dual.xi])
+            with timed("output"):
+                out.append(record.as_dict(), meta)
+                fields = [sol.u, est.indicators, est.dual.y]
+                out.write_fields(level, fields, [sol.lam, est.dual.xi])
         if verbose:
             _progress(comm, record)
         if callback is not None:

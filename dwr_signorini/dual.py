@@ -23,6 +23,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .goal import GoalForms
 from .newton import NewtonSystem
+from .timing import timed
 
 __all__ = ["DualSolution", "dual_rhs", "solve_dual"]
 
@@ -74,8 +75,10 @@ def solve_dual(system: NewtonSystem, goal: GoalForms) -> DualSolution:
         raise RuntimeError("the Newton system has not been solved: no matrix to transpose")
     rhs = system.A.createVecLeft()
     z = system.A.createVecRight()
-    dual_rhs(system, goal, rhs)
-    system.ksp.solveTranspose(rhs, z)
+    with timed("assemble"):
+        dual_rhs(system, goal, rhs)
+    with timed("dual solve"):
+        system.ksp.solveTranspose(rhs, z)
     reason = system.ksp.getConvergedReason()
     if reason < 0:
         raise RuntimeError(f"the dual solve failed (KSP reason {reason})")

@@ -27,6 +27,7 @@ from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
 from .newton import NewtonSystem, Solution
 from .reconstruction import Reconstructor
+from .timing import timed
 
 __all__ = [
     "ESTIMATORS",
@@ -122,10 +123,11 @@ class Estimate:
 
 
 def _assemble_indicators(disc: Any, form: ufl.Form, q: ufl.Argument) -> np.ndarray:
-    vec = fem_petsc.assemble_vector(disc.form(localize(form, q)))
-    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    out = vec.array.copy()
-    vec.destroy()
+    with timed("indicators"):
+        vec = fem_petsc.assemble_vector(disc.form(localize(form, q)))
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = vec.array.copy()
+        vec.destroy()
     return out
 
 
@@ -133,9 +135,10 @@ def _higher_order_solutions(
     sol: Solution, goal: GoalForms, rec: Reconstructor, primal: bool, petsc_options: Any
 ) -> tuple[DualSolution, tuple[fem.Function, fem.Function] | None]:
     """Dual (and primal) solved in P2 on T_h with Lambda_H and the final active set."""
-    system2 = NewtonSystem(sol.disc, petsc_options, V=rec.V2h)
-    system2.solve_active(sol.active)
-    z2 = solve_dual(system2, goal)
+    with timed("higher-order solve"):
+        system2 = NewtonSystem(sol.disc, petsc_options, V=rec.V2h)
+        system2.solve_active(sol.active)
+        z2 = solve_dual(system2, goal)
     w2 = None
     if primal:
         u2 = fem.Function(rec.V2h, name="u2")
@@ -185,17 +188,21 @@ def estimate(
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
     t_dual = time.perf_counter() - tic
-    rec = Reconstructor(disc)
     want_eta = estimator == "eta"
-
+    with timed("reconstruct"):
+        rec = Reconstructor(disc)
     if weights == "patch":
-        y_plus = rec.patch_quadratic(z.y)
-        xi_plus = rec.patch_linear_multiplier(z.xi)
+        with timed("reconstruct"):
+            y_plus = rec.patch_quadratic(z.y)
+            xi_plus = rec.patch_linear_multiplier(z.xi)
     else:
         z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
-        y_plus = z2.y
-        xi_plus = rec.patch_linear_multiplier(z2.xi)
-    w_y = y_plus - rec.as_fine_p2(z.y)
+        with timed("reconstruct"):
+            y_plus = z2.y
+            xi_plus = rec.patch_linear_multiplier(z2.xi)
+    with timed("reconstruct"):
+        y_h2 = rec.as_fine_p2(z.y)
+    w_y = y_plus - y_h2
     w_xi = xi_plus - z.xi
 
     gap, m = disc.problem.gap_expr(disc.m.x), disc.m
@@ -208,13 +215,15 @@ def estimate(
     ind_c = _assemble_indicators(disc, c_form, q)
     ind_star = None
     if want_eta:
-        if weights == "patch":
-            u_plus = rec.patch_quadratic(sol.u)
-            lam_plus = rec.patch_linear_multiplier(sol.lam)
-        else:
-            u_plus = w2[0]
-            lam_plus = rec.patch_linear_multiplier(w2[1])
-        w_u = u_plus - rec.as_fine_p2(sol.u)
+        with timed("reconstruct"):
+            if weights == "patch":
+                u_plus = rec.patch_quadratic(sol.u)
+                lam_plus = rec.patch_linear_multiplier(sol.lam)
+            else:
+                u_plus = w2[0]
+                lam_plus = rec.patch_linear_multiplier(w2[1])
+            u_h2 = rec.as_fine_p2(sol.u)
+        w_u = u_plus - u_h2
         w_lam = lam_plus - sol.lam
         ind_star = _assemble_indicators(disc, dual_residual(sol, goal_forms, z, w_u, w_lam), q)
 

@@ -128,7 +128,9 @@ class OutputDirectory:
             write_json(self.json_path, {"meta": meta or {}, "levels": self.rows})
         self.comm.Barrier()
 
-    def write_fields(self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]) -> None:
+    def write_fields(
+        self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]
+    ) -> None:
         """Write the fine-mesh fields and the contact-facet fields of one level (XDMF)."""
         for suffix, funcs in (("", fields), ("_contact", contact_fields)):
             if not funcs:

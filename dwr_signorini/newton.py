@@ -35,6 +35,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
 from .spaces import Discretization
+from .timing import timed
 
 __all__ = ["ConvergenceError", "NewtonSystem", "Solution", "default_petsc_options", "solve"]
 
@@ -122,6 +123,18 @@ class NewtonSystem:
         }
         bcs = disc.bcs if V is disc.V else disc.dirichlet_bcs(V)
         self.bcs = bcs
+        with timed("assemble"):
+            self._assemble(bcs)
+        self.A: PETSc.Mat | None = None
+        self.ksp = PETSc.KSP().create(disc.comm)
+        self.prefix = f"dwr_signorini_primal_{next(_counter)}_"
+        options = default_petsc_options()
+        options.update(petsc_options or {})
+        set_options(self.ksp, self.prefix, options)
+
+    def _assemble(self, bcs: list[fem.DirichletBC]) -> None:
+        """K, N, N^T, f, M, g and the block pattern of the Newton matrix (once per mesh)."""
+        problem, disc, V, Q = self.disc.problem, self.disc, self.V, self.disc.Q
         self.K = fem_petsc.assemble_matrix(self._forms["a"], bcs=bcs)
         self.K.assemble()
         self.N = fem_petsc.assemble_matrix(self._forms["N"], bcs=bcs)
@@ -154,12 +167,6 @@ class NewtonSystem:
         lo, _ = self.A0.getOwnershipRange()
         self._lam_rows = np.arange(lo + self.n_u, lo + self.n_u + self.n_lam, dtype=PETSc.IntType)
 
-        self.A: PETSc.Mat | None = None
-        self.ksp = PETSc.KSP().create(disc.comm)
-        self.prefix = f"dwr_signorini_primal_{next(_counter)}_"
-        options = default_petsc_options()
-        options.update(petsc_options or {})
-        set_options(self.ksp, self.prefix, options)
         self.x, self.b = self.A0.createVecs()
         self.active = np.zeros(self.n_lam, dtype=bool)
 
@@ -223,15 +230,19 @@ class NewtonSystem:
 
     def solve_active(self, active: np.ndarray) -> None:
         """One Newton step: solve the linear system of active set ``active`` into ``self.x``."""
-        if self.A is not None:
-            self.A.destroy()
-        self.A = self.newton_matrix(active)
-        self.active = active.copy()
-        self.ksp.setOperators(self.A)
-        b = self.b.array_w
-        b[: self.n_u] = self.f.array
-        b[self.n_u :] = np.where(active, -self.g.array, 0.0)
-        self.ksp.solve(self.b, self.x)
+        with timed("assemble"):
+            if self.A is not None:
+                self.A.destroy()
+            self.A = self.newton_matrix(active)
+            self.active = active.copy()
+            b = self.b.array_w
+            b[: self.n_u] = self.f.array
+            b[self.n_u :] = np.where(active, -self.g.array, 0.0)
+        with timed("factorize"):
+            self.ksp.setOperators(self.A)
+            self.ksp.setUp()
+        with timed("newton solve"):
+            self.ksp.solve(self.b, self.x)
         reason = self.ksp.getConvergedReason()
         if reason < 0:
             raise ConvergenceError(
