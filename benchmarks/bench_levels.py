@@ -1,0 +1,196 @@
+"""Price every phase of a level against one factorisation + solve of the stiffness matrix K.
+
+For example 5.1 (2D) and 5.3 (3D), over uniform and adaptive levels, this prints and writes a
+table of DoFs, Newton iterations and seconds per phase (assembly, factorisations, Newton solves,
+dual solve, reconstructions, indicators, marking, refinement, output), next to the time of one
+MUMPS factorisation + solve of K alone on the same mesh (``ref``), the ratio total/ref, and the
+peak memory. Run it with 1 and with 2 ranks; ``--summary`` then prints the speed-ups::
+
+    scripts/fenicsx python3 benchmarks/bench_levels.py
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/bench_levels.py
+    scripts/fenicsx python3 benchmarks/bench_levels.py --summary
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import resource
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dwr_signorini as ds
+from dwr_signorini import examples as ex
+from dwr_signorini.newton import default_petsc_options, set_options
+from dwr_signorini.timing import PHASES, snapshot
+from dolfinx import mesh
+
+COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "higher-order solve",
+           "reconstruct", "indicators", "mark", "refine", "discretize", "transfer", "output")
+
+
+def reference_time(sol: ds.Solution) -> float:
+    """Seconds of one MUMPS factorisation + solve of K alone (fresh KSP, same matrix)."""
+    K, f = sol.system.K, sol.system.f
+    ksp = PETSc.KSP().create(K.getComm())
+    set_options(ksp, "dwr_signorini_bench_", default_petsc_options())
+    x = f.duplicate()
+    sol.disc.comm.Barrier()
+    tic = time.perf_counter()
+    ksp.setOperators(K)
+    ksp.setUp()
+    ksp.solve(f, x)
+    elapsed = time.perf_counter() - tic
+    ksp.destroy()
+    x.destroy()
+    return sol.disc.comm.allreduce(elapsed, op=MPI.MAX)
+
+
+def problem_2d(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
+    msh, tags = ex.analytic_2d_mesh(comm, 3 * n, 2 * n, cell_type=mesh.CellType.triangle)
+    problem = ds.SignoriniProblem(
+        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=10.0, nu=0.3,
+        body_force=ex.analytic_body_force, gap=ex.analytic_gap,
+    )
+    return problem, ex.goal_a(-0.5)
+
+
+def problem_3d(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
+    msh, tags = ex.obstacle_3d_mesh(comm, n=(2 * n, 8 * n, 8 * n))
+    problem = ds.SignoriniProblem(
+        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=1e5, nu=0.3, model="3d",
+        gap=ex.obstacle_gap,
+    )
+    return problem, ex.goal_obstacle()
+
+
+def run(example: str, refinement: str, levels: int, start: int, comm: MPI.Comm) -> list[dict]:
+    make = problem_2d if example == "2d" else problem_3d
+    problem, goal = make(comm, start)
+    rows: list[dict] = []
+    last = [snapshot(), time.perf_counter()]
+
+    def callback(record: ds.LevelRecord, sol: ds.Solution, est: ds.Estimate) -> None:
+        now = snapshot()
+        wall = time.perf_counter() - last[1]
+        phases = {k: comm.allreduce(now[k] - last[0][k], op=MPI.MAX) for k in PHASES}
+        ref = reference_time(sol)
+        peak = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX)
+        total = comm.allreduce(wall, op=MPI.MAX)
+        row = {
+            "example": example, "refinement": refinement, "ranks": comm.size,
+            "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
+            "newton": record.newton_iterations, **{k: phases[k] for k in COLUMNS},
+            "total": total, "ref": ref, "ratio": total / ref, "peak_MiB": peak / 1024.0,
+        }
+        rows.append(row)
+        if comm.rank == 0:
+            print(" ".join(f"{_fmt(row[k])}" for k in HEADER), flush=True)
+        last[0], last[1] = snapshot(), time.perf_counter()
+
+    ds.solve_adaptive(
+        problem, goal, refinement=refinement, max_levels=levels, fraction=0.2,
+        callback=callback, verbose=False,
+    )
+    return rows
+
+
+HEADER = ("example", "refinement", "level", "cells", "dofs", "newton", "assemble", "factorize",
+          "newton solve", "dual solve", "reconstruct", "indicators", "mark", "refine",
+          "total", "ref", "ratio", "peak_MiB")
+
+
+def _fmt(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:12.4f}" if value < 1e4 else f"{value:12.1f}"
+    return f"{value!s:>12}"
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = sorted({(r["example"], r["refinement"]) for r in rows})
+    fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 4), squeeze=False)
+    for ax, key in zip(axes[0], groups, strict=True):
+        sel = [r for r in rows if (r["example"], r["refinement"]) == key]
+        dofs = [r["dofs"] for r in sel]
+        for col in ("assemble", "factorize", "newton solve", "dual solve", "reconstruct",
+                    "indicators", "refine", "total", "ref"):
+            values = [max(r[col], 1e-6) for r in sel]
+            style = "k--" if col == "ref" else ("k-" if col == "total" else "-o")
+            ax.loglog(dofs, values, style, label=col, markersize=3)
+        ax.set_title(f"{key[0]} {key[1]} ({sel[0]['ranks']} rank(s))")
+        ax.set_xlabel("DoFs")
+        ax.set_ylabel("seconds per level")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def summary(out: Path) -> None:
+    """Speed-up of 2 ranks over 1 at each level, from the two CSV files."""
+    tables = {}
+    for np_ in (1, 2):
+        path = out / f"bench_levels_np{np_}.csv"
+        with open(path) as fh:
+            tables[np_] = {(r["example"], r["refinement"], r["level"]): r for r in csv.DictReader(fh)}
+    print(f"{'example':>8} {'refinement':>10} {'level':>5} {'dofs':>9} {'t1':>9} {'t2':>9} "
+          f"{'speed-up':>9} {'ratio1':>7} {'ratio2':>7}")
+    for key, r1 in tables[1].items():
+        r2 = tables[2].get(key)
+        if r2 is None:
+            continue
+        t1, t2 = float(r1["total"]), float(r2["total"])
+        print(f"{key[0]:>8} {key[1]:>10} {key[2]:>5} {r1['dofs']:>9} {t1:9.3f} {t2:9.3f} "
+              f"{t1 / t2:9.2f} {float(r1['ratio']):7.2f} {float(r2['ratio']):7.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--examples", default="2d,3d")
+    parser.add_argument("--refinements", default="uniform,adaptive")
+    parser.add_argument("--levels-2d", type=int, default=5)
+    parser.add_argument("--levels-3d", type=int, default=3)
+    parser.add_argument("--adaptive-levels-2d", type=int, default=9)
+    parser.add_argument("--adaptive-levels-3d", type=int, default=6)
+    parser.add_argument("--start-2d", type=int, default=4, help="macro mesh 3n x 2n")
+    parser.add_argument("--start-3d", type=int, default=1, help="macro mesh 2n x 8n x 8n")
+    parser.add_argument("--output", type=Path, default=Path("benchmarks/results"))
+    parser.add_argument("--summary", action="store_true")
+    args = parser.parse_args()
+    if args.summary:
+        summary(args.output)
+        return
+    comm = MPI.COMM_WORLD
+    if comm.rank == 0:
+        args.output.mkdir(parents=True, exist_ok=True)
+        print(" ".join(f"{h:>12}" for h in HEADER), flush=True)
+    rows: list[dict] = []
+    for example in args.examples.split(","):
+        for refinement in args.refinements.split(","):
+            if example == "2d":
+                levels = args.levels_2d if refinement == "uniform" else args.adaptive_levels_2d
+                start = args.start_2d
+            else:
+                levels = args.levels_3d if refinement == "uniform" else args.adaptive_levels_3d
+                start = args.start_3d
+            rows += run(example, refinement, levels, start, comm)
+    if comm.rank == 0:
+        path = args.output / f"bench_levels_np{comm.size}.csv"
+        with open(path, "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        plot(rows, args.output / f"bench_levels_np{comm.size}.png")
+        print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
