@@ -263,13 +263,14 @@ def solve_adaptive(
 
     result = AdaptiveResult(levels=[], meta=meta)
     previous: Solution | None = None
+    previous_rec = None
     current = problem
     for level in range(max_levels):
         t_start = time.perf_counter()
         with timed("discretize"):
             disc = discretize(current)
         with timed("transfer"):
-            guess = None if previous is None else transfer_solution(previous, disc)
+            guess = None if previous is None else transfer_solution(previous, disc, previous_rec)
         t_setup = time.perf_counter() - t_start
 
         tic = time.perf_counter()
@@ -341,5 +342,5 @@ def solve_adaptive(
         result.solution, result.estimate, result.problem = sol, est, current
         if stop:
             break
-        previous, current = sol, next_problem
+        previous, previous_rec, current = sol, est.reconstructor, next_problem
     return result

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
@@ -88,7 +89,8 @@ def solve_dual(system: NewtonSystem, goal: GoalForms) -> DualSolution:
     y.x.scatter_forward()
     xi.x.array[: system.n_lam] = z.array_r[system.n_u :]
     xi.x.scatter_forward()
-    if not (np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi.x.array))):
+    finite = bool(np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi.x.array)))
+    if not system.disc.comm.allreduce(finite, op=MPI.LAND):
         raise RuntimeError("NaN or Inf in the dual solution")
     rhs.destroy()
     z.destroy()

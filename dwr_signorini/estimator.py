@@ -115,6 +115,7 @@ class Estimate:
     dual: DualSolution = field(repr=False)
     goal_is_linear: bool = False
     timings: dict[str, float] = field(default_factory=dict)
+    reconstructor: Reconstructor | None = field(default=None, repr=False)
 
     @property
     def value(self) -> float:
@@ -263,4 +264,5 @@ def estimate(
         dual=z,
         goal_is_linear=goal_forms.is_linear,
         timings={"dual": t_dual, "estimate": t_estimate},
+        reconstructor=rec,
     )
