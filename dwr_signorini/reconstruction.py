@@ -17,9 +17,12 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
+import basix
 import numpy as np
+import scipy.sparse
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 
 from .spaces import Discretization
@@ -35,14 +38,95 @@ def _all_cells(V: fem.FunctionSpace) -> np.ndarray:
 class _Transfer:
     """Interpolation between two spaces on different meshes, data built once."""
 
-    def __init__(self, V_to: fem.FunctionSpace, V_from: fem.FunctionSpace) -> None:
-        self.cells = _all_cells(V_to)
+    def __init__(
+        self, V_to: fem.FunctionSpace, V_from: fem.FunctionSpace, cells: np.ndarray | None = None
+    ) -> None:
+        self.cells = _all_cells(V_to) if cells is None else cells
         self.data = fem.create_interpolation_data(V_to, V_from, self.cells, padding=1e-10)
 
     def __call__(self, target: fem.Function, source: fem.Function) -> fem.Function:
         target.interpolate_nonmatching(source, self.cells, self.data)
         target.x.scatter_forward()
         return target
+
+
+_SIMPLEX = {
+    dmesh.CellType.triangle: basix.CellType.triangle,
+    dmesh.CellType.tetrahedron: basix.CellType.tetrahedron,
+}
+
+
+def patch_p2_matrix(disc: Discretization, V2h: fem.FunctionSpace) -> scipy.sparse.csr_matrix:
+    """The map fine P1 nodal values -> fine P2 nodal values of i_2h^(2), on simplices.
+
+    Built from the refinement's parent map alone (no point location): in the reference
+    coordinates of its parent, every vertex of a child sits on the lattice of the parent's P2
+    nodes, and every P2 node of a child is a point where the parent's P2 basis is tabulated.
+
+    Returns:
+        A sparse matrix from the local (scalar) nodes of V_h to the local nodes of ``V2h``.
+    """
+    fine, macro = disc.mesh, disc.macro_mesh
+    tdim = fine.topology.dim
+    element = basix.create_element(
+        basix.ElementFamily.P,
+        _SIMPLEX[fine.topology.cell_type],
+        2,
+        basix.LagrangeVariant.equispaced,
+    )
+    lattice = np.rint(2 * element.points).astype(np.int64) @ (3 ** np.arange(tdim))
+    node_of_key = np.full(3**tdim, -1, dtype=np.int64)
+    node_of_key[lattice] = np.arange(len(lattice))
+
+    num_cells = len(disc.parent_cell)
+    parents = disc.parent_cell
+    gx = macro.geometry.x[:, :tdim]
+    pv = gx[macro.geometry.dofmap[parents]]  # (n, tdim+1, tdim): parent vertices
+    J = np.transpose(pv[:, 1:, :] - pv[:, :1, :], (0, 2, 1))  # columns: edges from vertex 0
+    Jinv = np.linalg.inv(J)
+
+    def reference(points: np.ndarray) -> np.ndarray:
+        """Parent reference coordinates of (n, k, tdim) points of each child."""
+        return np.einsum("nij,nkj->nki", Jinv, points - pv[:, :1, :])
+
+    # Which fine P1 node is the parent's P2 node k.
+    dofs1 = disc.V.dofmap.list[:num_cells]
+    x1 = disc.V.tabulate_dof_coordinates()[:, :tdim]
+    keys = np.rint(2 * reference(x1[dofs1])).astype(np.int64) @ (3 ** np.arange(tdim))
+    node = node_of_key[keys]
+    if np.any(node < 0):
+        raise RuntimeError(
+            "a child vertex is not a P2 node of its parent: not a uniform refinement"
+        )
+    num_nodes = len(lattice)
+    parent_node_dof = np.full((macro.topology.index_map(tdim).size_local, num_nodes), -1, np.int64)
+    parent_node_dof[np.repeat(parents, dofs1.shape[1]), node.ravel()] = dofs1.ravel()
+    if np.any(parent_node_dof[np.unique(parents)] < 0):
+        raise RuntimeError("a P2 node of a macro cell is not a vertex of its children")
+
+    # Tabulate the parent's P2 basis at the children's P2 nodes; each fine P2 node once.
+    dofs2 = V2h.dofmap.list[:num_cells]
+    x2 = V2h.tabulate_dof_coordinates()[:, :tdim]
+    rows, first = np.unique(dofs2.ravel(), return_index=True)
+    cell_of = first // dofs2.shape[1]
+    xi = np.einsum("nij,nj->ni", Jinv[cell_of], x2[rows] - pv[cell_of, 0, :])
+    phi = element.tabulate(0, xi)[0, :, :, 0]  # (rows, num_nodes)
+    cols = parent_node_dof[parents[cell_of]]
+    shape = (len(x2), len(x1))
+    return scipy.sparse.csr_matrix(
+        (phi.ravel(), (np.repeat(rows, num_nodes), cols.ravel())), shape=shape
+    )
+
+
+def _cells_at_contact(disc: Discretization) -> np.ndarray:
+    """Local fine cells with a facet on Gamma_C."""
+    fine = disc.mesh
+    tdim = fine.topology.dim
+    fine.topology.create_connectivity(tdim - 1, tdim)
+    facets = disc.facet_tags.find(disc.problem.contact)
+    return np.unique(dmesh.compute_incident_entities(fine.topology, facets, tdim - 1, tdim)).astype(
+        np.int32
+    )
 
 
 class Reconstructor:
@@ -56,9 +140,14 @@ class Reconstructor:
         self.V2h = fem.functionspace(disc.mesh, ("Lagrange", 2, (gdim,)))
         self.P1H = fem.functionspace(macro, ("Lagrange", 1))
         self.P1h = fem.functionspace(disc.mesh, ("Lagrange", 1))
-        self._fine_to_macro = _Transfer(self.V2H, disc.V)
-        self._macro_to_fine = _Transfer(self.V2h, self.V2H)
-        self._scalar_to_fine = _Transfer(self.P1h, self.P1H)
+        if disc.mesh.topology.cell_type in _SIMPLEX:
+            self._p2_matrix = patch_p2_matrix(disc, self.V2h)
+        else:
+            # Quadrilaterals/hexahedra (uniform runs only): through the macro Q2 space.
+            self._p2_matrix = None
+            self._fine_to_macro = _Transfer(self.V2H, disc.V)
+            self._macro_to_fine = _Transfer(self.V2h, self.V2H)
+        self._scalar_to_fine = _Transfer(self.P1h, self.P1H, _cells_at_contact(disc))
 
         # Lumped mass of Gamma_C on the macro mesh: int_GC phi_p.
         phi = ufl.TestFunction(self.P1H)
@@ -83,6 +172,13 @@ class Reconstructor:
 
     def patch_quadratic(self, v: fem.Function) -> fem.Function:
         """i_2h^(2) v: fine P1 values read as macro P2 values, as a fine P2 function."""
+        if self._p2_matrix is not None:
+            out = fem.Function(self.V2h, name=f"i2h({v.name})")
+            bs = self.V2h.dofmap.index_map_bs
+            values = self._p2_matrix @ v.x.array.reshape(-1, bs)
+            out.x.array[:] = values.ravel()
+            out.x.scatter_forward()
+            return out
         macro = fem.Function(self.V2H)
         self._fine_to_macro(macro, v)
         return self._macro_to_fine(fem.Function(self.V2h, name=f"i2h({v.name})"), macro)
