@@ -43,6 +43,8 @@ logger = logging.getLogger(__name__)
 
 _counter = itertools.count()
 
+DATA_QUADRATURE_DEGREE = 8
+
 
 class ConvergenceError(RuntimeError):
     """The semi-smooth Newton method did not converge.
@@ -109,9 +111,15 @@ class NewtonSystem:
         # Forms, built once.
         a = ufl.inner(problem.sigma(u), problem.epsilon(v)) * m.dx
         f = problem.vector(problem.body_force, m.x)
-        L = ufl.inner(f if f is not None else ufl.as_vector([0.0] * len(v)), v) * m.dx
+        # Loads and gap may be non-polynomial expressions, for which UFL's degree estimate is
+        # huge: integrate them with a fixed degree (exact for polynomial data of degree
+        # DATA_QUADRATURE_DEGREE - 2 against P2 test functions).
+        data = {"quadrature_degree": DATA_QUADRATURE_DEGREE}
+        L = ufl.inner(f if f is not None else ufl.as_vector([0.0] * len(v)), v) * m.dx(
+            metadata=data
+        )
         for tag, t in problem.traction.items():
-            L += ufl.inner(problem.vector(t, m.x), v) * m.ds(tag)
+            L += ufl.inner(problem.vector(t, m.x), v) * m.ds(tag, metadata=data)
         coupling = ufl.inner(mu, ufl.dot(u, m.n)) * m.ds_contact
         self._forms = {
             "a": disc.form(a),
@@ -119,7 +127,7 @@ class NewtonSystem:
             "N": disc.form(coupling),
             "NT": disc.form(ufl.adjoint(coupling)),
             "M": disc.form(mu * m.ds_contact),
-            "g": disc.form(problem.gap_expr(m.x) * mu * m.ds_contact),
+            "g": disc.form(problem.gap_expr(m.x) * mu * m.ds_contact(metadata=data)),
         }
         bcs = disc.bcs if V is disc.V else disc.dirichlet_bcs(V)
         self.bcs = bcs
