@@ -37,7 +37,14 @@ from dolfinx.fem import petsc as fem_petsc
 from .spaces import Discretization
 from .timing import timed
 
-__all__ = ["ConvergenceError", "NewtonSystem", "Solution", "default_petsc_options", "solve"]
+__all__ = [
+    "ConvergenceError",
+    "NewtonSystem",
+    "Solution",
+    "default_petsc_options",
+    "iterative_petsc_options",
+    "solve",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -54,12 +61,14 @@ class ConvergenceError(RuntimeError):
     """
 
     def __init__(self, message: str, history: list[dict[str, Any]]) -> None:
-        lines = [message, "iteration history:"]
+        lines = [message, "iteration history:" if history else "(before the first Newton step)"]
         for h in history:
             lines.append(
                 "  it {iteration:3d}: |A| = {num_active:6d}, changed = {num_changed:6d}, "
                 "equilibrium residual = {residual_equilibrium:.3e}, "
                 "NCP residual = {residual_ncp:.3e}".format(**h)
+                + (" [least-index safeguard]" if h.get("safeguard") else "")
+                + (" [NaN/Inf]" if h.get("nonfinite") else "")
             )
         super().__init__("\n".join(lines))
         self.history = history
@@ -72,6 +81,60 @@ def default_petsc_options() -> dict[str, Any]:
         opts["pc_factor_mat_solver_type"] = "mumps"
         opts["mat_mumps_icntl_14"] = 200
     return opts
+
+
+def iterative_petsc_options() -> dict[str, Any]:
+    """Krylov solver for large (3D) meshes: FGMRES, Schur-complement field split, GAMG on K.
+
+    The displacement block uses algebraic multigrid with the rigid body modes as near-nullspace;
+    the multiplier block the "selfp" Schur approximation with Jacobi. Pass it (or a variant) as
+    ``petsc_options``.
+    """
+    return {
+        "ksp_type": "fgmres",
+        "ksp_rtol": 1e-10,
+        "ksp_atol": 1e-14,
+        "ksp_max_it": 500,
+        "ksp_gmres_restart": 100,
+        "pc_type": "fieldsplit",
+        "pc_fieldsplit_type": "schur",
+        "pc_fieldsplit_schur_fact_type": "full",
+        "pc_fieldsplit_schur_precondition": "selfp",
+        "fieldsplit_u_ksp_type": "cg",
+        "fieldsplit_u_ksp_rtol": 1e-8,
+        "fieldsplit_u_pc_type": "gamg",
+        "fieldsplit_u_pc_gamg_type": "agg",
+        "fieldsplit_u_pc_gamg_threshold": 0.01,
+        "fieldsplit_u_mg_levels_ksp_type": "chebyshev",
+        "fieldsplit_u_mg_levels_pc_type": "jacobi",
+        "fieldsplit_lam_ksp_type": "gmres",
+        "fieldsplit_lam_ksp_rtol": 1e-8,
+        "fieldsplit_lam_pc_type": "jacobi",
+    }
+
+
+def rigid_body_modes(V: fem.FunctionSpace, n_local: int) -> PETSc.NullSpace:
+    """Rigid body modes of V (translations, rotations) as an orthonormal PETSc null space."""
+    x = V.tabulate_dof_coordinates()[: V.dofmap.index_map.size_local]
+    gdim = V.mesh.geometry.dim
+    modes = [np.zeros((len(x), gdim)) for _ in range(3 if gdim == 2 else 6)]
+    for i in range(gdim):
+        modes[i][:, i] = 1.0
+    if gdim == 2:
+        modes[2][:, 0], modes[2][:, 1] = -x[:, 1], x[:, 0]
+    else:
+        for k, (i, j) in enumerate([(0, 1), (1, 2), (2, 0)]):
+            modes[3 + k][:, i], modes[3 + k][:, j] = -x[:, j], x[:, i]
+    vecs = []
+    for mode in modes:
+        vec = PETSc.Vec().createMPI((n_local, None), comm=V.mesh.comm)
+        vec.array[:] = mode.ravel()
+        vecs.append(vec)
+    for i, vec in enumerate(vecs):  # modified Gram-Schmidt
+        for prev in vecs[:i]:
+            vec.axpy(-vec.dot(prev), prev)
+        vec.scale(1.0 / vec.norm())
+    return PETSc.NullSpace().create(vectors=vecs, comm=V.mesh.comm)
 
 
 def set_options(obj: PETSc.KSP, prefix: str, options: dict[str, Any]) -> None:
@@ -115,9 +178,9 @@ class NewtonSystem:
         # huge: integrate them with a fixed degree (exact for polynomial data of degree
         # DATA_QUADRATURE_DEGREE - 2 against P2 test functions).
         data = {"quadrature_degree": DATA_QUADRATURE_DEGREE}
-        L = ufl.inner(f if f is not None else ufl.as_vector([0.0] * len(v)), v) * m.dx(
-            metadata=data
-        )
+        if f is None:  # a zero Constant keeps the form non-empty
+            f = fem.Constant(disc.mesh, np.zeros(disc.mesh.geometry.dim))
+        L = ufl.inner(f, v) * m.dx(metadata=data)
         for tag, t in problem.traction.items():
             L += ufl.inner(problem.vector(t, m.x), v) * m.ds(tag, metadata=data)
         coupling = ufl.inner(mu, ufl.dot(u, m.n)) * m.ds_contact
@@ -139,6 +202,19 @@ class NewtonSystem:
         options = default_petsc_options()
         options.update(petsc_options or {})
         set_options(self.ksp, self.prefix, options)
+        self.direct = self.ksp.getPC().getType() in ("lu", "cholesky")
+        if self.ksp.getPC().getType() == "fieldsplit":
+            self._setup_fieldsplit()
+
+    def _setup_fieldsplit(self) -> None:
+        """Fields "u" and "lam" for PCFIELDSPLIT, rigid body modes as near-nullspace of "u"."""
+        lo = self.A0.getOwnershipRange()[0]
+        comm = self.disc.comm
+        self.is_u = PETSc.IS().createStride(self.n_u, first=lo, step=1, comm=comm)
+        self.is_lam = PETSc.IS().createStride(self.n_lam, first=lo + self.n_u, step=1, comm=comm)
+        self._near_nullspace = rigid_body_modes(self.V, self.n_u)
+        self.is_u.compose("nearnullspace", self._near_nullspace)
+        self.ksp.getPC().setFieldSplitIS(("u", self.is_u), ("lam", self.is_lam))
 
     def _assemble(self, bcs: list[fem.DirichletBC]) -> None:
         """K, N, N^T, f, M, g and the block pattern of the Newton matrix (once per mesh)."""
@@ -184,7 +260,24 @@ class NewtonSystem:
         return vec
 
     def __del__(self) -> None:
-        for name in ("K", "N", "NT", "f", "M", "g", "A0", "A", "ksp", "x", "b"):
+        for name in (
+            "K",
+            "N",
+            "NT",
+            "f",
+            "M",
+            "g",
+            "A0",
+            "A",
+            "ksp",
+            "x",
+            "b",
+            "is_u",
+            "is_lam",
+            "_near_nullspace",
+            "_AT",
+            "_ksp_t",
+        ):
             obj = getattr(self, name, None)
             if obj is not None:
                 obj.destroy()
@@ -295,10 +388,14 @@ def _norm(comm: MPI.Comm, local: np.ndarray) -> float:
     return float(np.sqrt(comm.allreduce(float(local @ local), op=MPI.SUM)))
 
 
-def _global_key(comm: MPI.Comm, active: np.ndarray) -> tuple[int, ...]:
-    """A hashable fingerprint of the global active set."""
-    local = hash(np.packbits(active).tobytes()) & 0x7FFFFFFF
-    return tuple(comm.allgather((local, int(active.sum()))))
+def _global_key(comm: MPI.Comm, active: np.ndarray) -> tuple[bytes, ...]:
+    """The global active set, exactly (packed bits of every rank's owned rows), as a dict key."""
+    return tuple(comm.allgather(np.packbits(active).tobytes() + active.size.to_bytes(8, "little")))
+
+
+#: Round-off level of the active-set test: an index changes sides only if its test value
+#: (M lam + c_n (N u - g))_i exceeds this times the size of the terms it is computed from.
+_ROUNDOFF = 1e-10
 
 
 def solve(
@@ -307,8 +404,27 @@ def solve(
     initial_guess: tuple[fem.Function, fem.Function] | None = None,
     max_iterations: int = 50,
     rtol: float = 1e-8,
+    c_n_scale: float = 1.0,
 ) -> Solution:
     """Solve Signorini's problem with the semi-smooth Newton method (paper eq. 19-22).
+
+    The active set of step k is A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21), evaluated at
+    the previous iterate, with two safeguards:
+
+    * *Round-off hysteresis.* An index changes sides only if its test value exceeds round-off
+      (``1e-10`` relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|)). Without it a bi-active
+      index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g. grazing contact) would flip
+      on round-off noise and the iteration could cycle.
+    * *Cycling.* If an active set repeats, the update switches to Murty's least-index rule: of the
+      indices the rule (21) would change, only the one with the smallest global number changes
+      sides. On the multipliers the contact conditions are a linear complementarity problem with
+      the matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the
+      body, for which this rule terminates finitely (K. G. Murty, Math. Programming 6, 1974).
+
+    After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
+    lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``c_n_scale`` times E / H_i)
+    only weighs an initial guess against the gap, and the iterates from a zero initial guess do
+    not depend on it.
 
     Args:
         problem_or_disc: A :class:`~dwr_signorini.SignoriniProblem` or a ready
@@ -318,13 +434,16 @@ def solve(
         initial_guess: ``(u0, lam0)`` on this discretisation's V and Q (warm start).
         max_iterations: Most Newton steps before giving up.
         rtol: Relative tolerance on the equilibrium and NCP residuals at convergence.
+        c_n_scale: Factor on the default c_n,i = E / H_i of the NCP function (20), > 0.
 
     Returns:
         The :class:`Solution`.
 
     Raises:
-        ConvergenceError: No convergence, active-set cycling that the safeguard could not break,
-            a failed linear solve, or NaN/Inf in an iterate; with the iteration history.
+        TypeError, ValueError: Arguments of the wrong type or value, naming the argument.
+        ConvergenceError: No convergence in ``max_iterations`` steps, active-set cycling that
+            the safeguard could not break, a failed linear solve, NaN/Inf in the data (loads,
+            gap) or in an iterate; with the iteration history. Raised on every rank.
     """
     from .problem import SignoriniProblem
     from .spaces import discretize
@@ -338,93 +457,193 @@ def solve(
             "solve() takes a SignoriniProblem or a Discretization, got "
             f"{type(problem_or_disc).__name__}"
         )
-    if not isinstance(max_iterations, int) or max_iterations < 1:
+    if (
+        isinstance(max_iterations, bool)
+        or not isinstance(max_iterations, int)
+        or max_iterations < 1
+    ):
         raise ValueError(f"max_iterations must be a positive integer, got {max_iterations!r}")
+    for name, value in (("rtol", rtol), ("c_n_scale", c_n_scale)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < np.inf:
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    if petsc_options is not None and not isinstance(petsc_options, dict):
+        raise TypeError(
+            "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
+            f"{type(petsc_options).__name__}"
+        )
+    if initial_guess is not None:
+        if not isinstance(initial_guess, (tuple, list)) or len(initial_guess) != 2:
+            raise TypeError("initial_guess must be a pair (u0, lam0) of dolfinx Functions")
+        u0, lam0 = initial_guess
+        if (
+            getattr(u0, "function_space", None) != disc.V
+            or getattr(lam0, "function_space", None) != disc.Q
+        ):
+            raise ValueError(
+                "initial_guess must be functions on this discretisation's V and Q "
+                "(transfer them with dwr_signorini.adapt.transfer_solution)"
+            )
     comm = disc.comm
-    system = NewtonSystem(disc, petsc_options)
 
+    def all_finite(*arrays: np.ndarray) -> bool:
+        ok = all(bool(np.all(np.isfinite(a))) for a in arrays)
+        return bool(comm.allreduce(ok, op=MPI.LAND))
+
+    system = NewtonSystem(disc, petsc_options)
+    if c_n_scale != 1.0:
+        system.c_n = system.c_n * float(c_n_scale)
+    if not all_finite(system.f.array, system.g.array):
+        raise ConvergenceError(
+            "NaN or Inf in the assembled load vector f or gap vector g: body_force, traction "
+            "and gap must be finite everywhere on the mesh",
+            [],
+        )
+
+    n_u, n_lam = system.n_u, system.n_lam
+    M = system.M.array
     u = fem.Function(disc.V, name="u")
     lam = fem.Function(disc.Q, name="lambda")
     if initial_guess is not None:
-        u0, lam0 = initial_guess
-        if u0.function_space != disc.V or lam0.function_space != disc.Q:
-            raise ValueError("initial_guess must be functions on this discretisation's V and Q")
-        u.x.array[:] = u0.x.array
-        lam.x.array[:] = lam0.x.array
+        u.x.array[:] = initial_guess[0].x.array
+        lam.x.array[:] = initial_guess[1].x.array
+        if not all_finite(u.x.array, lam.x.array):
+            raise ValueError("initial_guess contains NaN or Inf")
+    q_start = disc.Q.dofmap.index_map.local_range[0]
 
-    norm_f = max(system.f.norm(), 1e-300)
+    def least_index(mask: np.ndarray) -> np.ndarray:
+        """Only the set entry with the smallest global index (on its owning rank)."""
+        local = np.flatnonzero(mask)
+        mine = q_start + int(local[0]) if local.size else np.iinfo(np.int64).max
+        first = comm.allreduce(mine, op=MPI.MIN)
+        out = np.zeros_like(mask)
+        if local.size and mine == first:
+            out[local[0]] = True
+        return out
+
+    lam_vec = system.N.createVecLeft()
+    nt_lam = system.f.duplicate()
+    norm_f = system.f.norm()
     history: list[dict[str, Any]] = []
-    seen: dict[tuple[int, ...], int] = {}
+    seen: dict[tuple[bytes, ...], int] = {}
     previous: np.ndarray | None = None
-    c_scale = 1.0
-    c_n_base = system.c_n.copy()
-    for it in range(max_iterations + 1):
-        u_vec = u.x.petsc_vec
-        lam_local = lam.x.array[: system.n_lam]
-        active = system.active_set(u_vec, lam_local)
-        changed = (
-            int(active.size) if previous is None else int(np.count_nonzero(active != previous))
-        )
-        changed = comm.allreduce(changed, op=MPI.SUM)
-        res_eq = system.equilibrium_residual(u_vec, lam_local) / norm_f
-        rel_ncp = _norm(comm, system.ncp_residual(u_vec, lam_local)) / max(
-            _norm(comm, system.M.array * lam_local), norm_f
-        )
-        num_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
-        history.append(
-            {
+    safeguard_since: int | None = None
+    try:
+        for it in range(max_iterations + 1):
+            u_vec = u.x.petsc_vec
+            lam_local = lam.x.array[:n_lam]
+            Mlam = M * lam_local
+            test = Mlam + system.c_n * system.gap_residual(u_vec)
+            wanted = test > 0.0
+            if previous is None:
+                violated = np.ones_like(wanted)
+                rule = wanted
+            else:
+                u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
+                tol = _ROUNDOFF * (np.abs(Mlam) + system.c_n * (M * u_max + np.abs(system.g.array)))
+                violated = (wanted != previous) & (np.abs(test) > tol)
+                rule = previous ^ violated
+
+            # Residuals, relative to the forces acting on the body.
+            lam_vec.array_w[:] = lam_local
+            system.NT.mult(lam_vec, nt_lam)
+            scale_eq = max(norm_f, nt_lam.norm(), 1e-300)
+            res_eq = system.equilibrium_residual(u_vec, lam_local) / scale_eq
+            rel_ncp = _norm(comm, Mlam - np.maximum(0.0, test)) / max(
+                _norm(comm, Mlam), norm_f, 1e-300
+            )
+            num_changed = comm.allreduce(int(violated.sum()), op=MPI.SUM)
+            record = {
                 "iteration": it,
-                "num_active": num_active,
-                "num_changed": changed,
+                "num_active": comm.allreduce(int(rule.sum()), op=MPI.SUM),
+                "num_changed": num_changed,
                 "residual_equilibrium": res_eq,
                 "residual_ncp": rel_ncp,
-                "c_scale": c_scale,
+                "c_n_scale": float(c_n_scale),
+                "safeguard": safeguard_since is not None,
             }
-        )
-        logger.info(
-            "Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
-            it,
-            num_active,
-            changed,
-            res_eq,
-            rel_ncp,
-        )
-        if previous is not None and changed == 0:
-            if res_eq <= rtol and rel_ncp <= rtol:
-                break
-            raise ConvergenceError(
-                "active set is stationary but the residuals are not small", history
+            history.append(record)
+            logger.info(
+                "Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
+                it,
+                record["num_active"],
+                num_changed,
+                res_eq,
+                rel_ncp,
             )
-        if it == max_iterations:
-            raise ConvergenceError(f"no convergence in {max_iterations} Newton steps", history)
-
-        key = _global_key(comm, active)
-        if key in seen and previous is not None:
-            # Cycling: change c_n (the weighting of primal against dual information).
-            if c_scale >= 1e4:
+            if previous is not None and num_changed == 0:
+                if res_eq <= rtol and rel_ncp <= rtol:
+                    break
                 raise ConvergenceError(
-                    f"active-set cycling (the set of step {it} repeats step {seen[key]}) "
-                    "not broken by rescaling c_n",
+                    f"the active set is stationary but the residuals are not below rtol={rtol:g}: "
+                    "the linear solves are inaccurate (check petsc_options; a direct solver is "
+                    "the default)",
                     history,
                 )
-            c_scale *= 10.0
-            system.c_n = c_n_base * c_scale
-            seen.clear()
-            logger.warning("active-set cycling detected; c_n scaled by %g", c_scale)
-            active = system.active_set(u_vec, lam_local)
-        seen[_global_key(comm, active)] = it
+            if it == max_iterations:
+                extra = (
+                    f" (least-index safeguard active since step {safeguard_since})"
+                    if safeguard_since is not None
+                    else ""
+                )
+                raise ConvergenceError(
+                    f"no convergence in max_iterations={max_iterations} Newton steps{extra}; "
+                    "raise max_iterations or warm-start from a nearby solution",
+                    history,
+                )
 
-        system.solve_active(active)
-        previous = active
-        u_new, lam_new = system.split(system.x)
-        finite = bool(np.all(np.isfinite(u_new)) and np.all(np.isfinite(lam_new)))
-        if not comm.allreduce(finite, op=MPI.LAND):
-            history[-1]["nonfinite"] = True
-            raise ConvergenceError("NaN or Inf in the Newton iterate", history)
-        u.x.array[: system.n_u] = u_new
-        u.x.scatter_forward()
-        lam.x.array[: system.n_lam] = lam_new
-        lam.x.scatter_forward()
+            new = rule
+            key = _global_key(comm, new)
+            if key in seen:
+                if safeguard_since is not None:
+                    raise ConvergenceError(
+                        f"active-set cycling: the set of step {it} repeats step {seen[key]} "
+                        "even under the least-index safeguard (is the body clamped, i.e. is "
+                        "N K^-1 N^T positive definite?)",
+                        history,
+                    )
+                logger.warning(
+                    "active-set cycling (step %d repeats step %d): least-index safeguard",
+                    it,
+                    seen[key],
+                )
+                safeguard_since = it
+                seen.clear()
+            if safeguard_since is not None:
+                new = previous ^ least_index(violated)
+                key = _global_key(comm, new)
+                record["num_active"] = comm.allreduce(int(new.sum()), op=MPI.SUM)
+                record["safeguard"] = True
+            seen[key] = it
+
+            try:
+                system.solve_active(new)
+            except ConvergenceError as err:
+                raise ConvergenceError(
+                    f"Newton step {it}: {err.args[0].splitlines()[0]}; check petsc_options",
+                    history,
+                ) from err
+            except PETSc.Error as err:
+                raise ConvergenceError(
+                    f"Newton step {it}: the linear solver failed ({err}); a singular Newton "
+                    "matrix means the body is not held in place (check dirichlet)",
+                    history,
+                ) from err
+            previous = new
+            u_new, lam_new = system.split(system.x)
+            if not all_finite(u_new, lam_new):
+                record["nonfinite"] = True
+                raise ConvergenceError(
+                    f"NaN or Inf in the Newton iterate of step {it} (singular or ill-posed "
+                    "linear system?)",
+                    history,
+                )
+            u.x.array[:n_u] = u_new
+            u.x.scatter_forward()
+            lam.x.array[:n_lam] = lam_new
+            lam.x.scatter_forward()
+    finally:
+        lam_vec.destroy()
+        nt_lam.destroy()
 
     return Solution(
         u=u,
