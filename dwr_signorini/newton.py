@@ -227,7 +227,8 @@ class NewtonSystem:
         self.NT.assemble()
         self.f = fem_petsc.assemble_vector(self._forms["L"])
         self.f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem.set_bc(self.f.array_w, bcs)
+        for bc in bcs:
+            bc.set(self.f.array_w)
         self.M = self._assemble_q_vector(self._forms["M"])
         self.g = self._assemble_q_vector(self._forms["g"])
 
