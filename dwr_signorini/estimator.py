@@ -25,7 +25,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
-from .newton import NewtonSystem, Solution
+from .newton import DATA_QUADRATURE_DEGREE, NewtonSystem, Solution
 from .reconstruction import Reconstructor
 from .timing import timed
 
@@ -162,7 +162,7 @@ def estimate(
     estimator: str = "eta",
     weights: str = "patch",
     petsc_options: dict[str, Any] | None = None,
-    quadrature_degree: int | None = 6,
+    quadrature_degree: int | None = DATA_QUADRATURE_DEGREE,
 ) -> Estimate:
     """Estimate J(w) - J(w_h) by eta_p or eta (Section 4).
 
@@ -174,9 +174,10 @@ def estimate(
         weights: ``"patch"`` (the paper's patch-wise reconstructions) or ``"higher_order"`` (dual,
             and for eta the primal, solved in P2 with Lambda_H and the final active set).
         petsc_options: Linear solver options for the higher-order solves.
-        quadrature_degree: Quadrature degree of the residual integrals (default 6: exact for
-            polynomial data up to degree 3 against the P2 weights); ``None`` lets UFL estimate
-            it, which is very expensive for non-polynomial data. On example 5.1 degrees 4, 6, 8
+        quadrature_degree: Quadrature degree of the residual integrals; the default is the
+            degree the solver integrates the load and gap with, so that the residual vanishes
+            on discrete test functions (Galerkin orthogonality). ``None`` lets UFL estimate it,
+            which is very expensive for non-polynomial data. On example 5.1 degrees 4, 6, 8
             and UFL's estimate give the same Ieff to 6 digits.
 
     Returns:
