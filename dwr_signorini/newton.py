@@ -316,9 +316,17 @@ class NewtonSystem:
             obj.destroy()
         return norm
 
-    def newton_matrix(self, active: np.ndarray) -> PETSc.Mat:
-        """The Newton matrix of active set A: contact rows [-D_A N, D_I M]."""
-        A = self.A0.copy()
+    def newton_matrix(self, active: np.ndarray, out: PETSc.Mat | None = None) -> PETSc.Mat:
+        """The Newton matrix of active set A: contact rows [-D_A N, D_I M].
+
+        All active sets share one sparsity pattern (that of A0, zeros kept), so with ``out`` the
+        values are overwritten in place and the solver reuses its symbolic factorisation.
+        """
+        if out is None:
+            A = self.A0.copy()
+        else:
+            A = out
+            self.A0.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         scale = A.createVecLeft()
         scale.set(1.0)
         scale.setValues(self._lam_rows, np.where(active, -1.0, 0.0))
@@ -333,9 +341,7 @@ class NewtonSystem:
     def solve_active(self, active: np.ndarray) -> None:
         """One Newton step: solve the linear system of active set ``active`` into ``self.x``."""
         with timed("assemble"):
-            if self.A is not None:
-                self.A.destroy()
-            self.A = self.newton_matrix(active)
+            self.A = self.newton_matrix(active, out=self.A)
             self.active = active.copy()
             b = self.b.array_w
             b[: self.n_u] = self.f.array
@@ -394,8 +400,8 @@ def _global_key(comm: MPI.Comm, active: np.ndarray) -> tuple[bytes, ...]:
     return tuple(comm.allgather(np.packbits(active).tobytes() + active.size.to_bytes(8, "little")))
 
 
-#: Round-off level of the active-set test: an index changes sides only if its test value
-#: (M lam + c_n (N u - g))_i exceeds this times the size of the terms it is computed from.
+#: Relative round-off level of the two parts of the active-set test (21): (N u - g)_i below it
+#: times M_i max|u| + |g_i|, and (M lam)_i below it times max_j |(M lam)_j|, count as zero.
 _ROUNDOFF = 1e-10
 
 
@@ -412,10 +418,11 @@ def solve(
     The active set of step k is A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21), evaluated at
     the previous iterate, with two safeguards:
 
-    * *Round-off hysteresis.* An index changes sides only if its test value exceeds round-off
-      (``1e-10`` relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|)). Without it a bi-active
-      index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g. grazing contact) would flip
-      on round-off noise and the iteration could cycle.
+    * *Round-off.* In the test (M lam + c_n (N u - g))_i > 0 each part counts as zero below its
+      round-off level (``1e-10`` relative to M_i max|u| + |g_i| and to max_j |(M lam)_j|).
+      Without it a bi-active index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g.
+      grazing contact) would change sides on round-off noise and the iteration could cycle; and
+      the decisions stay independent of c_n.
     * *Cycling.* If an active set repeats, the update switches to Murty's least-index rule: of the
       indices the rule (21) would change, only the one with the smallest global number changes
       sides. On the multipliers the contact conditions are a linear complementarity problem with
@@ -524,6 +531,15 @@ def solve(
     lam_vec = system.N.createVecLeft()
     nt_lam = system.f.duplicate()
     norm_f = system.f.norm()
+    # ||K|| over the rows that are not Dirichlet rows (those hold a lone 1 on the diagonal).
+    rows, _, values = system.K.getValuesCSR()
+    row_sum = np.bincount(
+        np.repeat(np.arange(len(rows) - 1), np.diff(rows)), np.abs(values), len(rows) - 1
+    )
+    diagonal = system.K.getDiagonal()
+    coupled = row_sum > np.abs(diagonal.array) * (1.0 + 1e-14)
+    diagonal.destroy()
+    norm_K = comm.allreduce(float(np.max(row_sum[coupled], initial=0.0)), op=MPI.MAX)
     history: list[dict[str, Any]] = []
     seen: dict[tuple[bytes, ...], int] = {}
     previous: np.ndarray | None = None
@@ -533,25 +549,35 @@ def solve(
             u_vec = u.x.petsc_vec
             lam_local = lam.x.array[:n_lam]
             Mlam = M * lam_local
-            test = Mlam + system.c_n * system.gap_residual(u_vec)
-            wanted = test > 0.0
+            gap_res = system.gap_residual(u_vec)
+            test = Mlam + system.c_n * gap_res
+            # The terms of the test (21) at their round-off level, entry by entry.
+            u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
+            gap_size = M * u_max + np.abs(system.g.array)
+            force_size = comm.allreduce(float(np.max(np.abs(Mlam), initial=0.0)), op=MPI.MAX)
+            size = np.abs(Mlam) + system.c_n * gap_size
+            clean = np.where(np.abs(Mlam) > _ROUNDOFF * force_size, Mlam, 0.0) + system.c_n * (
+                np.where(np.abs(gap_res) > _ROUNDOFF * gap_size, gap_res, 0.0)
+            )
+            wanted = clean > 0.0
             if previous is None:
                 violated = np.ones_like(wanted)
                 rule = wanted
             else:
-                u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
-                tol = _ROUNDOFF * (np.abs(Mlam) + system.c_n * (M * u_max + np.abs(system.g.array)))
-                violated = (wanted != previous) & (np.abs(test) > tol)
-                rule = previous ^ violated
+                violated = wanted != previous
+                rule = wanted
 
-            # Residuals, relative to the forces acting on the body.
+            # Residuals as backward errors: the equilibrium residual relative to the size of
+            # the terms K u, N^T lam, f; the NCP function (20) entry by entry relative to `size`.
             lam_vec.array_w[:] = lam_local
             system.NT.mult(lam_vec, nt_lam)
-            scale_eq = max(norm_f, nt_lam.norm(), 1e-300)
+            scale_eq = max(norm_f, nt_lam.norm(), norm_K * _norm(comm, u.x.array[:n_u]), 1e-300)
             res_eq = system.equilibrium_residual(u_vec, lam_local) / scale_eq
-            rel_ncp = _norm(comm, Mlam - np.maximum(0.0, test)) / max(
-                _norm(comm, Mlam), norm_f, 1e-300
+            ncp = np.abs(Mlam - np.maximum(0.0, test))
+            local_ncp = np.max(
+                np.divide(ncp, size, out=np.zeros_like(ncp), where=size > 0), initial=0.0
             )
+            rel_ncp = comm.allreduce(float(local_ncp), op=MPI.MAX)
             num_changed = comm.allreduce(int(violated.sum()), op=MPI.SUM)
             record = {
                 "iteration": it,
