@@ -90,17 +90,27 @@ def check_output_dir(output_dir: str | os.PathLike, comm: MPI.Comm) -> Path:
 
 
 class OutputDirectory:
-    """Writes the table rows and fields of each level of an adaptive run."""
+    """Writes the table rows and fields of each level of an adaptive run.
+
+    The directory is checked at once but created only when the first level is written, so a
+    run that fails before finishing a level leaves nothing behind.
+    """
 
     def __init__(self, output_dir: str | os.PathLike, comm: MPI.Comm, name: str = "adaptive"):
         self.path = check_output_dir(output_dir, comm)
         self.comm = comm
         self.name = name
         self.rows: list[dict[str, Any]] = []
-        if comm.rank == 0:
+        self._created = False
+
+    def _create(self) -> None:
+        if self._created:
+            return
+        if self.comm.rank == 0:
             self.path.mkdir(parents=True, exist_ok=True)
-            (self.path / f"{name}.csv").unlink(missing_ok=True)
-        comm.Barrier()
+            self.csv_path.unlink(missing_ok=True)
+        self.comm.Barrier()
+        self._created = True
 
     @property
     def csv_path(self) -> Path:
@@ -114,6 +124,7 @@ class OutputDirectory:
 
     def append(self, row: dict[str, Any], meta: dict[str, Any] | None = None) -> None:
         """Append a finished level's row to the CSV and rewrite the JSON (rank 0)."""
+        self._create()
         self.rows.append(row)
         if self.comm.rank == 0:
             flat = _flatten(row)
@@ -132,6 +143,7 @@ class OutputDirectory:
         self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]
     ) -> None:
         """Write the fine-mesh fields and the contact-facet fields of one level (XDMF)."""
+        self._create()
         for suffix, funcs in (("", fields), ("_contact", contact_fields)):
             if not funcs:
                 continue

@@ -427,7 +427,7 @@ def solve(
       indices the rule (21) would change, only the one with the smallest global number changes
       sides. On the multipliers the contact conditions are a linear complementarity problem with
       the matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the
-      body, for which this rule terminates finitely (K. G. Murty, Math. Programming 6, 1974).
+      body, for which this rule terminates finitely (K. G. Murty, Opsearch 11, 1974, 123-130).
 
     After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
     lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``c_n_scale`` times E / H_i)
@@ -441,7 +441,10 @@ def solve(
             merged on top of :func:`default_petsc_options`.
         initial_guess: ``(u0, lam0)`` on this discretisation's V and Q (warm start).
         max_iterations: Most Newton steps before giving up.
-        rtol: Relative tolerance on the equilibrium and NCP residuals at convergence.
+        rtol: Tolerance at convergence on the equilibrium residual, relative to the size of
+            its terms (max of ||K|| ||u||, ||N^T lam||, ||f||: a backward error, which does not
+            grow with lambda/mu or mesh grading), and on the NCP residual (20), entry by entry
+            relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|).
         c_n_scale: Factor on the default c_n,i = E / H_i of the NCP function (20), > 0.
 
     Returns:
@@ -644,16 +647,26 @@ def solve(
 
             try:
                 system.solve_active(new)
-            except ConvergenceError as err:
+            except (ConvergenceError, PETSc.Error) as err:
+                reason = system.ksp.getConvergedReason()
+                names = vars(PETSc.KSP.ConvergedReason).items()
+                name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
+                if isinstance(err, PETSc.Error):
+                    name = f"PETSc error {err.ierr}"
+                if isinstance(err, PETSc.Error) or reason == (
+                    PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED
+                ):
+                    hint = (
+                        "the factorisation or preconditioner failed: the Newton matrix is "
+                        "singular (the body is not held in place, check dirichlet; or active "
+                        "contact constraints are linearly dependent, e.g. a contact facet whose "
+                        "nodes are all clamped), or the preconditioner in petsc_options does "
+                        "not suit this saddle-point system"
+                    )
+                else:
+                    hint = "the linear solver did not converge: check petsc_options"
                 raise ConvergenceError(
-                    f"Newton step {it}: {err.args[0].splitlines()[0]}; check petsc_options",
-                    history,
-                ) from err
-            except PETSc.Error as err:
-                raise ConvergenceError(
-                    f"Newton step {it}: the linear solver failed ({err}); a singular Newton "
-                    "matrix means the body is not held in place (check dirichlet)",
-                    history,
+                    f"Newton step {it}: linear solve failed ({name}); {hint}", history
                 ) from err
             previous = new
             u_new, lam_new = system.split(system.x)

@@ -16,7 +16,9 @@ from mpi4py import MPI
 
 import numpy as np
 import ufl
+from dolfinx import fem
 from dolfinx import mesh as dmesh
+from ufl.domain import extract_unique_domain
 
 __all__ = ["MODELS", "SignoriniProblem"]
 
@@ -27,6 +29,18 @@ VectorData = Sequence[float] | Callable[[ufl.SpatialCoordinate], Any] | None
 
 def _is_real(value: Any) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _nonzero_literal(expr: ufl.core.expr.Expr, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
+    """``expr``, or a Constant with its value if UFL would simplify it away (a literal zero)."""
+    if isinstance(expr, ufl.constantvalue.ConstantValue) or (
+        isinstance(expr, ufl.classes.ListTensor)
+        and all(isinstance(c, ufl.constantvalue.ConstantValue) for c in expr.ufl_operands)
+    ):
+        shape = ufl.shape(expr)
+        data = [float(expr[i]) for i in range(shape[0])] if shape else float(expr)
+        return fem.Constant(extract_unique_domain(x), np.asarray(data, dtype=float))
+    return expr
 
 
 class SignoriniProblem:
@@ -73,6 +87,12 @@ class SignoriniProblem:
                 f"facet_tags must be dolfinx.mesh.MeshTags, got {type(facet_tags).__name__}"
             )
         tdim = mesh.topology.dim
+        cpp_topology = getattr(mesh.topology, "_cpp_object", None)
+        if cpp_topology is not None and facet_tags.topology is not cpp_topology:
+            raise ValueError(
+                "facet_tags belong to another mesh: create them on `mesh` "
+                "(dolfinx.mesh.meshtags(mesh, ...)) or read them together with it (gmshio)"
+            )
         if facet_tags.dim != tdim - 1:
             raise ValueError(
                 f"facet_tags has dimension {facet_tags.dim}, but the facets of this mesh have "
@@ -104,10 +124,24 @@ class SignoriniProblem:
                 f"model={model!r} does not fit a {tdim}D mesh: use "
                 + ("'plane_strain' or 'plane_stress'" if tdim == 2 else "'3d'")
             )
-        if not _is_real(E) or not math.isfinite(E) or E <= 0:
-            raise ValueError(f"E (Young's modulus) must be a finite number > 0, got {E!r}")
-        if not _is_real(nu) or not -1.0 < nu < 0.5:
-            raise ValueError(f"nu (Poisson's ratio) must lie in (-1, 0.5), got {nu!r}")
+        for name, value in (("E", E), ("nu", nu)):
+            if not _is_real(value):
+                raise TypeError(f"{name} must be a real number, got {value!r}")
+        if not math.isfinite(E) or E <= 0:
+            raise ValueError(
+                f"E (Young's modulus) must be a finite number > 0, got {E!r}: pass the "
+                "stiffness of the material (any consistent units, e.g. E=210e9 in Pa)"
+            )
+        if not -1.0 < nu < 0.5:
+            raise ValueError(
+                f"nu (Poisson's ratio) must lie in the open interval (-1, 0.5), got {nu!r}"
+                + (
+                    ": nu = 0.5 is incompressible, which a displacement formulation cannot "
+                    "represent; use nu <= 0.499 (P1 elements lock as nu -> 0.5)"
+                    if nu == 0.5
+                    else ""
+                )
+            )
 
         if not isinstance(contact, numbers.Integral) or isinstance(contact, bool):
             raise TypeError(f"contact must be an integer facet tag, got {contact!r}")
@@ -118,20 +152,32 @@ class SignoriniProblem:
             raise TypeError(
                 f"dirichlet must be a sequence of integer facet tags, got {dirichlet!r}"
             )
+        if not dirichlet:
+            raise ValueError(
+                "dirichlet must name at least one facet tag: without a clamped boundary "
+                "Gamma_D the body can move rigidly and the problem is not well posed"
+            )
         if contact in dirichlet:
             raise ValueError(
                 f"tag {contact} is used both as contact and as dirichlet boundary; "
                 "a facet is either clamped or in possible contact"
             )
+        if traction is not None and not isinstance(traction, Mapping):
+            raise TypeError(
+                "traction must be a dict {facet tag: load}, e.g. {2: (0.0, -1.0)}, got "
+                f"{type(traction).__name__}"
+            )
         traction = dict(traction or {})
         for tag in traction:
+            if not isinstance(tag, numbers.Integral) or isinstance(tag, bool):
+                raise TypeError(f"traction keys must be integer facet tags, got {tag!r}")
             if tag == contact or tag in dirichlet:
                 raise ValueError(
                     f"traction tag {tag} is also a contact/dirichlet tag; tractions act on Gamma_N"
                 )
 
         if callable(gap):
-            pass
+            pass  # checked below, once self.mesh is set
         elif _is_real(gap):
             if not math.isfinite(gap):
                 raise ValueError(f"gap must be finite, got {gap!r}")
@@ -151,12 +197,17 @@ class SignoriniProblem:
             int(k): self._check_vector(v, f"traction[{k}]") for k, v in traction.items()
         }
         self.gap = gap
+        if callable(gap):
+            self._check_callable(gap, "gap", ())
 
         self._check_tags()
 
     # -- validation ---------------------------------------------------------------------------
     def _check_vector(self, value: VectorData, name: str) -> VectorData:
-        if value is None or callable(value):
+        if value is None:
+            return value
+        if callable(value):
+            self._check_callable(value, name, (self.mesh.geometry.dim,))
             return value
         try:
             arr = np.asarray(value, dtype=float)
@@ -171,6 +222,20 @@ class SignoriniProblem:
         if not np.all(np.isfinite(arr)):
             raise ValueError(f"{name} must be finite, got {value!r}")
         return tuple(float(a) for a in arr)
+
+    def _check_callable(self, value: Callable[..., Any], name: str, shape: tuple[int, ...]) -> None:
+        """Call ``value`` with the mesh's SpatialCoordinate once: a UFL expression of ``shape``?"""
+        what = "scalar" if not shape else f"vector with {shape[0]} components"
+        try:
+            expr = value(ufl.SpatialCoordinate(self.mesh))
+            expr = ufl.as_vector(expr) if isinstance(expr, (list, tuple)) else ufl.as_ufl(expr)
+        except Exception as err:
+            raise TypeError(
+                f"{name} must be a callable x -> UFL {what} (x a ufl.SpatialCoordinate; use "
+                f"ufl functions such as ufl.sin, not numpy), but calling it failed: {err}"
+            ) from err
+        if ufl.shape(expr) != shape:
+            raise ValueError(f"{name} must return a UFL {what}, got shape {ufl.shape(expr)}")
 
     def _check_tags(self) -> None:
         """Every tag used must mark at least one boundary facet somewhere (all ranks)."""
@@ -187,9 +252,10 @@ class SignoriniProblem:
             facets = tags.find(tag)
             count = comm.allreduce(int(np.isin(facets, boundary).sum()), op=MPI.SUM)
             if count == 0:
+                present = sorted(set(comm.allreduce(list(map(int, np.unique(tags.values))))))
                 raise ValueError(
                     f"{name} tag {tag} marks no boundary facet of the mesh (tags present: "
-                    f"{sorted(set(comm.allreduce(list(map(int, np.unique(tags.values))))))})"
+                    f"{present}); pass the tag that facet_tags give that boundary"
                 )
 
     # -- material law (linear elasticity) ----------------------------------------------------
@@ -208,24 +274,35 @@ class SignoriniProblem:
         return ufl.sym(ufl.grad(u))
 
     def sigma(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-        """Stress sigma(u) = 2 mu eps(u) + lambda tr(eps(u)) I (Hooke's law)."""
+        """Stress sigma(u) = 2 mu eps(u) + lambda tr(eps(u)) I (Hooke's law).
+
+        The Lame parameters enter as dolfinx Constants on the mesh of ``u``, so forms for
+        different materials share their compiled code (no new JIT compilation per E, nu).
+        """
         mu, lmbda = self.lame
+        domain = extract_unique_domain(u)
+        if domain is not None:
+            mu, lmbda = fem.Constant(domain, mu), fem.Constant(domain, lmbda)
         eps = self.epsilon(u)
         return 2.0 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(len(u))
 
-    def vector(self, value: VectorData, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr | None:
-        """A load as a UFL vector on the mesh of ``x`` (``None`` stays ``None``)."""
-        if value is None:
-            return None
+    def vector(self, value: VectorData, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
+        """A load as a UFL vector on the mesh of ``x``; ``None`` is the zero vector.
+
+        Constant data (``None``, a sequence, a callable returning literal numbers) become a
+        :class:`dolfinx.fem.Constant`: UFL simplifies a literal zero away, and
+        ``inner(0, v) * dx`` would lose its test function and could not be assembled.
+        """
         if callable(value):
-            return ufl.as_vector(value(x))
-        return ufl.as_vector(value)
+            return _nonzero_literal(ufl.as_vector(value(x)), x)
+        data = np.zeros(self.mesh.geometry.dim) if value is None else np.asarray(value, float)
+        return fem.Constant(extract_unique_domain(x), data)
 
     def gap_expr(self, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
-        """The gap g as UFL on the mesh of ``x``."""
+        """The gap g as UFL on the mesh of ``x`` (constants as a dolfinx Constant, see vector)."""
         if callable(self.gap):
-            return self.gap(x)
-        return ufl.as_ufl(self.gap)
+            return _nonzero_literal(ufl.as_ufl(self.gap(x)), x)
+        return fem.Constant(extract_unique_domain(x), float(self.gap))
 
     def with_mesh(self, mesh: dmesh.Mesh, facet_tags: dmesh.MeshTags) -> SignoriniProblem:
         """The same problem on another (refined) macro mesh."""
