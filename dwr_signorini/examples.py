@@ -25,7 +25,7 @@ import functools
 import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 from mpi4py import MPI
 
@@ -52,10 +52,12 @@ __all__ = [
     "analytic_contact_pressure",
     "analytic_displacement",
     "analytic_gap",
+    "analytic_problem",
     "analytic_stress",
     "bar_2d_mesh",
     "bar_body_force",
     "bar_gap",
+    "bar_problem",
     "exact_J_a",
     "exact_J_a2",
     "exact_contact_pressure_np",
@@ -71,6 +73,7 @@ __all__ = [
     "lame_parameters",
     "obstacle_3d_mesh",
     "obstacle_gap",
+    "obstacle_problem",
     "obstacle_psi",
     "omega",
     "stress",
@@ -882,3 +885,70 @@ def exact_J_a2(E: float = 10.0, nu: float = 0.3) -> float:
         _J_a2_quadrature(E, nu, 0.05, 24),
         f"exact_J_a2({E}, {nu})",
     )
+
+
+# --------------------------------------------------------------------------------------------
+# The three examples as ready SignoriniProblems
+# --------------------------------------------------------------------------------------------
+def _problem(mesh_and_tags: tuple[Mesh, MeshTags], **kwargs: Any) -> Any:
+    from .problem import SignoriniProblem
+
+    msh, tags = mesh_and_tags
+    kwargs.setdefault("contact", CONTACT)
+    kwargs.setdefault("dirichlet", (DIRICHLET,))
+    return SignoriniProblem(msh, tags, **kwargs)
+
+
+def analytic_problem(
+    comm: MPI.Comm,
+    nx: int = 12,
+    ny: int = 8,
+    cell_type: CellType = CellType.quadrilateral,
+    **overrides: Any,
+) -> Any:
+    """Example 5.1 (Section 5.1) on an nx x ny macro mesh; keyword arguments override the data."""
+    kwargs = {
+        "E": ANALYTIC_MATERIAL.E,
+        "nu": ANALYTIC_MATERIAL.nu,
+        "model": "plane_strain",
+        "body_force": analytic_body_force,
+        "gap": analytic_gap,
+    }
+    kwargs.update(overrides)
+    return _problem(analytic_2d_mesh(comm, nx, ny, cell_type), **kwargs)
+
+
+def bar_problem(
+    comm: MPI.Comm,
+    nx: int = 4,
+    ny: int = 16,
+    cell_type: CellType = CellType.triangle,
+    **overrides: Any,
+) -> Any:
+    """Example 5.2 (Section 5.2): the bar, plane stress, pushed towards the obstacle."""
+    kwargs = {
+        "E": BAR_MATERIAL.E,
+        "nu": BAR_MATERIAL.nu,
+        "model": "plane_stress",
+        "body_force": BAR_BODY_FORCE,
+        "gap": BAR_GAP,
+    }
+    kwargs.update(overrides)
+    return _problem(bar_2d_mesh(comm, nx, ny, cell_type), **kwargs)
+
+
+def obstacle_problem(
+    comm: MPI.Comm,
+    n: Sequence[int] = (2, 8, 8),
+    cell_type: CellType = CellType.tetrahedron,
+    **overrides: Any,
+) -> Any:
+    """Example 5.3 (Section 5.3): a box pushed by a rigid obstacle, no loads."""
+    kwargs = {
+        "E": OBSTACLE_MATERIAL.E,
+        "nu": OBSTACLE_MATERIAL.nu,
+        "model": "3d",
+        "gap": obstacle_gap,
+    }
+    kwargs.update(overrides)
+    return _problem(obstacle_3d_mesh(comm, n, cell_type), **kwargs)

@@ -20,6 +20,9 @@ from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+from dwr_signorini.examples import analytic_problem
+
+from .problems import strip_problem
 
 TRI, QUAD = mesh.CellType.triangle, mesh.CellType.quadrilateral
 E, NU = ex.ANALYTIC_MATERIAL.E, ex.ANALYTIC_MATERIAL.nu
@@ -48,55 +51,6 @@ TABLES = {
 # --------------------------------------------------------------------------------------------------
 # Helpers
 # --------------------------------------------------------------------------------------------------
-
-
-def analytic_problem(comm, nx, ny, cell_type, **overrides):
-    """Example 5.1 on an nx x ny macro mesh (the fine mesh is its uniform refinement)."""
-    msh, tags = ex.analytic_2d_mesh(comm, nx, ny, cell_type)
-    kwargs = {
-        "contact": ex.CONTACT,
-        "dirichlet": (ex.DIRICHLET,),
-        "E": E,
-        "nu": NU,
-        "model": "plane_strain",
-        "body_force": ex.analytic_body_force,
-        "gap": ex.analytic_gap,
-    }
-    kwargs.update(overrides)
-    return ds.SignoriniProblem(msh, tags, **kwargs)
-
-
-def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
-    """A 4 x 1 strip clamped on top, pushed down onto an obstacle under its long bottom side.
-
-    Its long contact boundary is cut by the mesh partitioner, so with 2 ranks both own contact
-    rows (on the examples' meshes Gamma_C ends up on one rank).
-    """
-    msh = mesh.create_rectangle(
-        comm,
-        [np.array([0.0, 0.0]), np.array([4.0, 1.0])],
-        [nx, ny],
-        cell_type,
-        ghost_mode=mesh.GhostMode.none,
-    )
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, fdim + 1)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    y = mesh.compute_midpoints(msh, fdim, facets)[:, 1]
-    values = np.full(len(facets), ex.NEUMANN, dtype=np.int32)
-    values[np.isclose(y, 1.0)] = ex.DIRICHLET
-    values[np.isclose(y, 0.0)] = ex.CONTACT
-    tags = mesh.meshtags(msh, fdim, facets, values)
-    return ds.SignoriniProblem(
-        msh,
-        tags,
-        contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,),
-        E=E,
-        nu=NU,
-        body_force=(0.0, -1.0),
-        gap=lambda x: 0.02 * (x[0] - 2.0) ** 2 - 0.01,
-    )
 
 
 #: Problems for the checks that also run on 2 ranks.

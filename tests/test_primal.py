@@ -16,6 +16,9 @@ from dolfinx import fem, mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+from dwr_signorini.examples import analytic_problem, bar_problem, obstacle_problem
+
+from .problems import strip_problem
 
 TRI, QUAD = mesh.CellType.triangle, mesh.CellType.quadrilateral
 QUADRATURE = {"quadrature_degree": 8}
@@ -24,71 +27,6 @@ QUADRATURE = {"quadrature_degree": 8}
 # --------------------------------------------------------------------------------------------------
 # Helpers
 # --------------------------------------------------------------------------------------------------
-
-
-def analytic_problem(comm, nx, ny, cell_type, **overrides):
-    """Example 5.1 on an nx x ny macro mesh (the fine mesh has 4 (2D) times its cells)."""
-    msh, tags = ex.analytic_2d_mesh(comm, nx, ny, cell_type)
-    kwargs = {
-        "contact": ex.CONTACT,
-        "dirichlet": (ex.DIRICHLET,),
-        "E": ex.ANALYTIC_MATERIAL.E,
-        "nu": ex.ANALYTIC_MATERIAL.nu,
-        "model": "plane_strain",
-        "body_force": ex.analytic_body_force,
-        "gap": ex.analytic_gap,
-    }
-    kwargs.update(overrides)
-    return ds.SignoriniProblem(msh, tags, **kwargs)
-
-
-def bar_problem(comm, nx=4, ny=16, cell_type=TRI):
-    """Example 5.2: the bar, plane stress, pushed towards the obstacle by a volume force."""
-    msh, tags = ex.bar_2d_mesh(comm, nx, ny, cell_type)
-    return ds.SignoriniProblem(
-        msh,
-        tags,
-        contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,),
-        E=ex.BAR_MATERIAL.E,
-        nu=ex.BAR_MATERIAL.nu,
-        model="plane_stress",
-        body_force=ex.BAR_BODY_FORCE,
-        gap=ex.BAR_GAP,
-    )
-
-
-def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
-    """A 4 x 1 strip clamped on top, pushed down onto an obstacle under its long bottom side.
-
-    Its long contact boundary is cut by the mesh partitioner, so with 2 ranks both own contact
-    rows (on the examples' meshes Gamma_C ends up on one rank).
-    """
-    msh = mesh.create_rectangle(
-        comm,
-        [np.array([0.0, 0.0]), np.array([4.0, 1.0])],
-        [nx, ny],
-        cell_type,
-        ghost_mode=mesh.GhostMode.none,
-    )
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, fdim + 1)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    y = mesh.compute_midpoints(msh, fdim, facets)[:, 1]
-    values = np.full(len(facets), ex.NEUMANN, dtype=np.int32)
-    values[np.isclose(y, 1.0)] = ex.DIRICHLET
-    values[np.isclose(y, 0.0)] = ex.CONTACT
-    tags = mesh.meshtags(msh, fdim, facets, values)
-    return ds.SignoriniProblem(
-        msh,
-        tags,
-        contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,),
-        E=10.0,
-        nu=0.3,
-        body_force=(0.0, -1.0),
-        gap=lambda x: 0.02 * (x[0] - 2.0) ** 2 - 0.01,
-    )
 
 
 #: Problems for the checks that also run on 2 ranks.
@@ -287,21 +225,6 @@ def test_bar_example_solves_with_partial_contact():
     assert sol.newton_iterations <= 8
     # The volume force pushes the bar in +x, onto the obstacle: a positive contact force.
     assert integrate(sol, sol.lam * sol.disc.m.ds_contact) > 0.0
-
-
-def obstacle_problem(comm, n=(2, 8, 8), cell_type=mesh.CellType.tetrahedron):
-    """Example 5.3: a box pushed by a rigid obstacle, no volume or surface loads."""
-    msh, tags = ex.obstacle_3d_mesh(comm, n, cell_type)
-    return ds.SignoriniProblem(
-        msh,
-        tags,
-        contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,),
-        E=ex.OBSTACLE_MATERIAL.E,
-        nu=ex.OBSTACLE_MATERIAL.nu,
-        model="3d",
-        gap=ex.obstacle_gap,
-    )
 
 
 @pytest.mark.parametrize(
