@@ -271,6 +271,10 @@ def solve_adaptive(
             disc = discretize(current)
         with timed("transfer"):
             guess = None if previous is None else transfer_solution(previous, disc, previous_rec)
+        if previous is not None:
+            # PETSc destruction is collective: free the last level's solver on all ranks here
+            # rather than whenever each rank's garbage collector gets to it.
+            previous.system.destroy()
         t_setup = time.perf_counter() - t_start
 
         tic = time.perf_counter()

@@ -152,7 +152,7 @@ def _higher_order_solutions(
         lam2.x.array[: system2.n_lam] = lam_arr
         lam2.x.scatter_forward()
         w2 = (u2, lam2)
-    del system2
+    system2.destroy()
     return z2, w2
 
 

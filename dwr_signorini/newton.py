@@ -260,7 +260,8 @@ class NewtonSystem:
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return vec
 
-    def __del__(self) -> None:
+    def destroy(self) -> None:
+        """Destroy the PETSc objects (collective: call on all ranks at the same point)."""
         for name in (
             "K",
             "N",
@@ -282,6 +283,10 @@ class NewtonSystem:
             obj = getattr(self, name, None)
             if obj is not None:
                 obj.destroy()
+                setattr(self, name, None)
+
+    def __del__(self) -> None:
+        self.destroy()
 
     # -- the algebraic NCP --------------------------------------------------------------------
     def gap_residual(self, u: PETSc.Vec) -> np.ndarray:

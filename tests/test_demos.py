@@ -1,0 +1,319 @@
+"""The demos run, serial and on 2 processes, write their tables, pictures and fields, and their
+numbers are the library's.
+
+Every demo runs at its smallest size as a subprocess (``sys.executable``, the environment of
+this session, so the PYTHONPATH of ``scripts/fenicsx`` carries over), once serial and once with
+``mpirun -n 2``. The checks:
+
+* the CSV, JSON, PNG and XDMF files exist and are not empty (PNGs start with the PNG signature);
+* the CSV and JSON tables of a run agree (read back with ``plotting.read_rows``);
+* the serial tables equal a run of the library in this process (J_h, eta_p, eta, sizes, to
+  1e-10 relative): the demo reports what the library computes;
+* the 2-process tables equal the serial ones (J_h and estimates to 1e-9 relative, same sizes).
+
+These tests launch ``mpirun`` themselves, so they are marked ``serial`` (not ``mpi``) and skip
+when the test session itself runs on several processes.
+"""
+
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+import pytest
+
+import dwr_signorini as ds
+from dwr_signorini import __main__ as cli
+from dwr_signorini import examples as ex
+from dwr_signorini import plotting
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMOS = ROOT / "demos"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+pytestmark = [
+    pytest.mark.serial,
+    pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="launches its own processes"),
+]
+
+# The smallest meaningful size of each demo.
+SMALL_ARGS = {
+    "bar_2d": ["--levels", "2"],
+    "analytic_2d": ["--levels", "2", "--sweep", "2", "--sweep-level", "0"],
+    "obstacle_3d": ["--levels", "2", "--max-cells", "20000"],
+}
+
+
+def _run(demo: str, out: Path, nprocs: int) -> subprocess.CompletedProcess:
+    """Run a demo into ``out``; fail with its output if it fails."""
+    cmd = [sys.executable, str(DEMOS / f"{demo}.py"), *SMALL_ARGS[demo], "--output", str(out)]
+    if nprocs > 1:
+        mpirun = shutil.which("mpirun") or shutil.which("mpiexec")
+        if mpirun is None:
+            pytest.skip("no mpirun")
+        cmd = [mpirun, "-n", str(nprocs), *cmd]
+    tic = time.perf_counter()
+    proc = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ), capture_output=True, text=True,
+                          timeout=600)
+    elapsed = time.perf_counter() - tic
+    assert proc.returncode == 0, (
+        f"{' '.join(cmd)} failed ({proc.returncode}) after {elapsed:.1f} s\n"
+        f"--- stdout ---\n{proc.stdout[-5000:]}\n--- stderr ---\n{proc.stderr[-5000:]}"
+    )
+    return proc
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Run each demo once serial and once on 2 processes (lazily, shared by the tests)."""
+    cache: dict[tuple[str, int], Path] = {}
+
+    def get(demo: str, nprocs: int) -> Path:
+        key = (demo, nprocs)
+        if key not in cache:
+            out = tmp_path_factory.mktemp(f"{demo}_np{nprocs}")
+            proc = _run(demo, out, nprocs)
+            (out / "stdout.txt").write_text(proc.stdout)
+            cache[key] = out
+        return cache[key]
+
+    return get
+
+
+def _csv(path: Path) -> list[dict]:
+    assert path.is_file() and path.stat().st_size > 0, f"missing or empty: {path}"
+    return plotting.read_rows(path)
+
+
+def _close(a: float | None, b: float | None, rtol: float) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return math.isclose(a, b, rel_tol=rtol, abs_tol=1e-300)
+
+
+def _check_files(out: Path, pngs: list[str], runs_: list[str]) -> None:
+    for name in pngs:
+        path = out / name
+        assert path.is_file(), f"{name} not written; have {sorted(p.name for p in out.iterdir())}"
+        assert path.stat().st_size > 1000
+        assert path.read_bytes()[:8] == PNG_SIGNATURE
+    for run in runs_:
+        rows_csv = _csv(out / run / f"{Path(run).name.split('_')[-1]}.csv")
+        data = json.loads((out / run / f"{Path(run).name.split('_')[-1]}.json").read_text())
+        assert data["levels"], f"no levels in {run}"
+        # CSV and JSON tables of the run agree
+        assert len(rows_csv) == len(data["levels"])
+        for rc, rj in zip(rows_csv, data["levels"], strict=True):
+            for key in ("num_cells", "num_dofs", "J_h", "eta_p", "eta", "estimate"):
+                assert _close(rc[key], rj[key], 1e-15), (run, key, rc[key], rj[key])
+        for level in range(len(rows_csv)):
+            for suffix in ("", "_contact"):
+                xdmf = out / run / f"level_{level:02d}{suffix}.xdmf"
+                assert xdmf.is_file() and xdmf.stat().st_size > 0, xdmf
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs"]
+
+
+def _compare_rows(rows: list[dict], reference: list, rtol: float, what: str) -> None:
+    """Demo CSV rows against LevelRecords or rows of another run."""
+    assert len(rows) == len(reference), what
+    for row, ref in zip(rows, reference, strict=True):
+        ref = ref if isinstance(ref, dict) else ref.as_dict()
+        for key in ("num_cells", "num_macro_cells", "num_contact_elements", "num_dofs"):
+            assert row[key] == ref[key], (what, key, row[key], ref[key])
+        for key in ("J_h", "eta_p", "eta", "estimate"):
+            assert _close(row[key], ref[key], rtol), (what, row["level"], key, row[key], ref[key])
+
+
+# --------------------------------------------------------------------------------------------------
+# Example 5.2: the bar (the `make demo` demo)
+# --------------------------------------------------------------------------------------------------
+
+
+def _bar_problem(comm):
+    msh, tags = ex.bar_2d_mesh(comm)
+    mat = ex.BAR_MATERIAL
+    return ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=mat.E, nu=mat.nu,
+                               model="plane_stress", body_force=ex.BAR_BODY_FORCE, gap=ex.BAR_GAP)
+
+
+def test_bar_serial(runs):
+    out = runs("bar_2d", 1)
+    _check_files(out, ["convergence_cells.png", "convergence_time.png", "effectivity.png",
+                       "solution.png", "contact_force.png", "mesh_final.png"],
+                 ["adaptive", "uniform"])
+    stdout = (out / "stdout.txt").read_text()
+    assert "level  1" in stdout and "paper" in stdout
+    table = _csv(out / "table3.csv")
+    assert {r["refinement"] for r in table} == {"adaptive", "uniform"}
+    for refinement in ("adaptive", "uniform"):
+        rows = _csv(out / refinement / f"{refinement}.csv")
+        res = ds.solve_adaptive(_bar_problem(MPI.COMM_SELF), ex.goal_bar(),
+                                refinement=refinement, max_levels=2, exact=ex.BAR_J_REF,
+                                verbose=False)
+        _compare_rows(rows, res.levels, 1e-10, f"bar {refinement}")
+        for row, rec in zip(rows, res.levels, strict=True):
+            assert _close(row["rel_error"], rec.rel_error, 1e-8)
+            assert _close(row["ieff"], rec.ieff, 1e-8)
+        # the summary table is the run's table
+        mine = [r for r in table if r["refinement"] == refinement]
+        assert [r["J_h"] for r in mine] == [r["J_h"] for r in rows]
+
+
+def test_bar_parallel(runs):
+    serial, parallel = runs("bar_2d", 1), runs("bar_2d", 2)
+    _check_files(parallel, ["convergence_cells.png", "solution.png", "contact_force.png",
+                            "mesh_final.png"], ["adaptive", "uniform"])
+    for refinement in ("adaptive", "uniform"):
+        rows = _csv(parallel / refinement / f"{refinement}.csv")
+        _compare_rows(rows, _csv(serial / refinement / f"{refinement}.csv"), 1e-9,
+                      f"bar {refinement} 2 processes vs serial")
+        assert json.loads((parallel / refinement / f"{refinement}.json").read_text())[
+            "meta"]["num_processes"] == 2
+
+
+# --------------------------------------------------------------------------------------------------
+# Example 5.1: known solution
+# --------------------------------------------------------------------------------------------------
+
+
+def test_analytic_serial(runs):
+    out = runs("analytic_2d", 1)
+    _check_files(out, ["convergence_cells.png", "convergence_time.png", "effectivity.png",
+                       "sweep.png", "solution.png", "contact_force.png"],
+                 ["a1_uniform", "a2_uniform"])
+    rows = _csv(out / "a1_uniform" / "uniform.csv")
+    msh, tags = ex.analytic_2d_mesh(MPI.COMM_SELF, 12, 8)
+    mat = ex.ANALYTIC_MATERIAL
+    problem = ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=mat.E, nu=mat.nu,
+                                  model="plane_strain", body_force=ex.analytic_body_force,
+                                  gap=ex.analytic_gap)
+    res = ds.solve_adaptive(problem, ex.goal_a(-0.5), refinement="uniform", max_levels=1,
+                            exact=ex.exact_J_a(-0.5), verbose=False)
+    _compare_rows(rows[:1], res.levels, 1e-10, "analytic J_a1 level 0")
+    # the table next to the paper's: our E_rel of J_a1 at L = 1 is the paper's (Table 1)
+    tables = _csv(out / "tables.csv")
+    row = next(r for r in tables if r["goal"] == "J_a1" and r["L"] == 1)
+    assert row["M_Omega"] == 1536 and row["paper_E_rel"] == 1.36313e-2
+    assert abs(row["E_rel"] - row["paper_E_rel"]) <= 1e-3 * row["paper_E_rel"]
+    sweep = _csv(out / "sweep.csv")
+    assert [r["m"] for r in sweep] == [-3.0, 0.0]
+    assert all(0.5 < r["ieff"] < 2.0 for r in sweep)
+
+
+def test_analytic_parallel(runs):
+    serial, parallel = runs("analytic_2d", 1), runs("analytic_2d", 2)
+    _check_files(parallel, ["sweep.png", "solution.png", "contact_force.png"],
+                 ["a1_uniform", "a2_uniform"])
+    for run in ("a1_uniform", "a2_uniform"):
+        _compare_rows(_csv(parallel / run / "uniform.csv"), _csv(serial / run / "uniform.csv"),
+                      1e-9, f"analytic {run} 2 processes vs serial")
+    for a, b in zip(_csv(parallel / "sweep.csv"), _csv(serial / "sweep.csv"), strict=True):
+        for key in ("J_h", "eta_p", "eta"):
+            assert _close(a[key], b[key], 1e-9), ("sweep", key, a[key], b[key])
+
+
+# --------------------------------------------------------------------------------------------------
+# Example 5.3: 3D obstacle
+# --------------------------------------------------------------------------------------------------
+
+
+def test_obstacle_serial(runs):
+    out = runs("obstacle_3d", 1)
+    _check_files(out, ["convergence_cells.png", "convergence_time.png", "contact_term.png",
+                       "mesh.png", "solution.png", "contact_force.png"],
+                 ["adaptive", "uniform"])
+    rows = _csv(out / "adaptive" / "adaptive.csv")
+    assert len(rows) == 2
+    msh, tags = ex.obstacle_3d_mesh(MPI.COMM_SELF, n=(1, 8, 8))
+    mat = ex.OBSTACLE_MATERIAL
+    problem = ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=mat.E, nu=mat.nu,
+                                  model="3d", gap=ex.obstacle_gap)
+    res = ds.solve_adaptive(problem, ex.goal_obstacle(), refinement="adaptive", max_levels=1,
+                            verbose=False)
+    _compare_rows(rows[:1], res.levels, 1e-10, "obstacle level 0")
+    assert _close(rows[0]["contact_term"], res.levels[0].contact_term, 1e-8)
+    # --max-cells 20000 stops the uniform run before its second level (24576 cells)
+    assert len(_csv(out / "uniform" / "uniform.csv")) == 1
+
+
+def test_obstacle_parallel(runs):
+    serial, parallel = runs("obstacle_3d", 1), runs("obstacle_3d", 2)
+    _check_files(parallel, ["mesh.png", "solution.png", "contact_force.png"],
+                 ["adaptive", "uniform"])
+    # level 0 is the same discrete problem: same sizes and J(w_h)
+    for refinement in ("adaptive", "uniform"):
+        a = _csv(parallel / refinement / f"{refinement}.csv")[0]
+        b = _csv(serial / refinement / f"{refinement}.csv")[0]
+        for key in ("num_cells", "num_contact_elements", "num_dofs", "num_active"):
+            assert a[key] == b[key], (refinement, key)
+        assert _close(a["J_h"], b["J_h"], 1e-9)
+
+
+@pytest.mark.xfail(
+    reason="library: on obstacle_3d_mesh(n=(1, 8, 8)) the estimators differ between 1 and 2 "
+    "processes (level 0: eta_p -285.5006 serial, -280.7665 on 2; J_h agrees to 12 digits; "
+    "n=(2, 8, 8) agrees), so the adaptive meshes differ from level 1 on",
+    strict=False,
+)
+def test_obstacle_parallel_estimates(runs):
+    serial, parallel = runs("obstacle_3d", 1), runs("obstacle_3d", 2)
+    for refinement in ("adaptive", "uniform"):
+        _compare_rows(_csv(parallel / refinement / f"{refinement}.csv"),
+                      _csv(serial / refinement / f"{refinement}.csv"), 1e-9,
+                      f"obstacle {refinement} 2 processes vs serial")
+
+
+# --------------------------------------------------------------------------------------------------
+# The command line and the table reader
+# --------------------------------------------------------------------------------------------------
+
+
+def test_cli_list(capsys):
+    assert cli.main(["list"]) == 0
+    text = capsys.readouterr().out
+    for name in SMALL_ARGS:
+        assert name in text
+    assert "Example 5.2" in text
+
+
+def test_cli_unknown_demo(capsys):
+    assert cli.main(["run", "no_such_demo"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown demo 'no_such_demo'" in err and "bar_2d" in err
+
+
+def test_cli_run_passes_arguments(capsys):
+    assert cli.main(["run", "bar_2d", "--help"]) == 0
+    assert "--levels" in capsys.readouterr().out
+    assert cli.main(["run", "bar_2d.py", "--levels", "0"]) == 2  # the demo's own argparse error
+
+
+def test_cli_module_subprocess():
+    proc = subprocess.run([sys.executable, "-m", "dwr_signorini", "list"], cwd=ROOT,
+                          env=dict(os.environ), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "obstacle_3d" in proc.stdout
+
+
+def test_read_rows_csv_and_json(tmp_path):
+    rows = [{"level": 0, "num_cells": 8, "J_h": 0.1, "eta": None, "time": {"total": 1.5}},
+            {"level": 1, "num_cells": 32, "J_h": 1 / 3, "eta": 2e-3, "time": {"total": 2.0}}]
+    from dwr_signorini.io import write_csv, write_json
+
+    write_csv(tmp_path / "t.csv", rows)
+    write_json(tmp_path / "t.json", {"levels": rows})
+    for name in ("t.csv", "t.json"):
+        back = plotting.read_rows(tmp_path / name)
+        assert [r["J_h"] for r in back] == [0.1, 1 / 3]
+        assert back[0]["eta"] is None and back[1]["num_cells"] == 32
+        assert list(plotting.cumulative_time(back)) == [1.5, 3.5]
+    with open(tmp_path / "t.csv", newline="") as fh:
+        assert "time_total" in next(csv.reader(fh))
