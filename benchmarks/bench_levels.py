@@ -22,11 +22,12 @@ from pathlib import Path
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from dolfinx import mesh
+
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini.newton import default_petsc_options, set_options
 from dwr_signorini.timing import PHASES, snapshot
-from dolfinx import mesh
 
 COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "higher-order solve",
            "reconstruct", "indicators", "mark", "refine", "discretize", "transfer", "output")
@@ -140,7 +141,8 @@ def summary(out: Path) -> None:
     for np_ in (1, 2):
         path = out / f"bench_levels_np{np_}.csv"
         with open(path) as fh:
-            tables[np_] = {(r["example"], r["refinement"], r["level"]): r for r in csv.DictReader(fh)}
+            rows = csv.DictReader(fh)
+            tables[np_] = {(r["example"], r["refinement"], r["level"]): r for r in rows}
     print(f"{'example':>8} {'refinement':>10} {'level':>5} {'dofs':>9} {'t1':>9} {'t2':>9} "
           f"{'speed-up':>9} {'ratio1':>7} {'ratio2':>7}")
     for key, r1 in tables[1].items():
