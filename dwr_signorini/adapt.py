@@ -75,6 +75,7 @@ class AdaptiveResult:
     estimate: Estimate | None = field(default=None, repr=False)
     problem: SignoriniProblem | None = field(default=None, repr=False)
     meta: dict[str, Any] = field(default_factory=dict)
+    comm: MPI.Comm = field(default=MPI.COMM_WORLD, repr=False)
 
     def rows(self) -> list[dict[str, Any]]:
         """The table as a list of dicts."""
@@ -82,12 +83,12 @@ class AdaptiveResult:
 
     def to_csv(self, path: str | Path) -> None:
         """Write the table as CSV (rank 0 of the mesh communicator writes)."""
-        if MPI.COMM_WORLD.rank == 0:
+        if self.comm.rank == 0:
             write_csv(path, self.rows())
 
     def to_json(self, path: str | Path) -> None:
-        """Write the table and the run's settings as JSON."""
-        if MPI.COMM_WORLD.rank == 0:
+        """Write the table and the run's settings as JSON (rank 0 of the mesh communicator)."""
+        if self.comm.rank == 0:
             write_json(path, {"meta": self.meta, "levels": self.rows()})
 
 
@@ -261,7 +262,7 @@ def solve_adaptive(
         check_output_dir(output_dir, comm)
         out = OutputDirectory(output_dir, comm, name=refinement)
 
-    result = AdaptiveResult(levels=[], meta=meta)
+    result = AdaptiveResult(levels=[], meta=meta, comm=comm)
     previous: Solution | None = None
     previous_rec = None
     current = problem

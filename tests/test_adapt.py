@@ -496,12 +496,6 @@ def test_output_dir_rows_and_fields(mpi_tmp_path):
 
 
 @pytest.mark.mpi
-@pytest.mark.xfail(
-    MPI.COMM_WORLD.size > 1, strict=True,
-    reason="library bug: AdaptiveResult.to_csv/to_json (dwr_signorini/adapt.py:85, :90) test "
-           "MPI.COMM_WORLD.rank == 0 instead of rank 0 of the mesh communicator, so a run on "
-           "MPI.COMM_SELF writes nothing on the other ranks",
-)
 def test_result_writers_use_the_mesh_communicator(mpi_tmp_path):
     """A run on COMM_SELF (one per rank) writes its own table on every rank."""
     rank = MPI.COMM_WORLD.rank
