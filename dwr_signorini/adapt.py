@@ -75,7 +75,7 @@ class AdaptiveResult:
     estimate: Estimate | None = field(default=None, repr=False)
     problem: SignoriniProblem | None = field(default=None, repr=False)
     meta: dict[str, Any] = field(default_factory=dict)
-    comm: MPI.Comm = field(default=MPI.COMM_WORLD, repr=False)
+    comm: MPI.Comm = field(default_factory=lambda: MPI.COMM_WORLD, repr=False)
 
     def rows(self) -> list[dict[str, Any]]:
         """The table as a list of dicts."""
