@@ -129,6 +129,9 @@ def fine_to_macro_facets(
     fine_c2f = fine.topology.connectivity(tdim, fdim).array.reshape(-1, nf)[:num_fine_cells]
     macro_c2f = macro.topology.connectivity(tdim, fdim).array.reshape(-1, nfm)
 
+    out = np.full(_num_entities(fine, fdim), -1, dtype=np.int32)
+    if num_fine_cells == 0:  # dolfinx 0.9 fails on empty entity lists
+        return out
     mids = dmesh.compute_midpoints(fine, fdim, fine_c2f.ravel()).reshape(-1, nf, 1, 3)
     candidates = macro_c2f[parent_cell[:num_fine_cells]]  # (cells, nfm)
     nodes = dmesh.entities_to_geometry(macro, fdim, candidates.ravel().astype(np.int32), False)
@@ -146,7 +149,6 @@ def fine_to_macro_facets(
     if np.any(on.sum(axis=2) > 1):
         raise RuntimeError("a fine facet lies on two facets of its parent cell")
     cells, local, k = np.nonzero(on)
-    out = np.full(_num_entities(fine, fdim), -1, dtype=np.int32)
     out[fine_c2f[cells, local]] = candidates[cells, k]
     return out
 
