@@ -56,7 +56,9 @@ _SIMPLEX = {
 }
 
 
-def patch_p2_matrix(disc: Discretization, V2h: fem.FunctionSpace) -> scipy.sparse.csr_matrix:
+def patch_p2_matrix(
+    disc: Discretization, V2h: fem.FunctionSpace
+) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
     """The map fine P1 nodal values -> fine P2 nodal values of i_2h^(2), on simplices.
 
     Built from the refinement's parent map alone (no point location): in the reference
@@ -64,7 +66,8 @@ def patch_p2_matrix(disc: Discretization, V2h: fem.FunctionSpace) -> scipy.spars
     nodes, and every P2 node of a child is a point where the parent's P2 basis is tabulated.
 
     Returns:
-        A sparse matrix from the local (scalar) nodes of V_h to the local nodes of ``V2h``.
+        A sparse matrix from the local (scalar) nodes of V_h to the local nodes of ``V2h``, and
+        for each local macro cell the fine P1 node at each of its P2 nodes (reference order).
     """
     fine, macro = disc.mesh, disc.macro_mesh
     tdim = fine.topology.dim
@@ -113,20 +116,10 @@ def patch_p2_matrix(disc: Discretization, V2h: fem.FunctionSpace) -> scipy.spars
     phi = element.tabulate(0, xi)[0, :, :, 0]  # (rows, num_nodes)
     cols = parent_node_dof[parents[cell_of]]
     shape = (len(x2), len(x1))
-    return scipy.sparse.csr_matrix(
+    matrix = scipy.sparse.csr_matrix(
         (phi.ravel(), (np.repeat(rows, num_nodes), cols.ravel())), shape=shape
     )
-
-
-def _cells_at_contact(disc: Discretization) -> np.ndarray:
-    """Local fine cells with a facet on Gamma_C."""
-    fine = disc.mesh
-    tdim = fine.topology.dim
-    fine.topology.create_connectivity(tdim - 1, tdim)
-    facets = disc.facet_tags.find(disc.problem.contact)
-    return np.unique(dmesh.compute_incident_entities(fine.topology, facets, tdim - 1, tdim)).astype(
-        np.int32
-    )
+    return matrix, parent_node_dof
 
 
 class Reconstructor:
@@ -141,13 +134,16 @@ class Reconstructor:
         self.P1H = fem.functionspace(macro, ("Lagrange", 1))
         self.P1h = fem.functionspace(disc.mesh, ("Lagrange", 1))
         if disc.mesh.topology.cell_type in _SIMPLEX:
-            self._p2_matrix = patch_p2_matrix(disc, self.V2h)
+            self._p2_matrix, self._parent_node_dof = patch_p2_matrix(disc, self.V2h)
+            self.P2H = fem.functionspace(macro, ("Lagrange", 2))
         else:
             # Quadrilaterals/hexahedra (uniform runs only): through the macro Q2 space.
             self._p2_matrix = None
+            self._parent_node_dof = None
             self._fine_to_macro = _Transfer(self.V2H, disc.V)
             self._macro_to_fine = _Transfer(self.V2h, self.V2H)
-        self._scalar_to_fine = _Transfer(self.P1h, self.P1H, _cells_at_contact(disc))
+        if self._parent_node_dof is None:
+            self._scalar_to_fine = _Transfer(self.P1h, self.P1H)
 
         # Lumped mass of Gamma_C on the macro mesh: int_GC phi_p.
         phi = ufl.TestFunction(self.P1H)
@@ -194,4 +190,14 @@ class Reconstructor:
             mass = m_loc.array_r
             rec.x.array[:] = np.divide(n_loc.array_r, mass, out=np.zeros_like(mass), where=mass > 0)
         num.destroy()
-        return self._scalar_to_fine(fem.Function(self.P1h, name=f"i2H({lam.name})"), rec)
+        out = fem.Function(self.P1h, name=f"i2H({lam.name})")
+        if self._parent_node_dof is None:
+            return self._scalar_to_fine(out, rec)
+        # Simplices: the macro P1 function as macro P2 (exact), whose nodes are fine vertices.
+        rec2 = fem.Function(self.P2H)
+        rec2.interpolate(rec)
+        parents = np.flatnonzero(self._parent_node_dof[:, 0] >= 0)
+        macro_dofs = self.P2H.dofmap.list[parents]
+        out.x.array[self._parent_node_dof[parents].ravel()] = rec2.x.array[macro_dofs.ravel()]
+        out.x.scatter_forward()
+        return out

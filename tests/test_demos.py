@@ -257,12 +257,6 @@ def test_obstacle_parallel(runs):
         assert _close(a["J_h"], b["J_h"], 1e-9)
 
 
-@pytest.mark.xfail(
-    reason="library: on obstacle_3d_mesh(n=(1, 8, 8)) the estimators differ between 1 and 2 "
-    "processes (level 0: eta_p -285.5006 serial, -280.7665 on 2; J_h agrees to 12 digits; "
-    "n=(2, 8, 8) agrees), so the adaptive meshes differ from level 1 on",
-    strict=False,
-)
 def test_obstacle_parallel_estimates(runs):
     serial, parallel = runs("obstacle_3d", 1), runs("obstacle_3d", 2)
     for refinement in ("adaptive", "uniform"):

@@ -72,3 +72,21 @@ def test_multiplier_recovery_reproduces_constants():
     facets = disc.facet_tags.find(disc.problem.contact)
     dofs = fem.locate_dofs_topological(r.function_space, disc.mesh.topology.dim - 1, facets)
     assert dofs.size == 0 or np.allclose(r.x.array[dofs], 2.5)
+
+
+@pytest.mark.mpi
+def test_multiplier_recovery_serial_equals_parallel_3d():
+    """On a mesh one macro cell thick, ranks share Gamma_C vertices without sharing contact
+    facets; the recovery must still be the same as in serial."""
+    results = []
+    for comm in (MPI.COMM_WORLD, MPI.COMM_SELF):
+        disc = ds.discretize(ex.obstacle_problem(comm, n=(1, 8, 8)))
+        lam = fem.Function(disc.Q)
+        mid = disc.contact_mesh.geometry.x[disc.contact_mesh.geometry.dofmap].mean(axis=1)
+        n_loc = disc.Q.dofmap.index_map.size_local
+        lam.x.array[:n_loc] = 1.0 + mid[:n_loc, 1] ** 2 + np.sin(5 * mid[:n_loc, 2])
+        lam.x.scatter_forward()
+        r = Reconstructor(disc).patch_linear_multiplier(lam)
+        local = fem.assemble_scalar(fem.form(r**2 * disc.m.ds_contact))
+        results.append(comm.allreduce(local, op=MPI.SUM))
+    assert np.isclose(results[0], results[1], rtol=1e-12)
