@@ -19,8 +19,10 @@ from typing import Any
 from mpi4py import MPI
 
 import numpy as np
+import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
+from dolfinx.fem import petsc as fem_petsc
 
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
@@ -115,9 +117,6 @@ def transfer_solution(
     data = fem.create_interpolation_data(P1, lam_rec_old.function_space, cells, padding=1e-10)
     lam_rec.interpolate_nonmatching(lam_rec_old, cells, data)
     lam_rec.x.scatter_forward()
-
-    import ufl
-    from dolfinx.fem import petsc as fem_petsc
 
     mu = ufl.TestFunction(disc.Q)
     num = fem_petsc.assemble_vector(disc.form(lam_rec * mu * disc.m.ds_contact))

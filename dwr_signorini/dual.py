@@ -19,6 +19,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
@@ -46,8 +47,6 @@ def dual_rhs(system: NewtonSystem, goal: GoalForms, out: PETSc.Vec) -> PETSc.Vec
     if goal.has_u:
         form = goal.dJ_u
         if V is not goal.u.function_space:
-            import ufl
-
             form = ufl.replace(form, {form.arguments()[0]: ufl.TestFunction(V)})
         b = fem_petsc.assemble_vector(disc.form(form))
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
