@@ -56,12 +56,7 @@ def contact_violation(u: Any, lam: Any, mu: Any, gap: Any, n: Any, ds_c: ufl.Mea
 def primal_residual(sol: Solution, v: Any, mu: Any) -> ufl.Form:
     """rho(w_h)(v, mu) = l(v) - a(u_h, v) - (lambda_H, v_n)_GC - C(w_h)(mu) (Proposition 4)."""
     problem, m = sol.disc.problem, sol.disc.m
-    f = problem.vector(problem.body_force, m.x)
-    form = -ufl.inner(problem.sigma(sol.u), problem.epsilon(v)) * m.dx
-    if f is not None:
-        form += ufl.inner(f, v) * m.dx
-    for tag, t in problem.traction.items():
-        form += ufl.inner(problem.vector(t, m.x), v) * m.ds(tag)
+    form = problem.load_form(v, m) - problem.elastic_form(sol.u, v, m.dx)
     form -= sol.lam * ufl.dot(v, m.n) * m.ds_contact
     return form - contact_violation(sol.u, sol.lam, mu, problem.gap_expr(m.x), m.n, m.ds_contact)
 
@@ -77,7 +72,7 @@ def dual_residual(sol: Solution, goal: GoalForms, z: DualSolution, v: Any, mu: A
     chi = ufl.conditional(
         ufl.gt(ncp_argument(sol.u, sol.lam, problem.gap_expr(m.x), m.n), 0.0), 1.0, 0.0
     )
-    form = -ufl.inner(problem.sigma(v), problem.epsilon(z.y)) * m.dx
+    form = -problem.elastic_form(v, z.y, m.dx)
     form += z.xi * chi * ufl.dot(v, m.n) * m.ds_contact
     form -= mu * ufl.dot(z.y, m.n) * m.ds_contact
     form -= z.xi * (1.0 - chi) * mu * m.ds_contact

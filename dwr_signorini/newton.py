@@ -172,17 +172,12 @@ class NewtonSystem:
         mu = ufl.TestFunction(Q)
 
         # Forms, built once.
-        a = ufl.inner(problem.sigma(u), problem.epsilon(v)) * m.dx
-        f = problem.vector(problem.body_force, m.x)
+        a = problem.elastic_form(u, v, m.dx)
         # Loads and gap may be non-polynomial expressions, for which UFL's degree estimate is
         # huge: integrate them with a fixed degree (exact for polynomial data of degree
         # DATA_QUADRATURE_DEGREE - 2 against P2 test functions).
         data = {"quadrature_degree": DATA_QUADRATURE_DEGREE}
-        if f is None:  # a zero Constant keeps the form non-empty
-            f = fem.Constant(disc.mesh, np.zeros(disc.mesh.geometry.dim))
-        L = ufl.inner(f, v) * m.dx(metadata=data)
-        for tag, t in problem.traction.items():
-            L += ufl.inner(problem.vector(t, m.x), v) * m.ds(tag, metadata=data)
+        L = problem.load_form(v, m, data)
         coupling = ufl.inner(mu, ufl.dot(u, m.n)) * m.ds_contact
         self._forms = {
             "a": disc.form(a),

@@ -286,6 +286,17 @@ class SignoriniProblem:
         eps = self.epsilon(u)
         return 2.0 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(len(u))
 
+    def elastic_form(self, u: Any, v: Any, dx: ufl.Measure) -> ufl.Form:
+        """a(u, v) = (sigma(u), eps(v)) (Section 2)."""
+        return ufl.inner(self.sigma(u), self.epsilon(v)) * dx
+
+    def load_form(self, v: Any, m: Any, metadata: dict[str, Any] | None = None) -> ufl.Form:
+        """<l, v> = (f, v) + (b, v)_GN on the measures ``m`` of a mesh (Section 2)."""
+        form = ufl.inner(self.vector(self.body_force, m.x), v) * m.dx(metadata=metadata)
+        for tag, t in self.traction.items():
+            form += ufl.inner(self.vector(t, m.x), v) * m.ds(tag, metadata=metadata)
+        return form
+
     def vector(self, value: VectorData, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
         """A load as a UFL vector on the mesh of ``x``; ``None`` is the zero vector.
 

@@ -68,7 +68,7 @@ def _num_entities(msh: dmesh.Mesh, dim: int) -> int:
 
 def refine_uniform(
     macro: dmesh.Mesh, edges: npt.NDArray[np.int32] | None = None
-) -> tuple[dmesh.Mesh, npt.NDArray[np.int32], npt.NDArray[np.int8]]:
+) -> tuple[dmesh.Mesh, npt.NDArray[np.int32]]:
     """One refinement (uniform, or of the given edges), children kept on their parent's process.
 
     Simplices use ``dolfinx.mesh.refine`` (Plaza's algorithm, which keeps the mesh conforming);
@@ -76,14 +76,14 @@ def refine_uniform(
     :func:`dwr_signorini.tensor_refine.refine_uniform_tensor` (uniform refinement only).
 
     Returns:
-        The fine mesh, the parent cell of each fine cell and, per fine cell and local facet, the
-        local index of the parent facet in the parent cell (-1 for facets inside the parent).
+        The fine mesh and the parent cell of each local fine cell (parent facets are found
+        geometrically, see :func:`fine_to_macro_facets`).
     """
     tdim = macro.topology.dim
     if macro.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
         macro.topology.create_entities(1)
-        fine, parent_cell, parent_facet = dmesh.refine(
-            macro, edges, partitioner=None, option=dmesh.RefinementOption.parent_cell_and_facet
+        fine, parent_cell, _ = dmesh.refine(
+            macro, edges, partitioner=None, option=dmesh.RefinementOption.parent_cell
         )
         # dolfinx 0.9 returns the parent maps in the order of the cells *before* create_mesh
         # reordered them; bring them into the fine mesh's local cell order.
@@ -92,9 +92,7 @@ def refine_uniform(
         order = np.asarray(fine.topology.original_cell_index[:num_local], dtype=np.int64) - offset
         if order.size and (order.min() < 0 or order.max() >= len(parent_cell)):
             raise RuntimeError("unexpected cell numbering of the refined mesh")
-        nf = _cpp_mesh.cell_num_entities(fine.topology.cell_type, tdim - 1)
         parent_cell = np.asarray(parent_cell)[order]
-        parent_facet = np.asarray(parent_facet).reshape(-1, nf)[order].ravel()
     else:
         if edges is not None:
             raise ValueError(
@@ -103,9 +101,9 @@ def refine_uniform(
             )
         from .tensor_refine import refine_uniform_tensor
 
-        fine, parent_cell, parent_facet = refine_uniform_tensor(macro)
+        fine, parent_cell, _ = refine_uniform_tensor(macro)
     fine.topology.create_entities(tdim - 1)
-    return fine, np.asarray(parent_cell, dtype=np.int32), np.asarray(parent_facet, dtype=np.int8)
+    return fine, np.asarray(parent_cell, dtype=np.int32)
 
 
 def fine_to_macro_facets(
@@ -187,7 +185,7 @@ def refine_marked(
         macro.topology.create_connectivity(tdim, 1)
         edges = np.unique(dmesh.compute_incident_entities(macro.topology, cells, tdim, 1))
         edges = edges.astype(np.int32)
-    fine, parent_cell, _ = refine_uniform(macro, edges)
+    fine, parent_cell = refine_uniform(macro, edges)
     fdim = tdim - 1
     macro.topology.create_entities(fdim)
     to_macro = fine_to_macro_facets(macro, fine, parent_cell)
@@ -223,10 +221,9 @@ class Discretization:
         macro.topology.create_entities(fdim)
         macro.topology.create_connectivity(fdim, tdim)
 
-        fine, parent_cell, parent_facet = refine_uniform(macro)
+        fine, parent_cell = refine_uniform(macro)
         self.mesh = fine
         self.parent_cell = parent_cell
-        self.parent_facet = parent_facet
         fine.topology.create_connectivity(fdim, tdim)
 
         to_macro = fine_to_macro_facets(macro, fine, parent_cell)
