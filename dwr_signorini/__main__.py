@@ -88,7 +88,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the demos with a one-line description")
     run = sub.add_parser(
-        "run", help="run a demo: run DEMO [demo options...] (see run DEMO --help)",
+        "run",
+        help="run a demo: run DEMO [demo options...] (see run DEMO --help)",
         add_help=False,
     )
     run.add_argument("demo", help="demo name, e.g. bar_2d (see `list`)")
@@ -101,8 +102,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     demos = find_demos()
     if args.command == "list":
         if not demos:
-            print(f"no demos found in {demos_dir()} (they are part of the source checkout)",
-                  file=sys.stderr)
+            print(
+                f"no demos found in {demos_dir()} (they are part of the source checkout)",
+                file=sys.stderr,
+            )
             return 2
         if _rank() == 0:
             print("demos (python3 -m dwr_signorini run DEMO [options], DEMO --help for options):")

@@ -28,20 +28,17 @@ def _is_empty(form: ufl.Form) -> bool:
     return expand_derivatives(form).empty()
 
 
-def localize(form: ufl.Form, q: ufl.Argument, quadrature_degree: int | None = None) -> ufl.Form:
+def localize(form: ufl.Form, q: ufl.Argument) -> ufl.Form:
     """Multiply every integrand of a scalar form by a DG0 test function ``q`` (cell indicators).
 
     Facet integrals attach to the adjacent cell. Summing the assembled vector gives back the form:
-    this is the localisation by filtering of Section 4 (no integration by parts).
-    ``quadrature_degree`` replaces UFL's degree estimate, which is very high for data given by
-    non-polynomial expressions.
+    this is the localisation by filtering of Section 4 (no integration by parts). The integrals
+    keep their metadata (quadrature degrees).
     """
-    integrals = []
-    for itg in expand_derivatives(form).integrals():
-        metadata = dict(itg.metadata())
-        if quadrature_degree is not None:
-            metadata["quadrature_degree"] = quadrature_degree
-        integrals.append(itg.reconstruct(integrand=q * itg.integrand(), metadata=metadata))
+    integrals = [
+        itg.reconstruct(integrand=q * itg.integrand())
+        for itg in expand_derivatives(form).integrals()
+    ]
     return ufl.Form(integrals)
 
 

@@ -34,6 +34,7 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
 from .timing import timed
 
@@ -49,8 +50,6 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 _counter = itertools.count()
-
-DATA_QUADRATURE_DEGREE = 8
 
 
 class ConvergenceError(RuntimeError):
@@ -173,11 +172,8 @@ class NewtonSystem:
 
         # Forms, built once.
         a = problem.elastic_form(u, v, m.dx)
-        # Loads and gap may be non-polynomial expressions, for which UFL's degree estimate is
-        # huge: integrate them with a fixed degree (exact for polynomial data of degree
-        # DATA_QUADRATURE_DEGREE - 2 against P2 test functions).
-        data = {"quadrature_degree": DATA_QUADRATURE_DEGREE}
-        L = problem.load_form(v, m, data)
+        # Non-polynomial loads and gaps at DATA_QUADRATURE_DEGREE, as in the residuals.
+        L = with_quadrature_degrees(problem.load_form(v, m))
         coupling = ufl.inner(mu, ufl.dot(u, m.n)) * m.ds_contact
         self._forms = {
             "a": disc.form(a),
@@ -185,7 +181,7 @@ class NewtonSystem:
             "N": disc.form(coupling),
             "NT": disc.form(ufl.adjoint(coupling)),
             "M": disc.form(mu * m.ds_contact),
-            "g": disc.form(problem.gap_expr(m.x) * mu * m.ds_contact(metadata=data)),
+            "g": disc.form(with_quadrature_degrees(problem.gap_expr(m.x) * mu * m.ds_contact)),
         }
         bcs = disc.bcs if V is disc.V else disc.dirichlet_bcs(V)
         self.bcs = bcs

@@ -129,7 +129,7 @@ def _value(row: Mapping[str, Any], key: str) -> float:
     """``row[key]`` as float (NaN if missing or None); ``time_<phase>`` also reads ``time``."""
     value = row.get(key)
     if value is None and key.startswith("time_") and isinstance(row.get("time"), Mapping):
-        value = row["time"].get(key[len("time_"):])
+        value = row["time"].get(key[len("time_") :])
     if value is None or value == "":
         return math.nan
     return float(value)
@@ -245,8 +245,13 @@ def plot_convergence(
             if not ok.any():
                 continue
             ax.loglog(
-                xs[ok], ys[ok], linestyle=_LINESTYLES[q], marker=_MARKERS[i % len(_MARKERS)],
-                color=colors[i % len(colors)], markersize=4, label=f"{label}: {_SHORT[q]}",
+                xs[ok],
+                ys[ok],
+                linestyle=_LINESTYLES[q],
+                marker=_MARKERS[i % len(_MARKERS)],
+                color=colors[i % len(colors)],
+                markersize=4,
+                label=f"{label}: {_SHORT[q]}",
             )
             xs_all.extend(xs[ok])
             if anchor is None:
@@ -256,8 +261,14 @@ def plot_convergence(
         x1 = max(xs_all)
         for k, s in enumerate(slopes):
             xr = np.array([x0, x1])
-            ax.loglog(xr, y0 * 0.5 * (xr / x0) ** s, color="0.5",
-                      linestyle=(0, (1, 1 + k)), linewidth=1.0, label=_slope_label(s, x))
+            ax.loglog(
+                xr,
+                y0 * 0.5 * (xr / x0) ** s,
+                color="0.5",
+                linestyle=(0, (1, 1 + k)),
+                linewidth=1.0,
+                label=_slope_label(s, x),
+            )
     ax.set_xlabel(
         r"cells $M_\Omega$ of $T_h$" if x == "num_cells" else "cumulative wall-clock time [s]"
     )
@@ -301,16 +312,33 @@ def plot_effectivity(
     ax = fig.add_subplot()
     for i, (label, rows) in enumerate(runs.items()):
         xs = _column(rows, x)
-        for key, style, name in (("ieff", "-", r"$I_{eff}(\eta)$"),
-                                 ("ieff_p", "--", r"$I_{eff}(\eta_p)$")):
+        for key, style, name in (
+            ("ieff", "-", r"$I_{eff}(\eta)$"),
+            ("ieff_p", "--", r"$I_{eff}(\eta_p)$"),
+        ):
             ys = _column(rows, key)
             ok = np.isfinite(ys) & np.isfinite(xs)
             if ok.any():
-                ax.plot(xs[ok], ys[ok], style, marker=_MARKERS[i % len(_MARKERS)], color=f"C{i}",
-                        markersize=4, label=f"{label}: {name}")
+                ax.plot(
+                    xs[ok],
+                    ys[ok],
+                    style,
+                    marker=_MARKERS[i % len(_MARKERS)],
+                    color=f"C{i}",
+                    markersize=4,
+                    label=f"{label}: {name}",
+                )
     for j, (label, (xs, ys)) in enumerate((references or {}).items()):
-        ax.plot(xs, ys, linestyle="none", marker=_MARKERS[j % len(_MARKERS)], color="0.35",
-                markerfacecolor="none", markersize=7, label=label)
+        ax.plot(
+            xs,
+            ys,
+            linestyle="none",
+            marker=_MARKERS[j % len(_MARKERS)],
+            color="0.35",
+            markerfacecolor="none",
+            markersize=7,
+            label=label,
+        )
     ax.axhline(1.0, color="0.5", linewidth=0.8)
     if x == "num_cells":
         ax.set_xscale("log")
@@ -353,8 +381,14 @@ def plot_sweep(
     fig = _figure((6.4, 4.0))
     ax = fig.add_subplot()
     for i, (label, values) in enumerate(series.items()):
-        ax.plot(ms, values, marker=_MARKERS[i % len(_MARKERS)], color=f"C{i}",
-                linestyle="-" if i == 0 else "--", label=names.get(label, label))
+        ax.plot(
+            ms,
+            values,
+            marker=_MARKERS[i % len(_MARKERS)],
+            color=f"C{i}",
+            linestyle="-" if i == 0 else "--",
+            label=names.get(label, label),
+        )
     ax.set_xlabel("midpoint coordinate $m$")
     ax.set_ylabel(r"effectivity index $I_{eff}$")
     ax.ticklabel_format(axis="y", useOffset=False)
@@ -518,7 +552,9 @@ def virtual_display(timeout: float = 20.0) -> Iterator[str | None]:
     read_fd, write_fd = os.pipe()
     proc = subprocess.Popen(
         [xvfb, "-displayfd", str(write_fd), "-screen", "0", "1600x1200x24", "-nolisten", "tcp"],
-        pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        pass_fds=(write_fd,),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
     )
     os.close(write_fd)
     try:
@@ -700,8 +736,9 @@ def snapshot_mesh(msh: dmesh.Mesh) -> MeshSnapshot | None:
         The snapshot on rank 0, ``None`` on the other ranks.
     """
     cells = np.arange(_num_local_cells(msh), dtype=np.int32)
-    data = _gather_arrays(msh.comm, _cell_vertices(msh, msh.topology.dim, cells),
-                          np.full(len(cells), msh.comm.rank))
+    data = _gather_arrays(
+        msh.comm, _cell_vertices(msh, msh.topology.dim, cells), np.full(len(cells), msh.comm.rank)
+    )
     if data is None:
         return None
     return MeshSnapshot(data[0], data[1], msh.topology.cell_type, msh.topology.dim)
@@ -785,19 +822,24 @@ def _draw_mesh_2d(polys: np.ndarray, ranks: np.ndarray | None, path: Path, title
 
 
 def _mesh_pyvista(
-    xcells: np.ndarray, ranks: np.ndarray | None, cell_type: dmesh.CellType, path: Path,
+    xcells: np.ndarray,
+    ranks: np.ndarray | None,
+    cell_type: dmesh.CellType,
+    path: Path,
     title: str,
 ) -> None:
     num, nv, _ = xcells.shape
-    grid = _unstructured_grid(np.arange(num * nv).reshape(num, nv), xcells.reshape(-1, 3),
-                              cell_type)
+    grid = _unstructured_grid(
+        np.arange(num * nv).reshape(num, nv), xcells.reshape(-1, 3), cell_type
+    )
     if ranks is not None:
         grid.cell_data["rank"] = ranks
     surface = grid.clean().extract_surface()
 
     def draw(plotter: Any) -> None:
-        kwargs = {"scalars": "rank", "cmap": "Pastel1"} if ranks is not None else {
-            "color": "#d9e0f2"}
+        kwargs = (
+            {"scalars": "rank", "cmap": "Pastel1"} if ranks is not None else {"color": "#d9e0f2"}
+        )
         plotter.add_mesh(surface, show_edges=True, edge_color="black", line_width=0.5, **kwargs)
         plotter.add_text(title, font_size=10)
         plotter.add_axes()
@@ -830,15 +872,17 @@ def _gather_solution(sol: Any, obstacle: bool, von_mises: bool, outline: bool) -
     disc = sol.disc
     msh = disc.mesh
     coords, values = _p1_cells(sol.u)
-    cellvalue = (_cellwise(msh, von_mises_2d(disc.problem.sigma(sol.u))) if von_mises
-                 else np.zeros(len(coords)))
+    cellvalue = (
+        _cellwise(msh, von_mises_2d(disc.problem.sigma(sol.u)))
+        if von_mises
+        else np.zeros(len(coords))
+    )
     if obstacle:
         obs = _contact_obstacle(sol)
     else:
         nv = _cell_vertices(msh, msh.topology.dim - 1, np.zeros(0, np.int32)).shape[1]
         obs = (np.zeros((0, nv, 3)), np.zeros((0, 3)), np.zeros((0, nv)))
-    edges = (_cell_vertices(msh, 1, _exterior_facets(msh)) if outline
-             else np.zeros((0, 2, 3)))
+    edges = _cell_vertices(msh, 1, _exterior_facets(msh)) if outline else np.zeros((0, 2, 3))
     data = _gather_arrays(msh.comm, coords, values, cellvalue, *obs, edges)
     return None if data is None else _SolutionData(*data)
 
@@ -885,7 +929,11 @@ def plot_solution_2d(
 
 
 def _draw_solution_2d(
-    d: _SolutionData, path: Path, scale: float | None, color: str, show_mesh: bool,
+    d: _SolutionData,
+    path: Path,
+    scale: float | None,
+    color: str,
+    show_mesh: bool,
     title: str | None,
 ) -> Path:
     from matplotlib.collections import LineCollection
@@ -918,10 +966,18 @@ def _draw_solution_2d(
         vmax = float(np.percentile(faces, 99.0))
         art = ax.tripcolor(tri, facecolors=faces, cmap="jet", vmin=0.0, vmax=vmax, **edge)
         label = r"von Mises stress $\sigma_{M,2}$ (clipped at 99th percentile)"
-    fig.colorbar(art, ax=ax, label=label, shrink=0.8,
-                 extend="max" if color == "von_mises" else "neither")
-    ax.add_collection(LineCollection(d.outline[:, :, :2], colors="0.4", linewidths=0.6,
-                                     linestyles="dashed", label="reference configuration"))
+    fig.colorbar(
+        art, ax=ax, label=label, shrink=0.8, extend="max" if color == "von_mises" else "neither"
+    )
+    ax.add_collection(
+        LineCollection(
+            d.outline[:, :, :2],
+            colors="0.4",
+            linewidths=0.6,
+            linestyles="dashed",
+            label="reference configuration",
+        )
+    )
     if len(d.obs_x):
         _draw_obstacle_2d(ax, d.obs_x, d.obs_n, d.obs_g, s, size)
     ax.set_aspect("equal")
@@ -949,8 +1005,7 @@ def _draw_obstacle_2d(
     line = pts + scale * gaps[:, None] * normals
     band = line + 0.04 * size * normals
     poly = np.concatenate([line, band[::-1]])
-    ax.fill(poly[:, 0], poly[:, 1], facecolor="0.9", edgecolor="0.5", linewidth=0.0,
-            hatch="////")
+    ax.fill(poly[:, 0], poly[:, 1], facecolor="0.9", edgecolor="0.5", linewidth=0.0, hatch="////")
     ax.plot(line[:, 0], line[:, 1], color="k", linewidth=1.5, label="obstacle")
 
 
@@ -998,8 +1053,12 @@ def _gather_contact_force(sol: Any) -> list[np.ndarray] | None:
 
 
 def _draw_contact_force(
-    x: np.ndarray, lam: np.ndarray, active: np.ndarray, path: Path,
-    exact: Callable[[np.ndarray], np.ndarray] | None, title: str | None,
+    x: np.ndarray,
+    lam: np.ndarray,
+    active: np.ndarray,
+    path: Path,
+    exact: Callable[[np.ndarray], np.ndarray] | None,
+    title: str | None,
 ) -> Path:
     num, nv = x.shape[:2]
     pts = x.reshape(-1, 3)
@@ -1017,15 +1076,21 @@ def _draw_contact_force(
             if on:
                 ax.axvspan(a, b, color="C1", alpha=0.12, linewidth=0)
         if np.allclose(s[1:, 0], s[:-1, 1]):
-            ax.stairs(lam_s, np.append(s[:, 0], s[-1, 1]), baseline=None, color="C0",
-                      linewidth=1.5, label=r"$\lambda_{n,H}$")
+            ax.stairs(
+                lam_s,
+                np.append(s[:, 0], s[-1, 1]),
+                baseline=None,
+                color="C0",
+                linewidth=1.5,
+                label=r"$\lambda_{n,H}$",
+            )
         else:
-            ax.hlines(lam_s, s[:, 0], s[:, 1], color="C0", linewidth=1.5,
-                      label=r"$\lambda_{n,H}$")
+            ax.hlines(lam_s, s[:, 0], s[:, 1], color="C0", linewidth=1.5, label=r"$\lambda_{n,H}$")
         if exact is not None:
             t = np.linspace(s[0, 0], s[-1, 1], 801)
-            ax.plot(t, exact(t), color="k", linestyle="--", linewidth=1.0,
-                    label=r"exact $\lambda_n$")
+            ax.plot(
+                t, exact(t), color="k", linestyle="--", linewidth=1.0, label=r"exact $\lambda_n$"
+            )
         ax.set_xlabel(f"{names[k]} on $\\Gamma_C$")
         ax.set_ylabel(r"contact force $\lambda_n$")
         ax.grid(True, alpha=0.3)
@@ -1034,8 +1099,9 @@ def _draw_contact_force(
         handles, _ = ax.get_legend_handles_labels()
         handles.append(Patch(color="C1", alpha=0.12, label="active set"))
         ax.legend(handles=handles, fontsize="small")
-        ax.set_title(title if title is not None else
-                     rf"$\lambda_{{n,H}}$ on $M_C = {num}$ contact elements")
+        ax.set_title(
+            title if title is not None else rf"$\lambda_{{n,H}}$ on $M_C = {num}$ contact elements"
+        )
         return _save(fig, path)
 
     from matplotlib.collections import PolyCollection
@@ -1045,8 +1111,13 @@ def _draw_contact_force(
     polys = x[:, :, [i, j]]
     fig = _figure((6.0, 5.0))
     ax = fig.add_subplot()
-    coll = PolyCollection(polys, array=lam, cmap="viridis", edgecolors="k",
-                          linewidths=float(np.clip(20.0 / math.sqrt(num), 0.05, 0.5)))
+    coll = PolyCollection(
+        polys,
+        array=lam,
+        cmap="viridis",
+        edgecolors="k",
+        linewidths=float(np.clip(20.0 / math.sqrt(num), 0.05, 0.5)),
+    )
     ax.add_collection(coll)
     fig.colorbar(coll, ax=ax, label=r"contact force $\lambda_{n,H}$")
     ax.set_xlim(pts[:, i].min(), pts[:, i].max())
@@ -1054,8 +1125,9 @@ def _draw_contact_force(
     ax.set_aspect("equal")
     ax.set_xlabel(names[i])
     ax.set_ylabel(names[j])
-    ax.set_title(title if title is not None else
-                 rf"$\lambda_{{n,H}}$ on $M_C = {num}$ contact facets")
+    ax.set_title(
+        title if title is not None else rf"$\lambda_{{n,H}}$ on $M_C = {num}$ contact facets"
+    )
     return _save(fig, path)
 
 
@@ -1100,9 +1172,12 @@ def plot_solution_3d(
     umag = np.linalg.norm(u, axis=1)
     size = float(np.max(pts.max(axis=0) - pts.min(axis=0)))
     s = _auto_scale(float(umag.max()), size) if scale is None else float(scale)
-    text = title if title is not None else (
-        f"u_h on {nc} cells" + ("" if s == 1.0 else f", displacement x {s:.3g}"))
-    obstacle_pts = (data.obs_x + s * data.obs_g[:, :, None] * data.obs_n[:, None, :])
+    text = (
+        title
+        if title is not None
+        else (f"u_h on {nc} cells" + ("" if s == 1.0 else f", displacement x {s:.3g}"))
+    )
+    obstacle_pts = data.obs_x + s * data.obs_g[:, :, None] * data.obs_n[:, None, :]
 
     if backend == "pyvista" or (backend == "auto" and _use_pyvista()):
         try:
@@ -1119,8 +1194,16 @@ def plot_solution_3d(
 
 
 def _solution_pyvista(
-    pts: np.ndarray, u: np.ndarray, umag: np.ndarray, nc: int, nv: int,
-    cell_type: dmesh.CellType, obstacle_pts: np.ndarray, scale: float, path: Path, text: str,
+    pts: np.ndarray,
+    u: np.ndarray,
+    umag: np.ndarray,
+    nc: int,
+    nv: int,
+    cell_type: dmesh.CellType,
+    obstacle_pts: np.ndarray,
+    scale: float,
+    path: Path,
+    text: str,
 ) -> None:
     import pyvista
 
@@ -1135,9 +1218,15 @@ def _solution_pyvista(
         obstacle_surface = pyvista.PolyData(obstacle_pts.reshape(-1, 3), faces).clean()
 
     def draw(plotter: Any) -> None:
-        plotter.add_mesh(surface, scalars="|u|", cmap="viridis", show_edges=True,
-                         edge_color="#333333", line_width=0.3,
-                         scalar_bar_args={"title": "|u_h|", "vertical": True})
+        plotter.add_mesh(
+            surface,
+            scalars="|u|",
+            cmap="viridis",
+            show_edges=True,
+            edge_color="#333333",
+            line_width=0.3,
+            scalar_bar_args={"title": "|u_h|", "vertical": True},
+        )
         if obstacle_surface is not None:
             plotter.add_mesh(obstacle_surface, color="#8c8c8c", opacity=0.45)
         plotter.add_text(text, font_size=10)

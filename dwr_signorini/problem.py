@@ -290,11 +290,11 @@ class SignoriniProblem:
         """a(u, v) = (sigma(u), eps(v)) (Section 2)."""
         return ufl.inner(self.sigma(u), self.epsilon(v)) * dx
 
-    def load_form(self, v: Any, m: Any, metadata: dict[str, Any] | None = None) -> ufl.Form:
+    def load_form(self, v: Any, m: Any) -> ufl.Form:
         """<l, v> = (f, v) + (b, v)_GN on the measures ``m`` of a mesh (Section 2)."""
-        form = ufl.inner(self.vector(self.body_force, m.x), v) * m.dx(metadata=metadata)
+        form = ufl.inner(self.vector(self.body_force, m.x), v) * m.dx
         for tag, t in self.traction.items():
-            form += ufl.inner(self.vector(t, m.x), v) * m.ds(tag, metadata=metadata)
+            form += ufl.inner(self.vector(t, m.x), v) * m.ds(tag)
         return form
 
     def vector(self, value: VectorData, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:

@@ -133,7 +133,8 @@ class Reconstructor:
         self.V2h = fem.functionspace(disc.mesh, ("Lagrange", 2, (gdim,)))
         self.P1H = fem.functionspace(macro, ("Lagrange", 1))
         self.P1h = fem.functionspace(disc.mesh, ("Lagrange", 1))
-        if disc.mesh.topology.cell_type in _SIMPLEX:
+        self.simplex = disc.mesh.topology.cell_type in _SIMPLEX
+        if self.simplex:
             self._p2_matrix, self._parent_node_dof = patch_p2_matrix(disc, self.V2h)
             self.P2H = fem.functionspace(macro, ("Lagrange", 2))
         else:
@@ -179,17 +180,38 @@ class Reconstructor:
         self._fine_to_macro(macro, v)
         return self._macro_to_fine(fem.Function(self.V2h, name=f"i2h({v.name})"), macro)
 
-    def patch_linear_multiplier(self, lam: fem.Function) -> fem.Function:
-        """i_2H^(1) lam: vertex-averaged P1 recovery on Gamma_C, as a scalar P1 function on T_h."""
+    def macro_quadratic(self, v: fem.Function) -> fem.Function:
+        """i_2h^(2) v as a function of the macro P2 space (simplices).
+
+        The fine nodal values are read as macro P2 nodal values; set on every local macro cell
+        whose children are on this process.
+        """
+        if self._parent_node_dof is None:
+            raise NotImplementedError("macro_quadratic needs a simplex mesh")
+        out = fem.Function(self.V2H, name=f"i2h({v.name})")
+        bs = self.V2H.dofmap.index_map_bs
+        parents = np.flatnonzero(self._parent_node_dof[:, 0] >= 0)
+        macro_dofs = self.V2H.dofmap.list[parents].ravel()
+        fine_dofs = self._parent_node_dof[parents].ravel()
+        out.x.array.reshape(-1, bs)[macro_dofs] = v.x.array.reshape(-1, bs)[fine_dofs]
+        return out
+
+    def macro_linear_multiplier(self, lam: fem.Function) -> fem.Function:
+        """i_2H^(1) lam: vertex-averaged P1 recovery on Gamma_C, a scalar P1 function on T_H."""
         form = self.disc.macro_form(lam * self._phi * self._ds_c)
         num = fem_petsc.assemble_vector(form)
         num.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         num.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        rec = fem.Function(self.P1H)
+        rec = fem.Function(self.P1H, name=f"i2H({lam.name})")
         with num.localForm() as n_loc, self._mass.localForm() as m_loc:
             mass = m_loc.array_r
             rec.x.array[:] = np.divide(n_loc.array_r, mass, out=np.zeros_like(mass), where=mass > 0)
         num.destroy()
+        return rec
+
+    def patch_linear_multiplier(self, lam: fem.Function) -> fem.Function:
+        """i_2H^(1) lam: vertex-averaged P1 recovery on Gamma_C, as a scalar P1 function on T_h."""
+        rec = self.macro_linear_multiplier(lam)
         out = fem.Function(self.P1h, name=f"i2H({lam.name})")
         if self._parent_node_dof is None:
             return self._scalar_to_fine(out, rec)

@@ -204,6 +204,7 @@ class Discretization:
         facet_tags: Facet tags carried to T_h.
         V: Vector P1 (Q1) on T_h.
         contact_mesh: Sigma_H, the submesh of macro contact facets.
+        contact_mesh_to_macro: The macro facet of each local cell of Sigma_H.
         Q: DG0 on Sigma_H (the multiplier space Lambda_H).
         entity_maps: For forms on T_h that use Q: fine facet -> Sigma_H cell.
         macro_entity_maps: For forms on T_H that use Q: macro facet -> Sigma_H cell.
@@ -238,6 +239,7 @@ class Discretization:
         self.contact_macro_facets = contact_macro.astype(np.int32)
         sub, sub_to_macro, _, _ = dmesh.create_submesh(macro, fdim, self.contact_macro_facets)
         self.contact_mesh = sub
+        self.contact_mesh_to_macro = np.asarray(sub_to_macro, dtype=np.int32)
         macro_to_sub = np.full(_num_entities(macro, fdim), -1, dtype=np.int32)
         macro_to_sub[sub_to_macro] = np.arange(len(sub_to_macro), dtype=np.int32)
         fine_to_sub = np.full(len(to_macro), -1, dtype=np.int32)

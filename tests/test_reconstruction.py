@@ -51,8 +51,10 @@ def test_reconstruction_is_exact_for_quadratics(kind):
     gdim = disc.mesh.geometry.dim
 
     def quad(x):
-        return np.vstack([x[0] ** 2 - 2 * x[0] * x[1] + 0.5, x[1] ** 2 + x[0] + x[2] * x[0]][:gdim]
-                         + ([x[2] ** 2] if gdim == 3 else []))[:gdim]
+        return np.vstack(
+            [x[0] ** 2 - 2 * x[0] * x[1] + 0.5, x[1] ** 2 + x[0] + x[2] * x[0]][:gdim]
+            + ([x[2] ** 2] if gdim == 3 else [])
+        )[:gdim]
 
     v = fem.Function(disc.V)
     v.interpolate(quad)
@@ -90,3 +92,39 @@ def test_multiplier_recovery_serial_equals_parallel_3d():
         local = fem.assemble_scalar(fem.form(r**2 * disc.m.ds_contact))
         results.append(comm.allreduce(local, op=MPI.SUM))
     assert np.isclose(results[0], results[1], rtol=1e-12)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("kind", ["strip", "obstacle"])
+def test_warm_start_by_parent_maps_equals_point_location(kind):
+    """transfer_solution through the parent maps (no point location) gives what interpolating
+    the same reconstructions with point location gives, after a marked (non-uniform) refinement,
+    on a strip whose contact boundary is cut by the partition and on the 3D obstacle."""
+    from dwr_signorini.adapt import transfer_solution
+    from dwr_signorini.spaces import refine_marked
+    from tests.problems import strip_problem
+
+    comm = MPI.COMM_WORLD
+    problem = (
+        strip_problem(comm, 16, 4) if kind == "strip" else ex.obstacle_problem(comm, (1, 4, 4))
+    )
+    sol = ds.solve(problem)
+    rec = Reconstructor(sol.disc)
+    macro = problem.mesh
+    tdim = macro.topology.dim
+    num_cells = macro.topology.index_map(tdim).size_local
+    mids = mesh.compute_midpoints(macro, tdim, np.arange(num_cells, dtype=np.int32))
+    marked = np.flatnonzero(mids[:, 1] < 0.4 * mids[:, 1].max()).astype(np.int32)
+    new_problem, macro_parent = refine_marked(problem, marked)
+    disc = ds.discretize(new_problem)
+
+    u_fast, lam_fast = transfer_solution(sol, disc, rec, macro_parent)
+    _, lam_slow = transfer_solution(sol, disc, rec)
+    u_slow = _Transfer(disc.V, rec.V2h)(fem.Function(disc.V), rec.patch_quadratic(sol.u))
+
+    scale = comm.allreduce(np.abs(u_slow.x.array).max(initial=0.0), op=MPI.MAX)
+    assert scale > 0
+    assert np.allclose(u_fast.x.array, u_slow.x.array, rtol=0, atol=1e-12 * scale)
+    lam_scale = comm.allreduce(np.abs(lam_slow.x.array).max(initial=0.0), op=MPI.MAX)
+    assert lam_scale > 0
+    assert np.allclose(lam_fast.x.array, lam_slow.x.array, rtol=0, atol=1e-12 * lam_scale)
