@@ -1,0 +1,68 @@
+"""Quadrature degrees: polynomial integrands exact at UFL's estimate, data at the data degree."""
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem, mesh
+
+from dwr_signorini.quadrature import DATA_QUADRATURE_DEGREE, is_polynomial, with_quadrature_degrees
+
+
+@pytest.fixture(scope="module")
+def setting():
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, 5, 3, diagonal=mesh.DiagonalType.crossed)
+    u = fem.Function(fem.functionspace(msh, ("Lagrange", 1, (2,))))
+    w = fem.Function(fem.functionspace(msh, ("Lagrange", 2, (2,))))
+    u.interpolate(lambda x: np.vstack([np.sin(3 * x[0]) + x[1], np.cos(x[0] * x[1])]))
+    w.interpolate(lambda x: np.vstack([np.exp(x[0]) * x[1], x[0] ** 3 - x[1]]))
+    return msh, u, w, ufl.SpatialCoordinate(msh), fem.Constant(msh, 2.0)
+
+
+def test_classification(setting):
+    _, u, w, x, c = setting
+    polynomial = [ufl.inner(ufl.grad(u), ufl.grad(w)), x[0] ** 2 * w[0], x[0] / c * w[1], -u[0]]
+    other = [
+        ufl.sin(x[0]) * w[0],
+        x[0] / x[1],
+        ufl.sqrt(x[0]),
+        abs(x[0]),
+        x[0] ** 0.5,
+        ufl.conditional(ufl.lt(x[0], 0.5), 1.0, 0.0),
+        ufl.max_value(x[0], 0.1),
+        ufl.exp(u[0]),
+    ]
+    assert all(is_polynomial(e) for e in polynomial)
+    assert not any(is_polynomial(e) for e in other)
+
+
+@pytest.mark.mpi
+def test_polynomial_integrands_are_exact_and_cheaper(setting):
+    """UFL's estimate integrates a(u_h, w) + (x^3, w) exactly: equal to a degree-12 rule."""
+    msh, u, w, x, _ = setting
+    comm = msh.comm
+    form = (ufl.inner(ufl.grad(u), ufl.grad(w)) + x[0] ** 3 * w[1]) * ufl.dx + u[0] * w[1] * ufl.ds
+    chosen = with_quadrature_degrees(form)
+    degrees = sorted(itg.metadata()["quadrature_degree"] for itg in chosen.integrals())
+    assert max(degrees) < DATA_QUADRATURE_DEGREE
+    fine = ufl.Form([i.reconstruct(metadata={"quadrature_degree": 12}) for i in form.integrals()])
+    values = [comm.allreduce(fem.assemble_scalar(fem.form(f)), op=MPI.SUM) for f in (chosen, fine)]
+    assert np.isclose(values[0], values[1], rtol=1e-13, atol=0)
+
+
+def test_data_gets_the_data_degree_and_explicit_degrees_stay(setting):
+    _, _, w, x, _ = setting
+    form = ufl.sin(x[0]) * w[0] * ufl.dx + w[1] * ufl.dx(metadata={"quadrature_degree": 3})
+    degrees = [
+        itg.metadata()["quadrature_degree"] for itg in with_quadrature_degrees(form).integrals()
+    ]
+    assert sorted(degrees) == sorted([DATA_QUADRATURE_DEGREE, 3])
+    assert with_quadrature_degrees(form, None) is form
+
+
+def test_non_affine_cells_use_the_data_degree():
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, 2, 2, cell_type=mesh.CellType.quadrilateral)
+    v = fem.Function(fem.functionspace(msh, ("Lagrange", 1)))
+    (itg,) = with_quadrature_degrees(v * ufl.dx).integrals()
+    assert itg.metadata()["quadrature_degree"] == DATA_QUADRATURE_DEGREE
