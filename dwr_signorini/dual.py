@@ -7,8 +7,14 @@ With the Newton matrix of the final active set A (see :mod:`dwr_signorini.newton
 
 which is the discrete form of the dual problem (11)-(12):
 ``a(v, y) - int chi xi v_n = J'_u(v)`` and ``int mu y_n + int (1 - chi) xi mu = J'_lambda(mu)``,
-chi the indicator of the active macro facets. It is solved with the factorisation of the last
-Newton step (``KSP.solveTranspose``), so it costs two triangular solves and no factorisation.
+chi the indicator of the active macro facets. It is solved by the Newton system with the
+factorisations of the last Newton step (:meth:`~dwr_signorini.newton.NewtonSystem.solve_transpose`),
+so it costs no factorisation: ``KSP.solveTranspose`` with the block matrix (``method="block"``),
+or, with ``method="schur"``, K symmetric and eta_A = -xi_A,
+
+    K y + N_A^T eta_A = J'_u,    (N y)_A = J'_lambda,A,    xi_I = (J'_lambda,I - (N y)_I) / M_I,
+
+by two solves with the factors of K and one with the Cholesky factor of S_AA = (N K^-1 N^T)_AA.
 """
 
 from __future__ import annotations
@@ -65,23 +71,20 @@ def solve_dual(system: NewtonSystem, goal: GoalForms) -> DualSolution:
     """Solve the dual problem (11)-(12) with the transposed last Newton matrix.
 
     Args:
-        system: The Newton system whose last factorisation is kept (``system.ksp``).
+        system: The solved Newton system (its last factorisations are reused).
         goal: The goal's derivatives at w_h.
 
     Returns:
         z_h = (y_h, xi_H) on the system's displacement space and Lambda_H.
     """
-    if system.A is None:
+    if not system.solved:
         raise RuntimeError("the Newton system has not been solved: no matrix to transpose")
-    rhs = system.A.createVecLeft()
-    z = system.A.createVecRight()
+    rhs = system.x.duplicate()
+    z = system.x.duplicate()
     with timed("assemble"):
         dual_rhs(system, goal, rhs)
     with timed("dual solve"):
-        system.ksp.solveTranspose(rhs, z)
-    reason = system.ksp.getConvergedReason()
-    if reason < 0:
-        raise RuntimeError(f"the dual solve failed (KSP reason {reason})")
+        system.solve_transpose(rhs, z)
     y = fem.Function(system.V, name="y")
     xi = fem.Function(system.disc.Q, name="xi")
     y.x.array[: system.n_u] = z.array_r[: system.n_u]

@@ -14,6 +14,15 @@ i.e. K u + N^T lam = f, (N u)_A = g_A, lam_I = 0. The contact rows are the gener
 derivative of C(w)(mu) = (mu, lam - max(0, lam + u_n - g)) of the paper, scaled so that the
 transposed system is exactly the discrete dual problem (11)-(12); see :mod:`dwr_signorini.dual`.
 
+Two ways to solve it (``method`` of :func:`solve`): ``"block"`` (:class:`NewtonSystem`, the
+reference) assembles and factors the block matrix in every step; ``"schur"``
+(:class:`SchurNewtonSystem`) eliminates u,
+
+    S_AA lam_A = (N K^-1 f)_A - g_A,    u = K^-1 (f - N_A^T lam_A),    S = N K^-1 N^T,
+
+so that K is factored and the small dense S computed once per mesh, and a step costs a dense
+Cholesky factorisation of S_AA and one solve with the factors of K.
+
 Choice of c_n: c_n,i = E / H_i with H_i the size of macro contact facet i (length in 2D, square
 root of the area in 3D). (M lam)_i scales like E u H^(d-2) and c_n (N u)_i like E u H^(d-2) too,
 so the active-set test is invariant under scaling E, the loads and the lengths.
@@ -30,6 +39,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import scipy.linalg
+import scipy.sparse
 import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
@@ -39,8 +50,11 @@ from .spaces import Discretization
 from .timing import timed
 
 __all__ = [
+    "METHODS",
+    "SCHUR_MAX_MULTIPLIERS",
     "ConvergenceError",
     "NewtonSystem",
+    "SchurNewtonSystem",
     "Solution",
     "default_petsc_options",
     "iterative_petsc_options",
@@ -50,6 +64,20 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 _counter = itertools.count()
+
+#: Linear solvers of the Newton steps, the ``method`` of :func:`solve`.
+METHODS = ("block", "schur")
+
+#: Most multipliers (global) for ``method="schur"``: its dense N K^-1 N^T takes 8 n_lam^2 bytes on
+#: rank 0 (3.2 GB at this size), the Cholesky factor of its active block as much again.
+SCHUR_MAX_MULTIPLIERS = 20000
+
+#: Entries of one block of right-hand sides N^T[:, block] (dense, global) when computing S: bounds
+#: the memory of the multi-RHS solves (MUMPS may gather dense right-hand sides on one rank).
+_SCHUR_BLOCK_ENTRIES = 2**24
+
+#: A Cholesky pivot of S_AA below this times its diagonal entry means dependent active rows.
+_PIVOT_RTOL = 1e-12
 
 
 class ConvergenceError(RuntimeError):
@@ -150,11 +178,44 @@ def set_options(obj: PETSc.KSP, prefix: str, options: dict[str, Any]) -> None:
 
 
 class NewtonSystem:
-    """The matrices of the algebraic problem and the Newton matrix of the current active set.
+    """The algebraic problem of one mesh and the Newton steps by the block matrix (reference).
 
     Owns its PETSc objects (destroyed in ``__del__``); K, N, N^T, M, f and g are assembled once per
-    mesh and reused in every Newton step and for the dual problem.
+    mesh and reused in every Newton step and for the dual problem. Each Newton step assembles the
+    Newton matrix of its active set and factors it (``method="block"`` of :func:`solve`)::
+
+        [ K          N^T    ] [u  ]   [ f       ]
+        [ -D_A N     D_I M  ] [lam] = [ -D_A g  ].
+
+    :class:`SchurNewtonSystem` solves the same equations by eliminating u.
+
+    Attributes:
+        x: Block vector [u; lam] of the last Newton step: owned u dofs, then owned multiplier rows
+            (split it with :meth:`split`).
+        active: Active set of the last Newton step (owned multiplier rows).
+        solved: Whether a Newton step was solved, so that :meth:`solve_transpose` (the dual
+            problem) can reuse its factorisation.
+        A: Newton matrix of the last step (None before the first step).
+        ksp: The linear solver (prefix :attr:`prefix`).
     """
+
+    #: Attributes holding PETSc objects, destroyed by :meth:`destroy`.
+    _petsc_objects: tuple[str, ...] = (
+        "K",
+        "N",
+        "NT",
+        "f",
+        "M",
+        "g",
+        "A0",
+        "A",
+        "ksp",
+        "x",
+        "b",
+        "is_u",
+        "is_lam",
+        "_near_nullspace",
+    )
 
     def __init__(
         self,
@@ -188,27 +249,21 @@ class NewtonSystem:
         with timed("assemble"):
             self._assemble(bcs)
         self.A: PETSc.Mat | None = None
+        self.solved = False
         self.ksp = PETSc.KSP().create(disc.comm)
         self.prefix = f"dwr_signorini_primal_{next(_counter)}_"
-        options = default_petsc_options()
+        options = self._default_options()
         options.update(petsc_options or {})
         set_options(self.ksp, self.prefix, options)
         self.direct = self.ksp.getPC().getType() in ("lu", "cholesky")
-        if self.ksp.getPC().getType() == "fieldsplit":
-            self._setup_fieldsplit()
+        self._setup()
 
-    def _setup_fieldsplit(self) -> None:
-        """Fields "u" and "lam" for PCFIELDSPLIT, rigid body modes as near-nullspace of "u"."""
-        lo = self.A0.getOwnershipRange()[0]
-        comm = self.disc.comm
-        self.is_u = PETSc.IS().createStride(self.n_u, first=lo, step=1, comm=comm)
-        self.is_lam = PETSc.IS().createStride(self.n_lam, first=lo + self.n_u, step=1, comm=comm)
-        self._near_nullspace = rigid_body_modes(self.V, self.n_u)
-        self.is_u.compose("nearnullspace", self._near_nullspace)
-        self.ksp.getPC().setFieldSplitIS(("u", self.is_u), ("lam", self.is_lam))
+    @staticmethod
+    def _default_options() -> dict[str, Any]:
+        return default_petsc_options()
 
     def _assemble(self, bcs: list[fem.DirichletBC]) -> None:
-        """K, N, N^T, f, M, g and the block pattern of the Newton matrix (once per mesh)."""
+        """K, N, N^T, f, M, g and c_n (once per mesh)."""
         problem, disc, V, Q = self.disc.problem, self.disc, self.V, self.disc.Q
         self.K = fem_petsc.assemble_matrix(self._forms["a"], bcs=bcs)
         self.K.assemble()
@@ -232,18 +287,7 @@ class NewtonSystem:
         # Block layout: per rank [u owned dofs, lam owned dofs].
         self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         self.n_lam = Q.dofmap.index_map.size_local
-        D = PETSc.Mat().createAIJ(((self.n_lam, None), (self.n_lam, None)), nnz=1, comm=disc.comm)
-        D.setDiagonal(self.M)
-        D.assemble()
-        nest = PETSc.Mat().createNest([[self.K, self.NT], [self.N, D]], comm=disc.comm)
-        self.A0 = PETSc.Mat()
-        nest.convert("aij", out=self.A0)
-        nest.destroy()
-        D.destroy()
-        lo, _ = self.A0.getOwnershipRange()
-        self._lam_rows = np.arange(lo + self.n_u, lo + self.n_u + self.n_lam, dtype=PETSc.IntType)
-
-        self.x, self.b = self.A0.createVecs()
+        self.x = PETSc.Vec().createMPI((self.n_u + self.n_lam, None), comm=disc.comm)
         self.active = np.zeros(self.n_lam, dtype=bool)
 
     def _assemble_q_vector(self, form: fem.Form) -> PETSc.Vec:
@@ -251,26 +295,39 @@ class NewtonSystem:
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return vec
 
+    def _setup(self) -> None:
+        """The block pattern A0 of the Newton matrices, and the field split if it is the PC."""
+        comm = self.disc.comm
+        with timed("assemble"):
+            D = PETSc.Mat().createAIJ(((self.n_lam, None), (self.n_lam, None)), nnz=1, comm=comm)
+            D.setDiagonal(self.M)
+            D.assemble()
+            nest = PETSc.Mat().createNest([[self.K, self.NT], [self.N, D]], comm=comm)
+            self.A0 = PETSc.Mat()
+            nest.convert("aij", out=self.A0)
+            nest.destroy()
+            D.destroy()
+            lo, _ = self.A0.getOwnershipRange()
+            self._lam_rows = np.arange(
+                lo + self.n_u, lo + self.n_u + self.n_lam, dtype=PETSc.IntType
+            )
+            self.b = self.A0.createVecLeft()
+        if self.ksp.getPC().getType() == "fieldsplit":
+            self._setup_fieldsplit()
+
+    def _setup_fieldsplit(self) -> None:
+        """Fields "u" and "lam" for PCFIELDSPLIT, rigid body modes as near-nullspace of "u"."""
+        lo = self.A0.getOwnershipRange()[0]
+        comm = self.disc.comm
+        self.is_u = PETSc.IS().createStride(self.n_u, first=lo, step=1, comm=comm)
+        self.is_lam = PETSc.IS().createStride(self.n_lam, first=lo + self.n_u, step=1, comm=comm)
+        self._near_nullspace = rigid_body_modes(self.V, self.n_u)
+        self.is_u.compose("nearnullspace", self._near_nullspace)
+        self.ksp.getPC().setFieldSplitIS(("u", self.is_u), ("lam", self.is_lam))
+
     def destroy(self) -> None:
         """Destroy the PETSc objects (collective: call on all ranks at the same point)."""
-        for name in (
-            "K",
-            "N",
-            "NT",
-            "f",
-            "M",
-            "g",
-            "A0",
-            "A",
-            "ksp",
-            "x",
-            "b",
-            "is_u",
-            "is_lam",
-            "_near_nullspace",
-            "_AT",
-            "_ksp_t",
-        ):
+        for name in self._petsc_objects:
             obj = getattr(self, name, None)
             if obj is not None:
                 obj.destroy()
@@ -352,10 +409,253 @@ class NewtonSystem:
             raise ConvergenceError(
                 f"linear solve of the Newton step failed (KSP reason {reason})", []
             )
+        self.solved = True
+
+    def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
+        """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem).
+
+        Reuses the factorisation of the last step (two triangular solves).
+
+        Args:
+            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
+            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
+
+        Raises:
+            RuntimeError: No Newton step was solved, or the solve failed.
+        """
+        self._check_solved()
+        self.ksp.solveTranspose(rhs, z)
+        reason = self.ksp.getConvergedReason()
+        if reason < 0:
+            raise RuntimeError(f"the dual solve failed (KSP reason {reason})")
+
+    def _check_solved(self) -> None:
+        if not self.solved:
+            raise RuntimeError("the Newton system has not been solved: no matrix to transpose")
 
     def split(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray]:
         """Owned parts (u, lam) of a block vector."""
         return x.array_r[: self.n_u], x.array_r[self.n_u :]
+
+
+class SchurNewtonSystem(NewtonSystem):
+    """The Newton steps by elimination of u: K factored once, S = N K^-1 N^T dense, once per mesh.
+
+    A Newton step K u + N^T lam = f, (N u)_A = g_A, lam_I = 0 (see :class:`NewtonSystem`) is,
+    after eliminating u = K^-1 (f - N_A^T lam_A),
+
+        S_AA lam_A = (N K^-1 f)_A - g_A,    u = K^-1 (f - N_A^T lam_A),    lam_I = 0,
+
+    with S = N K^-1 N^T symmetric positive definite on the active rows when Gamma_D clamps the
+    body (the matrix of the linear complementarity problem, see :func:`solve`). K is factored
+    once per mesh, S computed once per mesh from the factors, by solves with blocks of columns of
+    N^T as right-hand sides; a Newton step costs a Cholesky factorisation of the small dense
+    S_AA and one solve with the factors of K. The transposed Newton matrix (the dual problem,
+    K symmetric) reads, with eta_A = -xi_A,
+
+        K y + N_A^T eta_A = j_u,    (N y)_A = j_lam,A,    xi_I = (j_lam,I - (N y)_I) / M_I,
+
+    the same saddle-point problem with other data: two solves with K and one with S_AA.
+
+    S lives on rank 0 only (8 n_lam^2 bytes for n_lam multipliers), which runs the dense
+    algebra and scatters the result, so that all ranks use the same numbers. K is factored by
+    MUMPS's symmetric LDL^T (``pc_type="cholesky"``) unless ``petsc_options`` say otherwise.
+
+    Raises:
+        ValueError: ``petsc_options`` is not a direct solver (``ksp_type`` ``"preonly"``,
+            ``pc_type`` ``"lu"`` or ``"cholesky"``), or there are more than
+            :data:`SCHUR_MAX_MULTIPLIERS` multipliers.
+        ConvergenceError: K could not be factored (the body is not held in place).
+    """
+
+    _petsc_objects = (*NewtonSystem._petsc_objects, "_u", "_u_f", "_rhs_u", "_lam_vec")
+
+    @staticmethod
+    def _default_options() -> dict[str, Any]:
+        """As :func:`default_petsc_options`, with MUMPS's Cholesky (LDL^T): K is symmetric."""
+        options = default_petsc_options()
+        if options.get("pc_factor_mat_solver_type") == "mumps":
+            options["pc_type"] = "cholesky"
+        return options
+
+    def _setup(self) -> None:
+        """Check the solver, factor K, compute K^-1 f and S (rank 0)."""
+        comm = self.disc.comm
+        ksp_type, pc_type = self.ksp.getType(), self.ksp.getPC().getType()
+        if ksp_type != "preonly" or pc_type not in ("lu", "cholesky"):
+            raise ValueError(
+                "method='schur' factors K with a direct solver: petsc_options must keep "
+                f"ksp_type 'preonly' and pc_type 'lu' or 'cholesky' (got {ksp_type!r} and "
+                f"{pc_type!r}); iterative solvers such as iterative_petsc_options() need "
+                "method='block'"
+            )
+        counts = comm.allgather(self.n_lam)
+        self.n_lam_global = sum(counts)
+        if self.n_lam_global > SCHUR_MAX_MULTIPLIERS:
+            raise ValueError(
+                f"method='schur' stores the dense {self.n_lam_global} x {self.n_lam_global} "
+                f"matrix N K^-1 N^T ({8e-9 * self.n_lam_global**2:.1f} GB), more than "
+                f"SCHUR_MAX_MULTIPLIERS = {SCHUR_MAX_MULTIPLIERS} multipliers allow; use "
+                "method='block'"
+            )
+        self._offsets = np.cumsum(counts)[:-1]
+        self._u, self._u_f, self._rhs_u = (self.K.createVecRight() for _ in range(3))
+        self._lam_vec = self.N.createVecLeft()
+        self._factor: tuple[np.ndarray, Any] | None = None
+        with timed("factorize"):
+            self.ksp.setOperators(self.K)
+            try:
+                self.ksp.setUp()
+                self._solve_K(self.f, self._u_f)
+            except (PETSc.Error, ConvergenceError) as err:
+                raise ConvergenceError(
+                    "the factorisation of the stiffness matrix K failed: K is singular (the "
+                    "body is not held in place, check dirichlet)",
+                    [],
+                ) from err
+            self.S = self._schur_complement()
+
+    def _solve_K(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
+        """Solve K x = b with the factors of K."""
+        self.ksp.solve(b, x)
+        reason = self.ksp.getConvergedReason()
+        if reason < 0:
+            raise ConvergenceError(f"solve with the factors of K failed (KSP reason {reason})", [])
+
+    def _schur_complement(self) -> np.ndarray | None:
+        """S = N K^-1 N^T on rank 0 (None elsewhere), a block of columns at a time.
+
+        The columns X = K^-1 N^T[:, block] come from one multi-RHS solve, and S[:, block] =
+        (N^T)^T X is summed over the ranks' owned rows of N^T.
+        """
+        comm, n = self.disc.comm, self.n_lam_global
+        indptr, indices, values = self.NT.getValuesCSR()
+        NT = scipy.sparse.csr_matrix((values, indices, indptr), shape=(self.n_u, n))
+        width = max(1, min(n, _SCHUR_BLOCK_ENTRIES // self.K.getSize()[0]))
+        S = np.empty((n, n)) if comm.rank == 0 else None
+        B = X = None
+        try:
+            for start in range(0, n, width):
+                stop = min(n, start + width)
+                if B is None or B.getSize()[1] != stop - start:
+                    for mat in (B, X):
+                        if mat is not None:
+                            mat.destroy()
+                    B = PETSc.Mat().createDense(((self.n_u, None), (None, stop - start)), comm=comm)
+                    B.setUp()
+                    X = B.duplicate()
+                B.getDenseArray()[:] = NT[:, start:stop].toarray()
+                B.assemble()
+                self.ksp.matSolve(B, X)
+                block = np.ascontiguousarray(NT.T @ X.getDenseArray())
+                total = np.empty_like(block) if comm.rank == 0 else None
+                comm.Reduce(block, total, op=MPI.SUM, root=0)
+                if comm.rank == 0:
+                    S[:, start:stop] = total
+        finally:
+            for mat in (B, X):
+                if mat is not None:
+                    mat.destroy()
+        if comm.rank == 0:
+            S = 0.5 * (S + S.T)  # symmetric up to the round-off of the solves
+        return S
+
+    def _gather(self, owned: np.ndarray) -> np.ndarray | None:
+        """The global multiplier vector on rank 0 from every rank's owned rows."""
+        parts = self.disc.comm.gather(owned, root=0)
+        return np.concatenate(parts) if parts is not None else None
+
+    def _factor_active(self, active: np.ndarray) -> None:
+        """Cholesky factor of S_AA on rank 0; LinAlgError on every rank if S_AA is singular."""
+        comm = self.disc.comm
+        mask = self._gather(active)
+        error = None
+        if comm.rank == 0:
+            index = np.flatnonzero(mask)
+            S_AA = self.S[np.ix_(index, index)]
+            factor = None
+            try:
+                if index.size:
+                    factor = scipy.linalg.cho_factor(S_AA)
+                    # Pivots relative to the diagonal: a scale-invariant test for dependent rows.
+                    if np.any(np.diag(factor[0]) ** 2 <= _PIVOT_RTOL * S_AA.diagonal()):
+                        raise np.linalg.LinAlgError
+            except np.linalg.LinAlgError:
+                error = (
+                    "N K^-1 N^T is singular on the active rows: active contact constraints are "
+                    "linearly dependent"
+                )
+            self._factor = (index, factor)
+        error = comm.bcast(error, root=0)
+        if error is not None:
+            raise np.linalg.LinAlgError(error)
+
+    def _saddle(self, a: PETSc.Vec, b: np.ndarray, w: PETSc.Vec) -> np.ndarray:
+        """Solve K u + N_A^T l_A = a, (N u)_A = b_A, l_I = 0 for the last factored active set.
+
+        Args:
+            a: Right-hand side of the displacement rows.
+            b: Owned right-hand sides of the multiplier rows (only the active ones count).
+            w: K^-1 a (it may be ``self._u``, which is overwritten).
+
+        Returns:
+            The owned l; u is left in ``self._u``.
+        """
+        comm = self.disc.comm
+        self.N.mult(w, self._lam_vec)
+        r = self._gather(self._lam_vec.array - b)  # S_AA l_A = (N K^-1 a - b)_A
+        parts = None
+        if comm.rank == 0:
+            index, factor = self._factor
+            full = np.zeros(self.n_lam_global)
+            if index.size:
+                full[index] = scipy.linalg.cho_solve(factor, r[index])
+            parts = np.split(full, self._offsets)
+        l_owned = comm.scatter(parts, root=0)
+        self._lam_vec.array_w[:] = l_owned
+        self.NT.mult(self._lam_vec, self._rhs_u)
+        self._rhs_u.aypx(-1.0, a)  # a - N_A^T l_A
+        self._solve_K(self._rhs_u, self._u)
+        return l_owned
+
+    def _write(self, out: PETSc.Vec, u: np.ndarray, lam: np.ndarray) -> None:
+        arr = out.array_w
+        arr[: self.n_u] = u
+        arr[self.n_u :] = lam
+
+    def solve_active(self, active: np.ndarray) -> None:
+        """One Newton step: lam_A from S_AA, then u with the factors of K, into ``self.x``."""
+        with timed("newton solve"):
+            self._factor_active(active)
+            self.active = active.copy()
+            lam = self._saddle(self.f, self.g.array, self._u_f)
+            self._write(self.x, self._u.array_r, lam)
+        self.solved = True
+
+    def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
+        """Solve A^T z = rhs for the Newton matrix A of the last step, eliminating y.
+
+        Args:
+            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
+            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
+
+        Raises:
+            RuntimeError: No Newton step was solved, or the solve failed.
+        """
+        self._check_solved()
+        j_u, j_lam = self.split(rhs)
+        self._rhs_u.array_w[:] = j_u
+        j = self._rhs_u.copy()
+        try:
+            self._solve_K(j, self._u)
+            eta = self._saddle(j, j_lam, self._u)
+        except ConvergenceError as err:
+            raise RuntimeError(f"the dual solve failed: {err}") from err
+        finally:
+            j.destroy()
+        self.N.mult(self._u, self._lam_vec)
+        xi = np.where(self.active, -eta, (j_lam - self._lam_vec.array) / self.M.array)
+        self._write(z, self._u.array_r, xi)
 
 
 @dataclass
@@ -369,7 +669,8 @@ class Solution:
         newton_iterations: Number of linear solves.
         history: Per-iteration record (active-set size, changes, residuals).
         disc: The discretisation.
-        system: The Newton system; its last matrix and factorisation serve the dual problem.
+        system: The Newton system; its last factorisations serve the dual problem
+            (:meth:`NewtonSystem.solve_transpose`).
     """
 
     u: fem.Function
@@ -408,6 +709,7 @@ def solve(
     max_iterations: int = 50,
     rtol: float = 1e-8,
     c_n_scale: float = 1.0,
+    method: str = "block",
 ) -> Solution:
     """Solve Signorini's problem with the semi-smooth Newton method (paper eq. 19-22).
 
@@ -442,6 +744,12 @@ def solve(
             grow with lambda/mu or mesh grading), and on the NCP residual (20), entry by entry
             relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|).
         c_n_scale: Factor on the default c_n,i = E / H_i of the NCP function (20), > 0.
+        method: Linear solver of the Newton steps, one of :data:`METHODS`. ``"block"``
+            (reference, :class:`NewtonSystem`) factors the block Newton matrix in every step and
+            takes any ``petsc_options``; ``"schur"`` (:class:`SchurNewtonSystem`) factors K once
+            and solves S_AA lam_A = (N K^-1 f)_A - g_A with the dense S = N K^-1 N^T, for a
+            direct solver of K and at most :data:`SCHUR_MAX_MULTIPLIERS` multipliers. Both give
+            the same iterates up to round-off, and the dual problem is solved the same way.
 
     Returns:
         The :class:`Solution`.
@@ -473,6 +781,8 @@ def solve(
     for name, value in (("rtol", rtol), ("c_n_scale", c_n_scale)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < np.inf:
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if petsc_options is not None and not isinstance(petsc_options, dict):
         raise TypeError(
             "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
@@ -496,7 +806,7 @@ def solve(
         ok = all(bool(np.all(np.isfinite(a))) for a in arrays)
         return bool(comm.allreduce(ok, op=MPI.LAND))
 
-    system = NewtonSystem(disc, petsc_options)
+    system = (SchurNewtonSystem if method == "schur" else NewtonSystem)(disc, petsc_options)
     if c_n_scale != 1.0:
         system.c_n = system.c_n * float(c_n_scale)
     if not all_finite(system.f.array, system.g.array):
@@ -643,13 +953,16 @@ def solve(
 
             try:
                 system.solve_active(new)
-            except (ConvergenceError, PETSc.Error) as err:
+            except (ConvergenceError, PETSc.Error, np.linalg.LinAlgError) as err:
+                # LinAlgError: the Cholesky factorisation of S_AA (method="schur") failed.
                 reason = system.ksp.getConvergedReason()
                 names = vars(PETSc.KSP.ConvergedReason).items()
                 name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
                 if isinstance(err, PETSc.Error):
                     name = f"PETSc error {err.ierr}"
-                if isinstance(err, PETSc.Error) or reason == (
+                elif isinstance(err, np.linalg.LinAlgError):
+                    name = str(err)
+                if isinstance(err, (PETSc.Error, np.linalg.LinAlgError)) or reason == (
                     PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED
                 ):
                     hint = (

@@ -1,22 +1,35 @@
-"""Alternative linear solvers give the same results as the reference direct block solve."""
+"""Alternative linear solvers give the same results as the reference direct block solve.
+
+* FGMRES + Schur field split + GAMG (``iterative_petsc_options``) on the block matrix.
+* ``method="schur"``: K factored once per mesh, the Newton steps and the dual problem through the
+  dense S = N K^-1 N^T. Compared with the block path run independently on the same problem.
+"""
 
 from mpi4py import MPI
 
 import numpy as np
 import pytest
-from dolfinx import fem
+from dolfinx import fem, mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.newton import iterative_petsc_options
+from dwr_signorini import newton
+from dwr_signorini.dual import solve_dual
+from dwr_signorini.goal import GoalForms
+from dwr_signorini.newton import NewtonSystem, SchurNewtonSystem, iterative_petsc_options
+from dwr_signorini.spaces import discretize
+
+from .problems import strip_problem
+from .test_extreme import CONTACT, DIRICHLET, NEUMANN, TET, _cycling_cantilever, make, tag_boundary
 
 
 @pytest.mark.mpi
 def test_iterative_fieldsplit_matches_direct_3d():
     """FGMRES + Schur field split + GAMG reproduces the MUMPS solution, dual and estimate."""
     msh, tags = ex.obstacle_3d_mesh(MPI.COMM_WORLD, n=(2, 8, 8))
-    problem = ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=1e5, nu=0.3,
-                                  model="3d", gap=ex.obstacle_gap)
+    problem = ds.SignoriniProblem(
+        msh, tags, contact=3, dirichlet=(1,), E=1e5, nu=0.3, model="3d", gap=ex.obstacle_gap
+    )
     results = []
     for opts in (None, iterative_petsc_options()):
         sol = ds.solve(problem, petsc_options=opts)
@@ -29,3 +42,117 @@ def test_iterative_fieldsplit_matches_direct_3d():
     assert np.isclose(J1, J0, rtol=1e-7)
     assert np.isclose(n1, n0, rtol=1e-7)
     assert np.isclose(e1, e0, rtol=1e-5)
+
+
+# --------------------------------------------------------------------------------------------------
+# method="schur" (K factored once, dense S = N K^-1 N^T) against the block path
+# --------------------------------------------------------------------------------------------------
+
+
+SCHUR_CASES = {
+    "strip-2d-tri": (lambda comm: strip_problem(comm, 32, 8), ex.goal_a(-0.5)),
+    "obstacle-3d-tet": (lambda comm: ex.obstacle_problem(comm, (2, 8, 8)), ex.goal_obstacle()),
+}
+
+
+def _relative_difference(comm, a, b):
+    """||a - b|| / ||a|| over all ranks' owned entries."""
+    num = comm.allreduce(float(np.sum((a - b) ** 2)), op=MPI.SUM)
+    den = comm.allreduce(float(np.sum(a**2)), op=MPI.SUM)
+    return np.sqrt(num / den)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", list(SCHUR_CASES))
+def test_schur_path_matches_block_path(case):
+    """The two linear solvers of the Newton steps give the same iterates (active sets, Newton
+    steps, u, lambda), the same dual solution (y, xi) and estimate, up to round-off."""
+    build, goal = SCHUR_CASES[case]
+    comm = MPI.COMM_WORLD
+    disc = discretize(build(comm))  # one mesh and numbering: in parallel the partition may vary
+    runs = {}
+    for method in ("block", "schur"):
+        sol = ds.solve(disc, method=method)
+        z = solve_dual(sol.system, GoalForms(goal, sol.u, sol.lam, sol.disc))
+        runs[method] = (sol, z)
+    (s0, z0), (s1, z1) = runs["block"], runs["schur"]
+    assert isinstance(s1.system, SchurNewtonSystem)
+    assert type(s0.system) is NewtonSystem
+    n_u, n_lam = s0.system.n_u, s0.system.n_lam
+    assert s0.num_active > 0
+    assert s0.num_active < comm.allreduce(n_lam, op=MPI.SUM)  # a genuine inactive set too
+    assert s1.newton_iterations == s0.newton_iterations
+    assert [h["num_active"] for h in s1.history] == [h["num_active"] for h in s0.history]
+    assert comm.allreduce(bool(np.array_equal(s1.active, s0.active)), op=MPI.LAND)
+    pairs = {
+        "u": (s0.u.x.array[:n_u], s1.u.x.array[:n_u]),
+        "lam": (s0.lam.x.array[:n_lam], s1.lam.x.array[:n_lam]),
+        "y": (z0.y.x.array[:n_u], z1.y.x.array[:n_u]),
+        "xi": (z0.xi.x.array[:n_lam], z1.xi.x.array[:n_lam]),
+    }
+    for name, (ref, other) in pairs.items():
+        assert _relative_difference(comm, ref, other) < 1e-10, name
+    # The estimator takes the dual solution through Solution.system on either path.
+    est0, est1 = ds.estimate(s0, goal), ds.estimate(s1, goal)
+    assert np.isclose(est1.J_h, est0.J_h, rtol=1e-10)
+    assert np.isclose(est1.eta, est0.eta, rtol=1e-8)
+
+
+@pytest.mark.mpi
+def test_schur_path_with_least_index_safeguard():
+    """Active-set cycling and the least-index safeguard: the same iterates on both paths."""
+    disc = discretize(_cycling_cantilever(MPI.COMM_WORLD))
+    s0 = ds.solve(disc)
+    s1 = ds.solve(disc, method="schur")
+    assert any(h["safeguard"] for h in s0.history)
+    for key in ("num_active", "num_changed", "safeguard"):
+        assert [h[key] for h in s1.history] == [h[key] for h in s0.history], key
+    n_u = s0.system.n_u
+    assert _relative_difference(disc.comm, s0.u.x.array[:n_u], s1.u.x.array[:n_u]) < 1e-10
+
+
+@pytest.mark.mpi
+def test_schur_path_dependent_constraints_raise():
+    """Two active multipliers acting on one normal displacement: S_AA is singular, reported as
+    on the block path (ConvergenceError at Newton step 0, with the history)."""
+    comm = MPI.COMM_WORLD
+    msh = mesh.create_box(
+        comm, [(0, 0, 0), (1, 1, 1)], [1, 1, 1], TET, ghost_mode=mesh.GhostMode.none
+    )
+
+    def classify(x):
+        tags = np.full(x.shape[1], DIRICHLET)
+        tags[np.isclose(x[2], 1.0)] = NEUMANN
+        tags[np.isclose(x[2], 0.0)] = CONTACT
+        return tags
+
+    problem = make(msh, tag_boundary(msh, classify), model="3d", gap=-0.01)
+    with pytest.raises(ds.ConvergenceError, match=r"Newton step 0.*singular") as info:
+        ds.solve(problem, method="schur")
+    assert len(info.value.history) == 1
+
+
+def test_schur_path_bad_input(monkeypatch):
+    """Unknown method; an iterative solver or too many multipliers for the Schur path."""
+    problem = strip_problem(MPI.COMM_WORLD, 8, 2)
+    with pytest.raises(ValueError, match=r"method must be one of \('block', 'schur'\)"):
+        ds.solve(problem, method="Schur")
+    with pytest.raises(ValueError, match=r"method='schur'.*iterative_petsc_options"):
+        ds.solve(problem, method="schur", petsc_options=iterative_petsc_options())
+    with pytest.raises(ValueError, match=r"method='schur'.*'gmres'"):
+        ds.solve(problem, method="schur", petsc_options={"ksp_type": "gmres"})
+    monkeypatch.setattr(newton, "SCHUR_MAX_MULTIPLIERS", 3)
+    with pytest.raises(ValueError, match=r"SCHUR_MAX_MULTIPLIERS = 3.*method='block'"):
+        ds.solve(problem, method="schur")
+
+
+def test_dual_needs_a_solved_system():
+    """The dual problem transposes the last Newton step: none yet is an error on both paths."""
+    problem = strip_problem(MPI.COMM_WORLD, 8, 2)
+    sol = ds.solve(problem)
+    goal = GoalForms(ex.goal_a(-0.5), sol.u, sol.lam, sol.disc)
+    for cls in (NewtonSystem, SchurNewtonSystem):
+        system = cls(sol.disc)
+        with pytest.raises(RuntimeError, match="has not been solved"):
+            solve_dual(system, goal)
+        system.destroy()
