@@ -68,7 +68,9 @@ def problem_3d(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
     return problem, ex.goal_obstacle()
 
 
-def run(example: str, refinement: str, levels: int, start: int, comm: MPI.Comm) -> list[dict]:
+def run(
+    example: str, refinement: str, levels: int, start: int, comm: MPI.Comm, method: str
+) -> list[dict]:
     make = problem_2d if example == "2d" else problem_3d
     problem, goal = make(comm, start)
     rows: list[dict] = []
@@ -82,11 +84,15 @@ def run(example: str, refinement: str, levels: int, start: int, comm: MPI.Comm) 
         peak = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX)
         total = comm.allreduce(wall, op=MPI.MAX)
         row = {
-            "example": example, "refinement": refinement, "ranks": comm.size,
+            "example": example, "refinement": refinement, "method": method, "ranks": comm.size,
             "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
             "newton": record.newton_iterations, **{k: phases[k] for k in COLUMNS},
             "total": total, "ref": ref, "ratio": total / ref, "peak_MiB": peak / 1024.0,
         }
+        # The primal solve: assembly, factorisations and Newton solves (solve()).
+        primal = phases["assemble"] + phases["factorize"] + phases["newton solve"]
+        row["dual/primal"] = phases["dual solve"] / primal
+        row["est/primal"] = (phases["reconstruct"] + phases["indicators"]) / primal
         rows.append(row)
         if comm.rank == 0:
             print(" ".join(f"{_fmt(row[k])}" for k in HEADER), flush=True)
@@ -94,14 +100,14 @@ def run(example: str, refinement: str, levels: int, start: int, comm: MPI.Comm) 
 
     ds.solve_adaptive(
         problem, goal, refinement=refinement, max_levels=levels, fraction=0.2,
-        callback=callback, verbose=False,
+        callback=callback, verbose=False, method=method,
     )
     return rows
 
 
-HEADER = ("example", "refinement", "level", "cells", "dofs", "newton", "assemble", "factorize",
-          "newton solve", "dual solve", "reconstruct", "indicators", "mark", "refine",
-          "total", "ref", "ratio", "peak_MiB")
+HEADER = ("example", "refinement", "method", "level", "cells", "dofs", "newton", "assemble",
+          "factorize", "newton solve", "dual solve", "reconstruct", "indicators", "mark", "refine",
+          "total", "ref", "ratio", "dual/primal", "est/primal", "peak_MiB")
 
 
 def _fmt(value: object) -> str:
@@ -116,17 +122,17 @@ def plot(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    groups = sorted({(r["example"], r["refinement"]) for r in rows})
+    groups = sorted({(r["example"], r["refinement"], r["method"]) for r in rows})
     fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 4), squeeze=False)
     for ax, key in zip(axes[0], groups, strict=True):
-        sel = [r for r in rows if (r["example"], r["refinement"]) == key]
+        sel = [r for r in rows if (r["example"], r["refinement"], r["method"]) == key]
         dofs = [r["dofs"] for r in sel]
         for col in ("assemble", "factorize", "newton solve", "dual solve", "reconstruct",
                     "indicators", "refine", "total", "ref"):
             values = [max(r[col], 1e-6) for r in sel]
             style = "k--" if col == "ref" else ("k-" if col == "total" else "-o")
             ax.loglog(dofs, values, style, label=col, markersize=3)
-        ax.set_title(f"{key[0]} {key[1]} ({sel[0]['ranks']} rank(s))")
+        ax.set_title(f"{key[0]} {key[1]} {key[2]} ({sel[0]['ranks']} rank(s))")
         ax.set_xlabel("DoFs")
         ax.set_ylabel("seconds per level")
         ax.grid(True, which="both", alpha=0.3)
@@ -136,22 +142,32 @@ def plot(rows: list[dict], path: Path) -> None:
 
 
 def summary(out: Path) -> None:
-    """Speed-up of 2 ranks over 1 at each level, from the two CSV files."""
+    """Speed-up of 2 ranks over 1 and the ratios of each level, from the two CSV files.
+
+    ratio1/ratio2: total/ref with 1/2 ranks; dual/pr and est/pr: dual solve and estimator
+    (reconstructions + indicators) against the primal solve (assembly, factorisations and
+    Newton solves), 1 rank.
+    """
     tables = {}
     for np_ in (1, 2):
         path = out / f"bench_levels_np{np_}.csv"
         with open(path) as fh:
             rows = csv.DictReader(fh)
-            tables[np_] = {(r["example"], r["refinement"], r["level"]): r for r in rows}
-    print(f"{'example':>8} {'refinement':>10} {'level':>5} {'dofs':>9} {'t1':>9} {'t2':>9} "
-          f"{'speed-up':>9} {'ratio1':>7} {'ratio2':>7}")
+            tables[np_] = {
+                (r["example"], r["refinement"], r["method"], r["level"]): r for r in rows
+            }
+    print(f"{'example':>8} {'refinement':>10} {'method':>6} {'level':>5} {'dofs':>9} "
+          f"{'newton':>6} {'t1':>9} {'t2':>9} {'speed-up':>9} {'ratio1':>7} {'ratio2':>7} "
+          f"{'dual/pr':>7} {'est/pr':>7}")
     for key, r1 in tables[1].items():
         r2 = tables[2].get(key)
         if r2 is None:
             continue
         t1, t2 = float(r1["total"]), float(r2["total"])
-        print(f"{key[0]:>8} {key[1]:>10} {key[2]:>5} {r1['dofs']:>9} {t1:9.3f} {t2:9.3f} "
-              f"{t1 / t2:9.2f} {float(r1['ratio']):7.2f} {float(r2['ratio']):7.2f}")
+        print(f"{key[0]:>8} {key[1]:>10} {key[2]:>6} {key[3]:>5} {r1['dofs']:>9} "
+              f"{r1['newton']:>6} {t1:9.3f} {t2:9.3f} {t1 / t2:9.2f} {float(r1['ratio']):7.2f} "
+              f"{float(r2['ratio']):7.2f} {float(r1['dual/primal']):7.3f} "
+              f"{float(r1['est/primal']):7.3f}")
 
 
 def main() -> None:
@@ -164,6 +180,8 @@ def main() -> None:
     parser.add_argument("--adaptive-levels-3d", type=int, default=6)
     parser.add_argument("--start-2d", type=int, default=4, help="macro mesh 3n x 2n")
     parser.add_argument("--start-3d", type=int, default=1, help="macro mesh 2n x 8n x 8n")
+    parser.add_argument("--methods", default="block",
+                        help="Newton linear algebra: block, schur or both (block,schur)")
     parser.add_argument("--output", type=Path, default=Path("benchmarks/results"))
     parser.add_argument("--summary", action="store_true")
     args = parser.parse_args()
@@ -183,7 +201,8 @@ def main() -> None:
             else:
                 levels = args.levels_3d if refinement == "uniform" else args.adaptive_levels_3d
                 start = args.start_3d
-            rows += run(example, refinement, levels, start, comm)
+            for method in args.methods.split(","):
+                rows += run(example, refinement, levels, start, comm, method)
     if comm.rank == 0:
         path = args.output / f"bench_levels_np{comm.size}.csv"
         with open(path, "w", newline="") as fh:

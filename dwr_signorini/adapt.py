@@ -29,7 +29,7 @@ from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
 from .marking import STRATEGIES, mark
-from .newton import Solution, solve
+from .newton import METHODS, Solution, solve
 from .problem import SignoriniProblem
 from .reconstruction import Reconstructor
 from .spaces import Discretization, discretize, refine_marked
@@ -192,6 +192,7 @@ def _validate(
     tol: Any,
     estimator: str,
     weights: str,
+    method: str,
     exact: Any,
     callback: Any,
 ) -> None:
@@ -217,6 +218,8 @@ def _validate(
         raise ValueError(f"tol must be a positive number or None, got {tol!r}")
     if estimator not in ESTIMATORS:
         raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if weights not in WEIGHTS:
         raise ValueError(f"weights must be one of {WEIGHTS}, got {weights!r}")
     if exact is not None and (not isinstance(exact, (int, float)) or not math.isfinite(exact)):
@@ -259,6 +262,7 @@ def solve_adaptive(
     output_dir: str | Path | None = None,
     callback: Callable[[LevelRecord, Solution, Estimate], None] | None = None,
     petsc_options: dict[str, Any] | None = None,
+    method: str = "block",
     verbose: bool = True,
 ) -> AdaptiveResult:
     """Goal-oriented adaptive (or uniform) refinement for Signorini's problem.
@@ -278,6 +282,8 @@ def solve_adaptive(
         output_dir: Where to write the table (CSV, JSON, after every level) and fields (XDMF).
         callback: Called as ``callback(record, solution, estimate)`` after every level.
         petsc_options: Linear solver options.
+        method: Linear algebra of the Newton steps, ``"block"`` or ``"schur"`` (see
+            :func:`~dwr_signorini.solve`).
         verbose: Print a progress line per level on rank 0.
 
     Returns:
@@ -294,6 +300,7 @@ def solve_adaptive(
         tol,
         estimator,
         weights,
+        method,
         exact,
         callback,
     )
@@ -304,6 +311,7 @@ def solve_adaptive(
         "strategy": strategy,
         "estimator": estimator,
         "weights": weights,
+        "method": method,
         "exact": exact,
         "num_processes": comm.size,
     }
@@ -334,7 +342,7 @@ def solve_adaptive(
         t_setup = time.perf_counter() - t_start
 
         tic = time.perf_counter()
-        sol = solve(disc, petsc_options=petsc_options, initial_guess=guess)
+        sol = solve(disc, petsc_options=petsc_options, initial_guess=guess, method=method)
         t_solve = time.perf_counter() - tic
         est = estimate(sol, goal, estimator=estimator, weights=weights, petsc_options=petsc_options)
 

@@ -711,6 +711,7 @@ def test_adaptive_on_quadrilaterals_is_rejected():
         ({"estimator": "eta_d"}, "estimator"),
         ({"weights": "quadratic"}, "weights"),
         ({"refinement": "red"}, "refinement"),
+        ({"method": "lu"}, "method"),
     ],
 )
 def test_bad_options_are_rejected(kwargs, match):
@@ -725,3 +726,22 @@ def test_bad_options_create_no_output(tmp_path):
                           verbose=False)
     assert not out.exists()
     assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.mpi
+def test_schur_path_gives_the_same_adaptive_run():
+    """method="schur" (K factored once per level) reproduces the block path level by level."""
+    runs = [
+        ds.solve_adaptive(bar_problem(), ex.goal_bar(), max_levels=3, verbose=False, method=m)
+        for m in ("block", "schur")
+    ]
+    assert runs[1].meta["method"] == "schur"
+    for a, b in zip(*(r.levels for r in runs), strict=True):
+        assert (a.num_cells, a.num_active, a.newton_iterations, a.num_marked) == (
+            b.num_cells,
+            b.num_active,
+            b.newton_iterations,
+            b.num_marked,
+        )
+        assert np.isclose(a.J_h, b.J_h, rtol=1e-10)
+        assert np.isclose(a.eta, b.eta, rtol=1e-7)
