@@ -57,7 +57,7 @@ def contact_violation(u: Any, lam: Any, mu: Any, gap: Any, n: Any, ds_c: ufl.Mea
 def primal_residual(sol: Solution, v: Any, mu: Any) -> ufl.Form:
     """rho(w_h)(v, mu) = l(v) - a(u_h, v) - (lambda_H, v_n)_GC - C(w_h)(mu) (Proposition 4)."""
     problem, m = sol.disc.problem, sol.disc.m
-    form = problem.load_form(v, m) - problem.elastic_form(sol.u, v, m.dx)
+    form = sol.disc.load_form(v) - problem.elastic_form(sol.u, v, m.dx)
     form -= sol.lam * ufl.dot(v, m.n) * m.ds_contact
     return form - contact_violation(sol.u, sol.lam, mu, problem.gap_expr(m.x), m.n, m.ds_contact)
 

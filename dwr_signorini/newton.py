@@ -234,7 +234,7 @@ class NewtonSystem:
         # Forms, built once.
         a = problem.elastic_form(u, v, m.dx)
         # Non-polynomial loads and gaps at DATA_QUADRATURE_DEGREE, as in the residuals.
-        L = with_quadrature_degrees(problem.load_form(v, m))
+        L = with_quadrature_degrees(disc.load_form(v))
         coupling = ufl.inner(mu, ufl.dot(u, m.n)) * m.ds_contact
         self._forms = {
             "a": disc.form(a),

@@ -290,9 +290,20 @@ class SignoriniProblem:
         """a(u, v) = (sigma(u), eps(v)) (Section 2)."""
         return ufl.inner(self.sigma(u), self.epsilon(v)) * dx
 
-    def load_form(self, v: Any, m: Any) -> ufl.Form:
-        """<l, v> = (f, v) + (b, v)_GN on the measures ``m`` of a mesh (Section 2)."""
-        form = ufl.inner(self.vector(self.body_force, m.x), v) * m.dx
+    def load_form(
+        self, v: Any, m: Any, f: Any | None = None, dx: ufl.Measure | None = None
+    ) -> ufl.Form:
+        """<l, v> = (f, v) + (b, v)_GN on the measures ``m`` of a mesh (Section 2).
+
+        Args:
+            v: Test function (or weight).
+            m: Measures of the mesh.
+            f: The body force as a UFL expression on that mesh, if not built from the data
+                (e.g. its values at quadrature points).
+            dx: The cell measure to integrate ``f`` with (default ``m.dx``).
+        """
+        f = self.vector(self.body_force, m.x) if f is None else f
+        form = ufl.inner(f, v) * (m.dx if dx is None else dx)
         for tag, t in self.traction.items():
             form += ufl.inner(self.vector(t, m.x), v) * m.ds(tag)
         return form

@@ -18,6 +18,7 @@ from typing import Any
 
 from mpi4py import MPI
 
+import basix.ufl
 import numpy as np
 import numpy.typing as npt
 import ufl
@@ -26,6 +27,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
 from .problem import SignoriniProblem
+from .quadrature import DATA_QUADRATURE_DEGREE, is_polynomial
 
 __all__ = ["Discretization", "Measures", "discretize"]
 
@@ -261,6 +263,7 @@ class Discretization:
 
         dx = ufl.Measure("dx", domain=fine)
         ds = ufl.Measure("ds", domain=fine, subdomain_data=self.facet_tags)
+        self._body_force: tuple[Any, ufl.Measure] | None = None
         self.m = Measures(
             x=ufl.SpatialCoordinate(fine),
             dx=dx,
@@ -270,6 +273,32 @@ class Discretization:
             mesh=fine,
             problem=problem,
         )
+
+    def load_form(self, v: Any) -> ufl.Form:
+        """<l, v> on T_h (Section 2), for test functions or weights ``v`` of any degree.
+
+        A non-polynomial body force is evaluated once per mesh at the points of the
+        degree-:data:`~dwr_signorini.quadrature.DATA_QUADRATURE_DEGREE` rule (a function of a
+        quadrature space) and reused by the Newton system and the residuals of the estimators,
+        with the same values as the expression integrated at that degree.
+        """
+        if self._body_force is None:
+            self._body_force = self._body_force_data()
+        return self.problem.load_form(v, self.m, *self._body_force)
+
+    def _body_force_data(self) -> tuple[Any, ufl.Measure]:
+        expr = self.problem.vector(self.problem.body_force, self.m.x)
+        if is_polynomial(expr):
+            return expr, self.m.dx
+        element = basix.ufl.quadrature_element(
+            self.mesh.basix_cell(),
+            value_shape=(self.mesh.geometry.dim,),
+            degree=DATA_QUADRATURE_DEGREE,
+        )
+        space = fem.functionspace(self.mesh, element)
+        f = fem.Function(space, name="f")
+        f.interpolate(fem.Expression(expr, space.element.interpolation_points()))
+        return f, self.m.dx(metadata={"quadrature_degree": DATA_QUADRATURE_DEGREE})
 
     def dirichlet_bcs(self, V: fem.FunctionSpace) -> list[fem.DirichletBC]:
         """Homogeneous Dirichlet conditions on Gamma_D for a vector space V on T_h."""
