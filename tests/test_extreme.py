@@ -740,11 +740,13 @@ def test_iteration_limit_raises_with_history():
 
 
 @pytest.mark.mpi
-def test_dependent_contact_constraints_raise():
+@pytest.mark.parametrize("method", ["block", "schur"])
+def test_dependent_contact_constraints_raise(method):
     """Degenerate 3D configuration: a 1 x 1 x 1 box clamped on its four sides, Gamma_C its bottom
     (two macro triangles). Their fine nodes are all clamped except the centre, so the two
-    multipliers act on one normal displacement: with both active the Newton matrix is singular.
-    The solver raises ConvergenceError with the history instead of returning garbage."""
+    multipliers act on one normal displacement: with both active the Newton matrix (block path)
+    and S_AA (Schur path) are singular. The solver raises ConvergenceError with the history
+    instead of returning garbage."""
     comm = MPI.COMM_WORLD
     msh = mesh.create_box(
         comm, [(0, 0, 0), (1, 1, 1)], [1, 1, 1], TET, ghost_mode=mesh.GhostMode.none
@@ -758,7 +760,7 @@ def test_dependent_contact_constraints_raise():
 
     problem = make(msh, tag_boundary(msh, classify), model="3d", gap=-0.01)
     with pytest.raises(ds.ConvergenceError, match=r"Newton step 0.*singular") as info:
-        ds.solve(problem)
+        ds.solve(problem, method=method)
     assert len(info.value.history) == 1
 
 

@@ -9,7 +9,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
-from dolfinx import fem, mesh
+from dolfinx import fem
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
@@ -20,7 +20,7 @@ from dwr_signorini.newton import NewtonSystem, SchurNewtonSystem, iterative_pets
 from dwr_signorini.spaces import discretize
 
 from .problems import strip_problem
-from .test_extreme import CONTACT, DIRICHLET, NEUMANN, TET, _cycling_cantilever, make, tag_boundary
+from .test_extreme import _cycling_cantilever
 
 
 @pytest.mark.mpi
@@ -109,27 +109,6 @@ def test_schur_path_with_least_index_safeguard():
         assert [h[key] for h in s1.history] == [h[key] for h in s0.history], key
     n_u = s0.system.n_u
     assert _relative_difference(disc.comm, s0.u.x.array[:n_u], s1.u.x.array[:n_u]) < 1e-10
-
-
-@pytest.mark.mpi
-def test_schur_path_dependent_constraints_raise():
-    """Two active multipliers acting on one normal displacement: S_AA is singular, reported as
-    on the block path (ConvergenceError at Newton step 0, with the history)."""
-    comm = MPI.COMM_WORLD
-    msh = mesh.create_box(
-        comm, [(0, 0, 0), (1, 1, 1)], [1, 1, 1], TET, ghost_mode=mesh.GhostMode.none
-    )
-
-    def classify(x):
-        tags = np.full(x.shape[1], DIRICHLET)
-        tags[np.isclose(x[2], 1.0)] = NEUMANN
-        tags[np.isclose(x[2], 0.0)] = CONTACT
-        return tags
-
-    problem = make(msh, tag_boundary(msh, classify), model="3d", gap=-0.01)
-    with pytest.raises(ds.ConvergenceError, match=r"Newton step 0.*singular") as info:
-        ds.solve(problem, method="schur")
-    assert len(info.value.history) == 1
 
 
 def test_schur_path_bad_input(monkeypatch):
