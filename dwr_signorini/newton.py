@@ -20,8 +20,11 @@ reference) assembles and factors the block matrix in every step; ``"schur"``
 
     S_AA lam_A = (N K^-1 f)_A - g_A,    u = K^-1 (f - N_A^T lam_A),    S = N K^-1 N^T,
 
-so that K is factored and the small dense S computed once per mesh, and a step costs a dense
-Cholesky factorisation of S_AA and one solve with the factors of K.
+either with K factored and the small dense S computed once per mesh, so that a step costs a
+dense Cholesky factorisation of S_AA and one solve with the factors of K
+(:class:`DenseSchurComplement`), or with a Krylov solver of K (CG + GAMG) and CG on S_AA
+applied matrix-free (:class:`KrylovSchurComplement`), which never factors anything of the size
+of K: the path for large 3D meshes.
 
 Choice of c_n: c_n,i = E / H_i with H_i the size of macro contact facet i (length in 2D, square
 root of the area in 3D). (M lam)_i scales like E u H^(d-2) and c_n (N u)_i like E u H^(d-2) too,
@@ -50,13 +53,18 @@ from .spaces import Discretization
 from .timing import timed
 
 __all__ = [
+    "LOOSE_RTOL",
     "METHODS",
+    "SCHUR_KRYLOV_OPTIONS",
     "SCHUR_MAX_MULTIPLIERS",
     "ConvergenceError",
+    "DenseSchurComplement",
+    "KrylovSchurComplement",
     "NewtonSystem",
     "SchurNewtonSystem",
     "Solution",
     "default_petsc_options",
+    "fieldsplit_petsc_options",
     "iterative_petsc_options",
     "solve",
 ]
@@ -75,6 +83,13 @@ SCHUR_MAX_MULTIPLIERS = 20000
 #: Entries of one block of right-hand sides N^T[:, block] (dense, global) when computing S: bounds
 #: the memory of the multi-RHS solves (MUMPS may gather dense right-hand sides on one rank).
 _SCHUR_BLOCK_ENTRIES = 2**24
+
+#: Relative tolerances (K solves, CG on S_AA) of the Newton steps of the Krylov Schur path
+#: while the active set still changes (see :func:`solve`).
+LOOSE_RTOL = (1e-7, 1e-5)
+
+#: Multigrid preconditioners: for K (``method="schur"``), not for the block Newton matrix.
+_MULTIGRID = ("gamg", "hypre", "ml", "mg")
 
 #: A Cholesky pivot of S_AA below this times its diagonal entry means dependent active rows.
 _PIVOT_RTOL = 1e-12
@@ -111,12 +126,38 @@ def default_petsc_options() -> dict[str, Any]:
 
 
 def iterative_petsc_options() -> dict[str, Any]:
-    """Krylov solver for large (3D) meshes: FGMRES, Schur-complement field split, GAMG on K.
+    """Krylov solver of K for ``method="schur"`` on large (3D) meshes: CG with GAMG.
 
-    The displacement block uses algebraic multigrid with the rigid body modes as near-nullspace;
-    the multiplier block the "selfp" Schur approximation, factored (it is small). The inner
-    solves stop at a relative 1e-3 (FGMRES allows a varying preconditioner; the outer tolerance
-    decides the accuracy). Pass it (or a variant) as ``petsc_options``.
+    Algebraic multigrid (smoothed aggregation, Chebyshev/Jacobi smoothing) with the rigid body
+    modes as near-nullspace; each solve with K reduces the true residual by 1e-10, so that the
+    Newton iterates meet the default ``rtol`` of :func:`solve`. S_AA is then solved by CG
+    applied matrix-free (:class:`KrylovSchurComplement`, options ``schur_*``, defaults in
+    :data:`SCHUR_KRYLOV_OPTIONS`), and no factorisation of the size of K is made. Pass it (or a
+    variant) as ``petsc_options`` together with ``method="schur"``.
+    """
+    return {
+        "ksp_type": "cg",
+        "ksp_rtol": 1e-10,
+        "ksp_atol": 0.0,
+        "ksp_max_it": 1000,
+        "ksp_norm_type": "unpreconditioned",
+        "pc_type": "gamg",
+        "pc_gamg_type": "agg",
+        "pc_gamg_threshold": 0.01,
+        "mg_levels_ksp_type": "chebyshev",
+        "mg_levels_pc_type": "jacobi",
+    }
+
+
+def fieldsplit_petsc_options() -> dict[str, Any]:
+    """Krylov solver of the block Newton matrix (``method="block"``): Schur field split.
+
+    FGMRES on the block matrix; the displacement block by CG with algebraic multigrid (rigid
+    body modes as near-nullspace), the multiplier block by the "selfp" Schur approximation,
+    factored (it is small). The inner solves stop at a relative 1e-3 (FGMRES allows a varying
+    preconditioner; the outer tolerance decides the accuracy). Every application of the Schur
+    complement costs an inner solve with K, and the multigrid is set up anew in every Newton
+    step: for large meshes ``method="schur"`` with :func:`iterative_petsc_options` is faster.
     """
     return {
         "ksp_type": "fgmres",
@@ -139,6 +180,18 @@ def iterative_petsc_options() -> dict[str, Any]:
         "fieldsplit_lam_ksp_rtol": 1e-3,
         "fieldsplit_lam_pc_type": "lu",
     }
+
+
+#: Defaults of the CG on S_AA of :class:`KrylovSchurComplement` (prefix ``<system prefix>schur_``).
+SCHUR_KRYLOV_OPTIONS: dict[str, Any] = {
+    "ksp_type": "cg",
+    "ksp_rtol": 1e-10,
+    "ksp_atol": 0.0,
+    "ksp_max_it": 1000,
+    "ksp_norm_type": "unpreconditioned",
+    "pc_type": "cholesky",
+    **({"pc_factor_mat_solver_type": "mumps"} if PETSc.Sys.hasExternalPackage("mumps") else {}),
+}
 
 
 def rigid_body_modes(V: fem.FunctionSpace, n_local: int) -> PETSc.NullSpace:
@@ -255,6 +308,7 @@ class NewtonSystem:
         self.prefix = f"dwr_signorini_primal_{next(_counter)}_"
         options = self._default_options()
         options.update(petsc_options or {})
+        self.options = options
         set_options(self.ksp, self.prefix, options)
         self.direct = self.ksp.getPC().getType() in ("lu", "cholesky")
         self._setup()
@@ -299,6 +353,13 @@ class NewtonSystem:
     def _setup(self) -> None:
         """The block pattern A0 of the Newton matrices, and the field split if it is the PC."""
         comm = self.disc.comm
+        if self.ksp.getPC().getType() in _MULTIGRID:
+            raise ValueError(
+                f"pc_type {self.ksp.getPC().getType()!r}: algebraic multigrid suits the "
+                "stiffness matrix K, not the block Newton matrix with its zero multiplier "
+                "block; use method='schur' with these options (iterative_petsc_options()), or "
+                "fieldsplit_petsc_options() on the block matrix"
+            )
         with timed("assemble"):
             D = PETSc.Mat().createAIJ(((self.n_lam, None), (self.n_lam, None)), nnz=1, comm=comm)
             D.setDiagonal(self.M)
@@ -412,6 +473,14 @@ class NewtonSystem:
             )
         self.solved = True
 
+    def set_loose(self, loose: bool) -> bool:
+        """Loose or full-accuracy linear solves; direct solvers are always exact.
+
+        Returns:
+            Whether the following Newton steps are solved loosely (here never).
+        """
+        return False
+
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
         """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem).
 
@@ -440,7 +509,7 @@ class NewtonSystem:
 
 
 class SchurNewtonSystem(NewtonSystem):
-    """The Newton steps by elimination of u: K factored once, S = N K^-1 N^T dense, once per mesh.
+    """The Newton steps by elimination of u: K set up once per mesh, S = N K^-1 N^T.
 
     A Newton step K u + N^T lam = f, (N u)_A = g_A, lam_I = 0 (see :class:`NewtonSystem`) is,
     after eliminating u = K^-1 (f - N_A^T lam_A),
@@ -448,28 +517,31 @@ class SchurNewtonSystem(NewtonSystem):
         S_AA lam_A = (N K^-1 f)_A - g_A,    u = K^-1 (f - N_A^T lam_A),    lam_I = 0,
 
     with S = N K^-1 N^T symmetric positive definite on the active rows when Gamma_D clamps the
-    body (the matrix of the linear complementarity problem, see :func:`solve`). K is factored
-    once per mesh, S computed once per mesh from the factors, by solves with blocks of columns of
-    N^T as right-hand sides; a Newton step costs a Cholesky factorisation of the small dense
-    S_AA and one solve with the factors of K. The transposed Newton matrix (the dual problem,
-    K symmetric) reads, with eta_A = -xi_A,
+    body (the matrix of the linear complementarity problem, see :func:`solve`). The solver of K
+    (``petsc_options``) is set up once per mesh and decides how S_AA is solved:
+
+    * a direct solver (``ksp_type="preonly"``, ``pc_type`` ``"lu"`` or ``"cholesky"``; the
+      default is MUMPS's LDL^T): :class:`DenseSchurComplement`, S computed once per mesh from the
+      factors of K, a Newton step costs a dense Cholesky factorisation of S_AA and one solve
+      with the factors of K;
+    * a Krylov solver (e.g. :func:`iterative_petsc_options`: CG with GAMG and the rigid body
+      modes): :class:`KrylovSchurComplement`, CG on S_AA applied matrix-free (one K solve per
+      iteration), preconditioned by the factored sparse N_A diag(K)^-1 N_A^T; nothing of the
+      size of S is stored, so this is the path for large 3D meshes.
+
+    The transposed Newton matrix (the dual problem, K symmetric) reads, with eta_A = -xi_A,
 
         K y + N_A^T eta_A = j_u,    (N y)_A = j_lam,A,    xi_I = (j_lam,I - (N y)_I) / M_I,
 
     the same saddle-point problem with other data: two solves with K and one with S_AA.
 
-    S lives on rank 0 only (8 n_lam^2 bytes for n_lam multipliers), which runs the dense
-    algebra and scatters the result, so that all ranks use the same numbers. K is factored by
-    MUMPS's symmetric LDL^T (``pc_type="cholesky"``) unless ``petsc_options`` say otherwise.
-
     Raises:
-        ValueError: ``petsc_options`` is not a direct solver (``ksp_type`` ``"preonly"``,
-            ``pc_type`` ``"lu"`` or ``"cholesky"``), or there are more than
-            :data:`SCHUR_MAX_MULTIPLIERS` multipliers.
+        ValueError: ``petsc_options`` give ``ksp_type="preonly"`` without a factorisation, or
+            there are more than :data:`SCHUR_MAX_MULTIPLIERS` multipliers for the dense S.
         ConvergenceError: K could not be factored (the body is not held in place).
     """
 
-    _petsc_objects = (*NewtonSystem._petsc_objects, "_u", "_u_f", "_rhs_u", "_lam_vec")
+    _petsc_objects = (*NewtonSystem._petsc_objects, "_u", "_u_f", "_rhs_u", "_lam_vec", "_schur")
 
     @staticmethod
     def _default_options() -> dict[str, Any]:
@@ -480,29 +552,28 @@ class SchurNewtonSystem(NewtonSystem):
         return options
 
     def _setup(self) -> None:
-        """Check the solver, factor K, compute K^-1 f and S (rank 0)."""
-        comm = self.disc.comm
+        """Check and set up the solver of K, compute K^-1 f and the Schur complement."""
         ksp_type, pc_type = self.ksp.getType(), self.ksp.getPC().getType()
-        if ksp_type != "preonly" or pc_type not in ("lu", "cholesky"):
+        if ksp_type == "preonly" and pc_type not in ("lu", "cholesky"):
             raise ValueError(
-                "method='schur' factors K with a direct solver: petsc_options must keep "
-                f"ksp_type 'preonly' and pc_type 'lu' or 'cholesky' (got {ksp_type!r} and "
-                f"{pc_type!r}); iterative solvers such as iterative_petsc_options() need "
-                "method='block'"
+                "method='schur' solves with K: with ksp_type 'preonly' petsc_options need "
+                f"pc_type 'lu' or 'cholesky' (got {pc_type!r}); for a Krylov solver of K use "
+                "e.g. iterative_petsc_options()"
             )
-        counts = comm.allgather(self.n_lam)
-        self.n_lam_global = sum(counts)
-        if self.n_lam_global > SCHUR_MAX_MULTIPLIERS:
+        self.direct = ksp_type == "preonly"
+        self.n_lam_global = self.disc.comm.allreduce(self.n_lam, op=MPI.SUM)
+        if self.direct and self.n_lam_global > SCHUR_MAX_MULTIPLIERS:
             raise ValueError(
-                f"method='schur' stores the dense {self.n_lam_global} x {self.n_lam_global} "
-                f"matrix N K^-1 N^T ({8e-9 * self.n_lam_global**2:.1f} GB), more than "
-                f"SCHUR_MAX_MULTIPLIERS = {SCHUR_MAX_MULTIPLIERS} multipliers allow; use "
-                "method='block'"
+                f"method='schur' with a direct solver stores the dense {self.n_lam_global} x "
+                f"{self.n_lam_global} matrix N K^-1 N^T ({8e-9 * self.n_lam_global**2:.1f} GB), "
+                f"more than SCHUR_MAX_MULTIPLIERS = {SCHUR_MAX_MULTIPLIERS} multipliers allow; "
+                "use method='block' or a Krylov solver of K (iterative_petsc_options())"
             )
-        self._offsets = np.cumsum(counts)[:-1]
         self._u, self._u_f, self._rhs_u = (self.K.createVecRight() for _ in range(3))
         self._lam_vec = self.N.createVecLeft()
-        self._factor: tuple[np.ndarray, Any] | None = None
+        if not self.direct:
+            self._near_nullspace = rigid_body_modes(self.V, self.n_u)
+            self.K.setNearNullSpace(self._near_nullspace)
         with timed("factorize"):
             self.ksp.setOperators(self.K)
             try:
@@ -510,114 +581,50 @@ class SchurNewtonSystem(NewtonSystem):
                 self._solve_K(self.f, self._u_f)
             except (PETSc.Error, ConvergenceError) as err:
                 raise ConvergenceError(
-                    "the factorisation of the stiffness matrix K failed: K is singular (the "
-                    "body is not held in place, check dirichlet)",
+                    "the factorisation (or preconditioner) of the stiffness matrix K failed: K "
+                    "is singular (the body is not held in place, check dirichlet)",
                     [],
                 ) from err
-            self.S = self._schur_complement()
+            self._schur: DenseSchurComplement | KrylovSchurComplement = (
+                DenseSchurComplement(self) if self.direct else KrylovSchurComplement(self)
+            )
 
     def _solve_K(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        """Solve K x = b with the factors of K."""
+        """Solve K x = b with the solver of K (factors, or the set-up Krylov solver)."""
         self.ksp.solve(b, x)
         reason = self.ksp.getConvergedReason()
         if reason < 0:
-            raise ConvergenceError(f"solve with the factors of K failed (KSP reason {reason})", [])
+            raise ConvergenceError(f"the solve with K failed (KSP reason {reason})", [])
 
-    def _schur_complement(self) -> np.ndarray | None:
-        """S = N K^-1 N^T on rank 0 (None elsewhere), a block of columns at a time.
-
-        The columns X = K^-1 N^T[:, block] come from one multi-RHS solve, and S[:, block] =
-        (N^T)^T X is summed over the ranks' owned rows of N^T.
-        """
-        comm, n = self.disc.comm, self.n_lam_global
-        indptr, indices, values = self.NT.getValuesCSR()
-        NT = scipy.sparse.csr_matrix((values, indices, indptr), shape=(self.n_u, n))
-        width = max(1, min(n, _SCHUR_BLOCK_ENTRIES // self.K.getSize()[0]))
-        S = np.empty((n, n)) if comm.rank == 0 else None
-        B = X = None
-        try:
-            for start in range(0, n, width):
-                stop = min(n, start + width)
-                if B is None or B.getSize()[1] != stop - start:
-                    for mat in (B, X):
-                        if mat is not None:
-                            mat.destroy()
-                    B = PETSc.Mat().createDense(((self.n_u, None), (None, stop - start)), comm=comm)
-                    B.setUp()
-                    X = B.duplicate()
-                B.getDenseArray()[:] = NT[:, start:stop].toarray()
-                B.assemble()
-                self.ksp.matSolve(B, X)
-                block = np.ascontiguousarray(NT.T @ X.getDenseArray())
-                total = np.empty_like(block) if comm.rank == 0 else None
-                comm.Reduce(block, total, op=MPI.SUM, root=0)
-                if comm.rank == 0:
-                    S[:, start:stop] = total
-        finally:
-            for mat in (B, X):
-                if mat is not None:
-                    mat.destroy()
-        if comm.rank == 0:
-            S = 0.5 * (S + S.T)  # symmetric up to the round-off of the solves
-        return S
-
-    def _gather(self, owned: np.ndarray) -> np.ndarray | None:
-        """The global multiplier vector on rank 0 from every rank's owned rows."""
-        parts = self.disc.comm.gather(owned, root=0)
-        return np.concatenate(parts) if parts is not None else None
-
-    def _factor_active(self, active: np.ndarray) -> None:
-        """Cholesky factor of S_AA on rank 0; LinAlgError on every rank if S_AA is singular."""
-        comm = self.disc.comm
-        mask = self._gather(active)
-        error = None
-        if comm.rank == 0:
-            index = np.flatnonzero(mask)
-            S_AA = self.S[np.ix_(index, index)]
-            factor = None
-            try:
-                if index.size:
-                    factor = scipy.linalg.cho_factor(S_AA)
-                    # Pivots relative to the diagonal: a scale-invariant test for dependent rows.
-                    if np.any(np.diag(factor[0]) ** 2 <= _PIVOT_RTOL * S_AA.diagonal()):
-                        raise np.linalg.LinAlgError
-            except np.linalg.LinAlgError:
-                error = (
-                    "N K^-1 N^T is singular on the active rows: active contact constraints are "
-                    "linearly dependent"
-                )
-            self._factor = (index, factor)
-        error = comm.bcast(error, root=0)
-        if error is not None:
-            raise np.linalg.LinAlgError(error)
-
-    def _saddle(self, a: PETSc.Vec, b: np.ndarray, w: PETSc.Vec) -> np.ndarray:
-        """Solve K u + N_A^T l_A = a, (N u)_A = b_A, l_I = 0 for the last factored active set.
+    def _saddle(
+        self, a: PETSc.Vec, b: np.ndarray, w: PETSc.Vec, guess: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Solve K u + N_A^T l_A = a, (N u)_A = b_A, l_I = 0 for the last set-up active set.
 
         Args:
             a: Right-hand side of the displacement rows.
             b: Owned right-hand sides of the multiplier rows (only the active ones count).
             w: K^-1 a (it may be ``self._u``, which is overwritten).
+            guess: Owned initial guess of l for a Krylov solve of S_AA (None: zero).
 
         Returns:
             The owned l; u is left in ``self._u``.
         """
-        comm = self.disc.comm
         self.N.mult(w, self._lam_vec)
-        r = self._gather(self._lam_vec.array - b)  # S_AA l_A = (N K^-1 a - b)_A
-        parts = None
-        if comm.rank == 0:
-            index, factor = self._factor
-            full = np.zeros(self.n_lam_global)
-            if index.size:
-                full[index] = scipy.linalg.cho_solve(factor, r[index])
-            parts = np.split(full, self._offsets)
-        l_owned = comm.scatter(parts, root=0)
+        l_owned = self._schur.solve(self._lam_vec.array - b, guess)  # S_AA l_A = (N K^-1 a - b)_A
         self._lam_vec.array_w[:] = l_owned
         self.NT.mult(self._lam_vec, self._rhs_u)
         self._rhs_u.aypx(-1.0, a)  # a - N_A^T l_A
         self._solve_K(self._rhs_u, self._u)
         return l_owned
+
+    def set_loose(self, loose: bool) -> bool:
+        """Loose tolerances of the Krylov solves (:class:`KrylovSchurComplement`) or full ones.
+
+        Returns:
+            Whether the following Newton steps are solved loosely (never with a direct solver).
+        """
+        return self._schur.set_loose(loose)
 
     def _write(self, out: PETSc.Vec, u: np.ndarray, lam: np.ndarray) -> None:
         arr = out.array_w
@@ -625,11 +632,12 @@ class SchurNewtonSystem(NewtonSystem):
         arr[self.n_u :] = lam
 
     def solve_active(self, active: np.ndarray) -> None:
-        """One Newton step: lam_A from S_AA, then u with the factors of K, into ``self.x``."""
+        """One Newton step: lam_A from S_AA, then u with the solver of K, into ``self.x``."""
         with timed("newton solve"):
-            self._factor_active(active)
+            self._schur.set_active(active)
+            guess = np.where(active, self.split(self.x)[1], 0.0) if self.solved else None
             self.active = active.copy()
-            lam = self._saddle(self.f, self.g.array, self._u_f)
+            lam = self._saddle(self.f, self.g.array, self._u_f, guess)
             self._write(self.x, self._u.array_r, lam)
         self.solved = True
 
@@ -650,13 +658,233 @@ class SchurNewtonSystem(NewtonSystem):
         try:
             self._solve_K(j, self._u)
             eta = self._saddle(j, j_lam, self._u)
-        except ConvergenceError as err:
+        except (ConvergenceError, PETSc.Error) as err:
             raise RuntimeError(f"the dual solve failed: {err}") from err
         finally:
             j.destroy()
         self.N.mult(self._u, self._lam_vec)
         xi = np.where(self.active, -eta, (j_lam - self._lam_vec.array) / self.M.array)
         self._write(z, self._u.array_r, xi)
+
+
+class DenseSchurComplement:
+    """S = N K^-1 N^T dense on rank 0, from the factors of K; S_AA by dense Cholesky.
+
+    S is computed once per mesh by solves with blocks of columns of N^T as right-hand sides
+    (8 n_lam^2 bytes on rank 0). Rank 0 runs the dense algebra and scatters the result, so that
+    all ranks use the same numbers.
+    """
+
+    def __init__(self, system: SchurNewtonSystem) -> None:
+        self.system = system
+        self.comm = system.disc.comm
+        self.n = system.n_lam_global
+        self._offsets = np.cumsum(self.comm.allgather(system.n_lam))[:-1]
+        self._factor: tuple[np.ndarray, Any] | None = None
+        self.S = self._compute()
+
+    def _compute(self) -> np.ndarray | None:
+        """S on rank 0 (None elsewhere), a block of columns at a time.
+
+        The columns X = K^-1 N^T[:, block] come from one multi-RHS solve, and S[:, block] =
+        (N^T)^T X is summed over the ranks' owned rows of N^T.
+        """
+        system, comm, n = self.system, self.comm, self.n
+        indptr, indices, values = system.NT.getValuesCSR()
+        NT = scipy.sparse.csr_matrix((values, indices, indptr), shape=(system.n_u, n))
+        width = max(1, min(n, _SCHUR_BLOCK_ENTRIES // system.K.getSize()[0]))
+        S = np.empty((n, n)) if comm.rank == 0 else None
+        B = X = None
+        try:
+            for start in range(0, n, width):
+                stop = min(n, start + width)
+                if B is None or B.getSize()[1] != stop - start:
+                    for mat in (B, X):
+                        if mat is not None:
+                            mat.destroy()
+                    B = PETSc.Mat().createDense(
+                        ((system.n_u, None), (None, stop - start)), comm=comm
+                    )
+                    B.setUp()
+                    X = B.duplicate()
+                B.getDenseArray()[:] = NT[:, start:stop].toarray()
+                B.assemble()
+                system.ksp.matSolve(B, X)
+                block = np.ascontiguousarray(NT.T @ X.getDenseArray())
+                total = np.empty_like(block) if comm.rank == 0 else None
+                comm.Reduce(block, total, op=MPI.SUM, root=0)
+                if comm.rank == 0:
+                    S[:, start:stop] = total
+        finally:
+            for mat in (B, X):
+                if mat is not None:
+                    mat.destroy()
+        if comm.rank == 0:
+            S = 0.5 * (S + S.T)  # symmetric up to the round-off of the solves
+        return S
+
+    def _gather(self, owned: np.ndarray) -> np.ndarray | None:
+        """The global multiplier vector on rank 0 from every rank's owned rows."""
+        parts = self.comm.gather(owned, root=0)
+        return np.concatenate(parts) if parts is not None else None
+
+    def set_active(self, active: np.ndarray) -> None:
+        """Cholesky factor of S_AA on rank 0; LinAlgError on every rank if S_AA is singular."""
+        mask = self._gather(active)
+        error = None
+        if self.comm.rank == 0:
+            index = np.flatnonzero(mask)
+            S_AA = self.S[np.ix_(index, index)]
+            factor = None
+            try:
+                if index.size:
+                    factor = scipy.linalg.cho_factor(S_AA)
+                    # Pivots relative to the diagonal: a scale-invariant test for dependent rows.
+                    if np.any(np.diag(factor[0]) ** 2 <= _PIVOT_RTOL * S_AA.diagonal()):
+                        raise np.linalg.LinAlgError
+            except np.linalg.LinAlgError:
+                error = (
+                    "N K^-1 N^T is singular on the active rows: active contact constraints are "
+                    "linearly dependent"
+                )
+            self._factor = (index, factor)
+        error = self.comm.bcast(error, root=0)
+        if error is not None:
+            raise np.linalg.LinAlgError(error)
+
+    def solve(self, r: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
+        """The owned l with S_AA l_A = r_A, l_I = 0 (``guess`` is not needed)."""
+        r_all = self._gather(r)
+        parts = None
+        if self.comm.rank == 0:
+            index, factor = self._factor
+            full = np.zeros(self.n)
+            if index.size:
+                full[index] = scipy.linalg.cho_solve(factor, r_all[index])
+            parts = np.split(full, self._offsets)
+        return self.comm.scatter(parts, root=0)
+
+    def set_loose(self, loose: bool) -> bool:
+        """Direct solves are exact: never loose."""
+        return False
+
+    def destroy(self) -> None:
+        """Nothing to destroy (numpy only)."""
+
+
+class _MaskedSchurOperator:
+    """Context of the python matrix P_A N K^-1 N^T P_A + P_I on the multiplier rows."""
+
+    def __init__(self, system: SchurNewtonSystem) -> None:
+        self.system = system
+        self.mask = np.zeros(system.n_lam)
+        self._lam = system.N.createVecLeft()
+        self._w, self._v = system.K.createVecRight(), system.K.createVecRight()
+
+    def mult(self, mat: PETSc.Mat, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """The product y = P_A N K^-1 N^T P_A x + P_I x: one solve with K."""
+        system = self.system
+        self._lam.array_w[:] = self.mask * x.array_r
+        system.NT.mult(self._lam, self._w)
+        system._solve_K(self._w, self._v)
+        system.N.mult(self._v, y)
+        y.array_w[:] = self.mask * y.array_r + (1.0 - self.mask) * x.array_r
+
+    def destroy(self, mat: PETSc.Mat) -> None:
+        """Destroy the work vectors with the python matrix."""
+        for vec in (self._lam, self._w, self._v):
+            vec.destroy()
+
+
+class KrylovSchurComplement:
+    """CG on S_AA = (N K^-1 N^T)_AA, matrix-free, preconditioned by (N diag(K)^-1 N^T)_AA.
+
+    The operator is a PETSc python matrix on the multiplier rows: P_A S P_A + P_I with P_A, P_I
+    the projections on the active and inactive rows, so that one CG solves S_AA l_A = r_A,
+    l_I = r_I = 0 with the distributed layout of the multipliers. Each application costs one
+    solve with K by the system's Krylov solver. The preconditioner is the sparse
+    N diag(K)^-1 N^T (computed once per mesh) with the inactive rows and columns replaced by the
+    identity, factored by MUMPS's LDL^T for each active set. The CG's options have the prefix
+    ``<system prefix>schur_`` (pass e.g. ``schur_ksp_rtol`` in ``petsc_options``); defaults in
+    :data:`SCHUR_KRYLOV_OPTIONS`. Each K solve is as accurate as ``ksp_rtol`` of K.
+    """
+
+    def __init__(self, system: SchurNewtonSystem) -> None:
+        self.system = system
+        comm = system.disc.comm
+        inv_diag = system.K.getDiagonal()
+        inv_diag.reciprocal()
+        scaled = system.NT.copy()
+        scaled.diagonalScale(L=inv_diag)
+        self.S_hat = system.N.matMult(scaled)  # N diag(K)^-1 N^T, sparse
+        inv_diag.destroy()
+        scaled.destroy()
+        self.P: PETSc.Mat | None = None
+        n = system.n_lam
+        self._operator = _MaskedSchurOperator(system)
+        self.S = PETSc.Mat().createPython(((n, None), (n, None)), self._operator, comm=comm)
+        self.S.setUp()
+        self._y = self.S.createVecLeft()
+        self.lo = system.N.getOwnershipRange()[0]
+        self.ksp = PETSc.KSP().create(comm)
+        options = dict(SCHUR_KRYLOV_OPTIONS)
+        prefix = "schur_"
+        options.update(
+            {k[len(prefix) :]: v for k, v in system.options.items() if k.startswith(prefix)}
+        )
+        set_options(self.ksp, system.prefix + prefix, options)
+        self.iterations = 0
+        self._rtol = (system.ksp.getTolerances()[0], self.ksp.getTolerances()[0])
+
+    def set_loose(self, loose: bool) -> bool:
+        """Loose relative tolerances of the K solves and the CG on S_AA, or those of the options.
+
+        Loose means at least :data:`LOOSE_RTOL`.
+
+        Returns:
+            ``loose``.
+        """
+        solvers = (self.system.ksp, self.ksp)
+        for ksp, tight, floor in zip(solvers, self._rtol, LOOSE_RTOL, strict=True):
+            ksp.setTolerances(rtol=max(tight, floor) if loose else tight)
+        return loose
+
+    def set_active(self, active: np.ndarray) -> None:
+        """Build and factor the preconditioner of S_AA for ``active`` (owned rows)."""
+        self._operator.mask = active.astype(float)
+        if self.P is not None:
+            self.P.destroy()
+        self.P = self.S_hat.copy()
+        rows = (self.lo + np.flatnonzero(~active)).astype(PETSc.IntType)
+        self.P.zeroRowsColumns(rows, diag=1.0)
+        self.ksp.setOperators(self.S, self.P)
+        self.ksp.setUp()
+
+    def solve(self, r: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
+        """The owned l with S_AA l_A = r_A, l_I = 0, by CG from ``guess`` (None: zero)."""
+        mask = self._operator.mask
+        self._y.array_w[:] = mask * r
+        out = self.S.createVecRight()
+        if guess is not None:
+            out.array_w[:] = mask * guess
+        self.ksp.setInitialGuessNonzero(guess is not None)
+        try:
+            self.ksp.solve(self._y, out)
+            reason = self.ksp.getConvergedReason()
+            self.iterations += self.ksp.getIterationNumber()
+            if reason < 0:
+                raise ConvergenceError(f"CG on S_AA did not converge (KSP reason {reason})", [])
+            return out.array_r.copy()
+        finally:
+            out.destroy()
+
+    def destroy(self) -> None:
+        """Destroy the PETSc objects (collective)."""
+        for name in ("ksp", "S", "P", "S_hat", "_y"):
+            obj = getattr(self, name, None)
+            if obj is not None:
+                obj.destroy()
+                setattr(self, name, None)
 
 
 @dataclass
@@ -728,6 +956,12 @@ def solve(
       the matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the
       body, for which this rule terminates finitely (K. G. Murty, Opsearch 11, 1974, 123-130).
 
+    With a Krylov solver of K (``method="schur"``, :class:`KrylovSchurComplement`) the steps are
+    *inexact* while the active set changes: their solves stop at the relative tolerances
+    :data:`LOOSE_RTOL`, which are enough to decide the next active set. When it settles, its
+    system is solved once more at the tolerances of ``petsc_options`` (one more step, whose
+    iterate the convergence test then checks); direct solvers are always exact.
+
     After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
     lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``c_n_scale`` times E / H_i)
     only weighs an initial guess against the gap, and the iterates from a zero initial guess do
@@ -746,11 +980,14 @@ def solve(
             relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|).
         c_n_scale: Factor on the default c_n,i = E / H_i of the NCP function (20), > 0.
         method: Linear solver of the Newton steps, one of :data:`METHODS`. ``"block"``
-            (reference, :class:`NewtonSystem`) factors the block Newton matrix in every step and
-            takes any ``petsc_options``; ``"schur"`` (:class:`SchurNewtonSystem`) factors K once
-            and solves S_AA lam_A = (N K^-1 f)_A - g_A with the dense S = N K^-1 N^T, for a
-            direct solver of K and at most :data:`SCHUR_MAX_MULTIPLIERS` multipliers. Both give
-            the same iterates up to round-off, and the dual problem is solved the same way.
+            (reference, :class:`NewtonSystem`) factors the block Newton matrix in every step
+            (``petsc_options`` for the block matrix, e.g. :func:`fieldsplit_petsc_options`);
+            ``"schur"`` (:class:`SchurNewtonSystem`) solves S_AA lam_A = (N K^-1 f)_A - g_A,
+            S = N K^-1 N^T, with ``petsc_options`` for K: a direct solver (the default, K
+            factored once, S dense, at most :data:`SCHUR_MAX_MULTIPLIERS` multipliers) or a
+            Krylov solver (:func:`iterative_petsc_options`: CG + GAMG on K, CG on S_AA, for
+            large 3D meshes). All give the same iterates up to the solvers' tolerances, and
+            the dual problem is solved the same way.
 
     Returns:
         The :class:`Solution`.
@@ -851,6 +1088,7 @@ def solve(
     diagonal.destroy()
     norm_K = comm.allreduce(float(np.max(row_sum[coupled], initial=0.0)), op=MPI.MAX)
     history: list[dict[str, Any]] = []
+    loose = system.set_loose(True)
     seen: dict[tuple[bytes, ...], int] = {}
     previous: np.ndarray | None = None
     safeguard_since: int | None = None
@@ -897,6 +1135,7 @@ def solve(
                 "residual_ncp": rel_ncp,
                 "c_n_scale": float(c_n_scale),
                 "safeguard": safeguard_since is not None,
+                "loose": loose,
             }
             history.append(record)
             logger.info(
@@ -907,7 +1146,10 @@ def solve(
                 res_eq,
                 rel_ncp,
             )
-            if previous is not None and num_changed == 0:
+            resolve = previous is not None and num_changed == 0 and loose
+            if resolve:  # the active set has settled: solve its system again, accurately
+                loose = system.set_loose(False)
+            elif previous is not None and num_changed == 0:
                 if res_eq <= rtol and rel_ncp <= rtol:
                     break
                 raise ConvergenceError(
@@ -928,9 +1170,9 @@ def solve(
                     history,
                 )
 
-            new = rule
+            new = previous if resolve else rule
             key = _global_key(comm, new)
-            if key in seen:
+            if key in seen and not resolve:
                 if safeguard_since is not None:
                     raise ConvergenceError(
                         f"active-set cycling: the set of step {it} repeats step {seen[key]} "
@@ -945,7 +1187,7 @@ def solve(
                 )
                 safeguard_since = it
                 seen.clear()
-            if safeguard_since is not None:
+            if safeguard_since is not None and not resolve:
                 new = previous ^ least_index(violated)
                 key = _global_key(comm, new)
                 record["num_active"] = comm.allreduce(int(new.sum()), op=MPI.SUM)
@@ -994,6 +1236,7 @@ def solve(
     finally:
         lam_vec.destroy()
         nt_lam.destroy()
+    system.set_loose(False)  # the dual problem reuses the system: at full accuracy
 
     return Solution(
         u=u,
