@@ -63,6 +63,7 @@ __all__ = [
     "NewtonSystem",
     "SchurNewtonSystem",
     "Solution",
+    "clear_options",
     "default_petsc_options",
     "fieldsplit_petsc_options",
     "iterative_petsc_options",
@@ -116,12 +117,21 @@ class ConvergenceError(RuntimeError):
         self.history = history
 
 
-def default_petsc_options() -> dict[str, Any]:
-    """A direct solver: MUMPS LU where PETSc has it, PETSc's LU otherwise."""
+def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
+    """A direct solver: MUMPS LU where PETSc has it, PETSc's LU otherwise.
+
+    Args:
+        tdim: Topological dimension of the mesh, if known. On 2D meshes MUMPS orders with AMD
+            (``mat_mumps_icntl_7=0``): at 198k DoFs (example 5.1) it factors K in 0.41 s
+            against 0.64 s with MUMPS's default, METIS nested dissection, which stays for 3D,
+            where it is 3 times faster than AMD at 146k DoFs (example 5.3).
+    """
     opts: dict[str, Any] = {"ksp_type": "preonly", "pc_type": "lu"}
     if PETSc.Sys.hasExternalPackage("mumps"):
         opts["pc_factor_mat_solver_type"] = "mumps"
         opts["mat_mumps_icntl_14"] = 200
+        if tdim == 2:
+            opts["mat_mumps_icntl_7"] = 0
     return opts
 
 
@@ -218,8 +228,16 @@ def rigid_body_modes(V: fem.FunctionSpace, n_local: int) -> PETSc.NullSpace:
     return PETSc.NullSpace().create(vectors=vecs, comm=V.mesh.comm)
 
 
-def set_options(obj: PETSc.KSP, prefix: str, options: dict[str, Any]) -> None:
-    """Push ``options`` under ``prefix``, apply them to ``obj`` and remove them again."""
+def set_options(obj: PETSc.KSP, prefix: str, options: dict[str, Any]) -> list[str]:
+    """Put ``options`` under ``prefix`` into PETSc's options database and apply them to ``obj``.
+
+    They stay in the database, because some are read only when ``obj`` is set up (MUMPS reads
+    its ``mat_mumps_*`` options at the factorisation); remove them with :func:`clear_options`
+    after the first setup.
+
+    Returns:
+        The full names of the options.
+    """
     obj.setOptionsPrefix(prefix)
     opts = PETSc.Options()
     opts.prefixPush(prefix)
@@ -227,8 +245,16 @@ def set_options(obj: PETSc.KSP, prefix: str, options: dict[str, Any]) -> None:
         opts[key] = value
     opts.prefixPop()
     obj.setFromOptions()
-    for key in options:
-        del opts[prefix + key]
+    return [prefix + key for key in options]
+
+
+def clear_options(names: list[str]) -> None:
+    """Remove the options :func:`set_options` put into PETSc's options database."""
+    opts = PETSc.Options()
+    for name in names:
+        if opts.hasName(name):
+            opts.delValue(name)
+    names.clear()
 
 
 class NewtonSystem:
@@ -306,16 +332,16 @@ class NewtonSystem:
         self.solved = False
         self.ksp = PETSc.KSP().create(disc.comm)
         self.prefix = f"dwr_signorini_primal_{next(_counter)}_"
-        options = self._default_options()
+        options = self._default_options(disc.mesh.topology.dim)
         options.update(petsc_options or {})
         self.options = options
-        set_options(self.ksp, self.prefix, options)
+        self._option_names = set_options(self.ksp, self.prefix, options)
         self.direct = self.ksp.getPC().getType() in ("lu", "cholesky")
         self._setup()
 
     @staticmethod
-    def _default_options() -> dict[str, Any]:
-        return default_petsc_options()
+    def _default_options(tdim: int) -> dict[str, Any]:
+        return default_petsc_options(tdim)
 
     def _assemble(self, bcs: list[fem.DirichletBC]) -> None:
         """K, N, N^T, f, M, g and c_n (once per mesh)."""
@@ -394,6 +420,7 @@ class NewtonSystem:
             if obj is not None:
                 obj.destroy()
                 setattr(self, name, None)
+        clear_options(getattr(self, "_option_names", []))
 
     def __del__(self) -> None:
         self.destroy()
@@ -464,6 +491,7 @@ class NewtonSystem:
         with timed("factorize"):
             self.ksp.setOperators(self.A)
             self.ksp.setUp()
+            clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
         with timed("newton solve"):
             self.ksp.solve(self.b, self.x)
         reason = self.ksp.getConvergedReason()
@@ -544,9 +572,9 @@ class SchurNewtonSystem(NewtonSystem):
     _petsc_objects = (*NewtonSystem._petsc_objects, "_u", "_u_f", "_rhs_u", "_lam_vec", "_schur")
 
     @staticmethod
-    def _default_options() -> dict[str, Any]:
+    def _default_options(tdim: int) -> dict[str, Any]:
         """As :func:`default_petsc_options`, with MUMPS's Cholesky (LDL^T): K is symmetric."""
-        options = default_petsc_options()
+        options = default_petsc_options(tdim)
         if options.get("pc_factor_mat_solver_type") == "mumps":
             options["pc_type"] = "cholesky"
         return options
@@ -578,6 +606,7 @@ class SchurNewtonSystem(NewtonSystem):
             self.ksp.setOperators(self.K)
             try:
                 self.ksp.setUp()
+                clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
                 self._solve_K(self.f, self._u_f)
             except (PETSc.Error, ConvergenceError) as err:
                 raise ConvergenceError(
@@ -832,7 +861,7 @@ class KrylovSchurComplement:
         options.update(
             {k[len(prefix) :]: v for k, v in system.options.items() if k.startswith(prefix)}
         )
-        set_options(self.ksp, system.prefix + prefix, options)
+        self._option_names = set_options(self.ksp, system.prefix + prefix, options)
         self.iterations = 0
         self._rtol = (system.ksp.getTolerances()[0], self.ksp.getTolerances()[0])
 
@@ -859,6 +888,7 @@ class KrylovSchurComplement:
         self.P.zeroRowsColumns(rows, diag=1.0)
         self.ksp.setOperators(self.S, self.P)
         self.ksp.setUp()
+        clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
 
     def solve(self, r: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
         """The owned l with S_AA l_A = r_A, l_I = 0, by CG from ``guess`` (None: zero)."""
@@ -885,6 +915,7 @@ class KrylovSchurComplement:
             if obj is not None:
                 obj.destroy()
                 setattr(self, name, None)
+        clear_options(self._option_names)
 
 
 @dataclass

@@ -20,6 +20,7 @@ from dwr_signorini import newton
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
 from dwr_signorini.newton import (
+    METHODS,
     KrylovSchurComplement,
     NewtonSystem,
     SchurNewtonSystem,
@@ -167,3 +168,20 @@ def test_dual_needs_a_solved_system():
         with pytest.raises(RuntimeError, match="has not been solved"):
             solve_dual(system, goal)
         system.destroy()
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", METHODS)
+def test_solver_options_reach_mumps_and_are_removed(method):
+    """Options read only at the factorisation (mat_mumps_*) reach MUMPS: AMD ordering on 2D
+    meshes by default, the user's choice over it; no option is left in PETSc's database."""
+    from petsc4py import PETSc
+
+    problem = strip_problem(MPI.COMM_WORLD, 8, 2)
+    for options, ordering in ((None, 0), ({"mat_mumps_icntl_7": 5}, 5)):
+        sol = ds.solve(problem, petsc_options=options, method=method)
+        factor = sol.system.ksp.getPC().getFactorMatrix()
+        assert factor.getMumpsIcntl(7) == ordering
+        assert factor.getMumpsIcntl(14) == 200
+        prefix = sol.system.prefix
+        assert not [k for k in PETSc.Options().getAll() if k.startswith(prefix)]
