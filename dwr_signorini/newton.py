@@ -129,7 +129,6 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
     opts: dict[str, Any] = {"ksp_type": "preonly", "pc_type": "lu"}
     if PETSc.Sys.hasExternalPackage("mumps"):
         opts["pc_factor_mat_solver_type"] = "mumps"
-        opts["mat_mumps_icntl_14"] = 200
         if tdim == 2:
             opts["mat_mumps_icntl_7"] = 0
     return opts

@@ -28,6 +28,7 @@ from dolfinx.cpp import mesh as _cpp_mesh
 
 from .problem import SignoriniProblem
 from .quadrature import DATA_QUADRATURE_DEGREE, is_polynomial
+from .timing import timed
 
 __all__ = ["Discretization", "Measures", "discretize"]
 
@@ -283,7 +284,8 @@ class Discretization:
         with the same values as the expression integrated at that degree.
         """
         if self._body_force is None:
-            self._body_force = self._body_force_data()
+            with timed("assemble"):
+                self._body_force = self._body_force_data()
         return self.problem.load_form(v, self.m, *self._body_force)
 
     def _body_force_data(self) -> tuple[Any, ufl.Measure]:

@@ -178,10 +178,14 @@ def test_solver_options_reach_mumps_and_are_removed(method):
     from petsc4py import PETSc
 
     problem = strip_problem(MPI.COMM_WORLD, 8, 2)
-    for options, ordering in ((None, 0), ({"mat_mumps_icntl_7": 5}, 5)):
+    for options, ordering, workspace in (
+        (None, 0, None),
+        ({"mat_mumps_icntl_7": 5, "mat_mumps_icntl_14": 70}, 5, 70),
+    ):
         sol = ds.solve(problem, petsc_options=options, method=method)
         factor = sol.system.ksp.getPC().getFactorMatrix()
         assert factor.getMumpsIcntl(7) == ordering
-        assert factor.getMumpsIcntl(14) == 200
+        if workspace is not None:
+            assert factor.getMumpsIcntl(14) == workspace
         prefix = sol.system.prefix
         assert not [k for k in PETSc.Options().getAll() if k.startswith(prefix)]
