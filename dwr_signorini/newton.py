@@ -199,7 +199,12 @@ SCHUR_KRYLOV_OPTIONS: dict[str, Any] = {
     "ksp_max_it": 1000,
     "ksp_norm_type": "unpreconditioned",
     "pc_type": "cholesky",
-    **({"pc_factor_mat_solver_type": "mumps"} if PETSc.Sys.hasExternalPackage("mumps") else {}),
+    # ICNTL(24): null pivot detection, to report linearly dependent active constraints.
+    **(
+        {"pc_factor_mat_solver_type": "mumps", "mat_mumps_icntl_24": 1}
+        if PETSc.Sys.hasExternalPackage("mumps")
+        else {}
+    ),
 }
 
 
@@ -887,7 +892,24 @@ class KrylovSchurComplement:
         self.P.zeroRowsColumns(rows, diag=1.0)
         self.ksp.setOperators(self.S, self.P)
         self.ksp.setUp()
+        self._check_independent()
         clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
+
+    def _check_independent(self) -> None:
+        """LinAlgError if MUMPS found null pivots in (N diag(K)^-1 N^T)_AA.
+
+        It has the rank of S_AA (both are N_A B N_A^T with B symmetric positive definite on the
+        free dofs), so null pivots mean linearly dependent active constraints, for which CG
+        would return one of many multipliers.
+        """
+        pc = self.ksp.getPC()
+        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+            return
+        if pc.getFactorMatrix().getMumpsInfog(28) > 0:
+            raise np.linalg.LinAlgError(
+                "N diag(K)^-1 N^T, and so N K^-1 N^T, is singular on the active rows: active "
+                "contact constraints are linearly dependent"
+            )
 
     def solve(self, r: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
         """The owned l with S_AA l_A = r_A, l_I = 0, by CG from ``guess`` (None: zero)."""

@@ -35,6 +35,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+from dwr_signorini.newton import iterative_petsc_options
 
 TRI = mesh.CellType.triangle
 TET = mesh.CellType.tetrahedron
@@ -740,8 +741,12 @@ def test_iteration_limit_raises_with_history():
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("method", ["block", "schur"])
-def test_dependent_contact_constraints_raise(method):
+@pytest.mark.parametrize(
+    ("method", "options"),
+    [("block", None), ("schur", None), ("schur", iterative_petsc_options())],
+    ids=["block", "schur-direct", "schur-krylov"],
+)
+def test_dependent_contact_constraints_raise(method, options):
     """Degenerate 3D configuration: a 1 x 1 x 1 box clamped on its four sides, Gamma_C its bottom
     (two macro triangles). Their fine nodes are all clamped except the centre, so the two
     multipliers act on one normal displacement: with both active the Newton matrix (block path)
@@ -760,7 +765,7 @@ def test_dependent_contact_constraints_raise(method):
 
     problem = make(msh, tag_boundary(msh, classify), model="3d", gap=-0.01)
     with pytest.raises(ds.ConvergenceError, match=r"Newton step 0.*singular") as info:
-        ds.solve(problem, method=method)
+        ds.solve(problem, method=method, petsc_options=options)
     assert len(info.value.history) == 1
 
 
