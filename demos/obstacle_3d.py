@@ -56,6 +56,7 @@ import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini import plotting
 from dwr_signorini.io import write_csv, write_json
+from dwr_signorini.newton import iterative_petsc_options
 
 comm = MPI.COMM_WORLD
 
@@ -90,12 +91,20 @@ parser.add_argument("--reference", type=float, default=None,
                     help="reference value of J, for E_rel and effectivity indices")
 parser.add_argument("--plot-backend", choices=("auto", "pyvista", "matplotlib"),
                     default="auto", help="3D pictures: pyvista off screen or matplotlib")
+parser.add_argument("--solver", choices=("direct", "schur", "iterative"), default="direct",
+                    help="Newton steps: block matrix by MUMPS; Schur complement with K factored; "
+                         "Schur complement by CG with GAMG on K (large meshes)")
 parser.add_argument("--output", type=Path, default=Path("results/obstacle_3d"))
 parser.add_argument("--no-plots", action="store_true", help="write tables and fields only")
 args = parser.parse_args([] if "ipykernel" in sys.modules else None)
 if args.levels < 1:
     parser.error(f"--levels must be at least 1, got {args.levels}")
 refinements = ("adaptive", "uniform") if args.refinement == "both" else (args.refinement,)
+solver = {
+    "direct": {"method": "block"},
+    "schur": {"method": "schur"},
+    "iterative": {"method": "schur", "petsc_options": iterative_petsc_options()},
+}[args.solver]
 out = args.output
 print0(f"Example 5.3 (3D obstacle) on {comm.size} process(es); output in {out}/")
 # -
@@ -115,7 +124,7 @@ def obstacle_problem() -> ds.SignoriniProblem:
 
 # The first solve of a session loads the compiled forms (JIT); do it before the timed runs.
 ds.solve_adaptive(obstacle_problem(), ex.goal_obstacle(), refinement="uniform", max_levels=1,
-                  weights=args.weights, verbose=False)
+                  weights=args.weights, verbose=False, **solver)
 # -
 
 # ## Adaptive and uniform runs
@@ -130,7 +139,7 @@ for refinement in refinements:
         obstacle_problem(), ex.goal_obstacle(), refinement=refinement, fraction=args.fraction,
         strategy=args.strategy, max_levels=args.levels, max_cells=args.max_cells,
         estimator=args.estimator, weights=args.weights, exact=args.reference,
-        output_dir=out / refinement,
+        output_dir=out / refinement, **solver,
     )
     if len(results[refinement].levels) < args.levels:
         print0(f"(stopped by --max-cells {args.max_cells})")

@@ -25,7 +25,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
-from .newton import NewtonSystem, Solution
+from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .timing import timed
@@ -136,7 +136,8 @@ def _higher_order_solutions(
 ) -> tuple[DualSolution, tuple[fem.Function, fem.Function] | None]:
     """Dual (and primal) solved in P2 on T_h with Lambda_H and the final active set."""
     with timed("higher-order solve"):
-        system2 = NewtonSystem(sol.disc, petsc_options, V=rec.V2h)
+        # The same kind of linear solver as the primal problem's (block or Schur complement).
+        system2 = type(sol.system)(sol.disc, petsc_options, V=rec.V2h)
         system2.solve_active(sol.active)
         z2 = solve_dual(system2, goal)
     w2 = None

@@ -189,3 +189,18 @@ def test_solver_options_reach_mumps_and_are_removed(method):
             assert factor.getMumpsIcntl(14) == workspace
         prefix = sol.system.prefix
         assert not [k for k in PETSc.Options().getAll() if k.startswith(prefix)]
+
+
+@pytest.mark.mpi
+def test_higher_order_weights_on_the_krylov_schur_path():
+    """The P2 dual and primal of weights="higher_order" are solved like the primal problem (here
+    CG on S_AA with GAMG on the P2 K) and give the block path's estimate."""
+    comm = MPI.COMM_WORLD
+    disc = discretize(ex.obstacle_problem(comm, (2, 8, 8)))
+    goal = ex.goal_obstacle()
+    estimates = []
+    for method, options in (("block", None), ("schur", iterative_petsc_options())):
+        sol = ds.solve(disc, method=method, petsc_options=options)
+        est = ds.estimate(sol, goal, weights="higher_order", petsc_options=options)
+        estimates.append((est.eta, est.eta_p))
+    assert np.allclose(estimates[1], estimates[0], rtol=1e-6)
