@@ -115,9 +115,11 @@ def patch_p2_matrix(
     xi = np.einsum("nij,nj->ni", Jinv[cell_of], x2[rows] - pv[cell_of, 0, :])
     phi = element.tabulate(0, xi)[0, :, :, 0]  # (rows, num_nodes)
     cols = parent_node_dof[parents[cell_of]]
-    shape = (len(x2), len(x1))
+    # CSR directly: the rows are sorted and each has one entry per parent P2 node.
+    indptr = np.zeros(len(x2) + 1, dtype=np.int64)
+    indptr[rows + 1] = num_nodes
     matrix = scipy.sparse.csr_matrix(
-        (phi.ravel(), (np.repeat(rows, num_nodes), cols.ravel())), shape=shape
+        (phi.ravel(), cols.ravel(), np.cumsum(indptr)), shape=(len(x2), len(x1))
     )
     return matrix, parent_node_dof
 

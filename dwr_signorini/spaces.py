@@ -110,7 +110,10 @@ def refine_uniform(
 
 
 def fine_to_macro_facets(
-    macro: dmesh.Mesh, fine: dmesh.Mesh, parent_cell: npt.NDArray[np.int32]
+    macro: dmesh.Mesh,
+    fine: dmesh.Mesh,
+    parent_cell: npt.NDArray[np.int32],
+    macro_facets: npt.NDArray[np.int32] | None = None,
 ) -> npt.NDArray[np.int32]:
     """For each fine facet, the macro facet containing it (-1 for facets inside macro cells).
 
@@ -118,6 +121,13 @@ def fine_to_macro_facets(
     parent iff its midpoint lies in that facet's hyperplane. Only facets of local fine cells are
     set. (The ``parent_facet`` array of ``dolfinx.mesh.refine`` is not used: with dolfinx 0.9 it
     did not match the refined topology's local facet numbering in our checks.)
+
+    Args:
+        macro: The coarse mesh.
+        fine: Its refinement.
+        parent_cell: The macro cell of each local fine cell.
+        macro_facets: Only look for fine facets on these macro facets (local indices; e.g. the
+            tagged ones), and only in the children of their cells; None: all macro facets.
     """
     tdim = macro.topology.dim
     fdim = tdim - 1
@@ -131,10 +141,16 @@ def fine_to_macro_facets(
     macro_c2f = macro.topology.connectivity(tdim, fdim).array.reshape(-1, nfm)
 
     out = np.full(_num_entities(fine, fdim), -1, dtype=np.int32)
-    if num_fine_cells == 0:  # dolfinx 0.9 fails on empty entity lists
+    candidates = macro_c2f[parent_cell[:num_fine_cells]]  # (cells, nfm)
+    wanted = None
+    if macro_facets is not None:
+        wanted = np.zeros(_num_entities(macro, fdim), dtype=bool)
+        wanted[macro_facets] = True
+        cells = np.flatnonzero(wanted[candidates].any(axis=1))
+        fine_c2f, candidates = fine_c2f[cells], candidates[cells]
+    if len(fine_c2f) == 0:  # dolfinx 0.9 fails on empty entity lists
         return out
     mids = dmesh.compute_midpoints(fine, fdim, fine_c2f.ravel()).reshape(-1, nf, 1, 3)
-    candidates = macro_c2f[parent_cell[:num_fine_cells]]  # (cells, nfm)
     nodes = dmesh.entities_to_geometry(macro, fdim, candidates.ravel().astype(np.int32), False)
     x = macro.geometry.x[nodes[:, :tdim]].reshape(-1, 1, nfm, tdim, 3)
     a = x[..., 0, :]
@@ -149,6 +165,8 @@ def fine_to_macro_facets(
     on = dist <= 1e-8 * h
     if np.any(on.sum(axis=2) > 1):
         raise RuntimeError("a fine facet lies on two facets of its parent cell")
+    if wanted is not None:
+        on &= wanted[candidates][:, None, :]
     cells, local, k = np.nonzero(on)
     out[fine_c2f[cells, local]] = candidates[cells, k]
     return out
@@ -191,7 +209,7 @@ def refine_marked(
     fine, parent_cell = refine_uniform(macro, edges)
     fdim = tdim - 1
     macro.topology.create_entities(fdim)
-    to_macro = fine_to_macro_facets(macro, fine, parent_cell)
+    to_macro = fine_to_macro_facets(macro, fine, parent_cell, problem.facet_tags.indices)
     tags = _facet_tags_on_fine(problem.facet_tags, fine, to_macro, _num_entities(macro, fdim))
     return problem.with_mesh(fine, tags), parent_cell
 
@@ -230,7 +248,7 @@ class Discretization:
         self.parent_cell = parent_cell
         fine.topology.create_connectivity(fdim, tdim)
 
-        to_macro = fine_to_macro_facets(macro, fine, parent_cell)
+        to_macro = fine_to_macro_facets(macro, fine, parent_cell, problem.facet_tags.indices)
         self.fine_to_macro_facet = to_macro
         self.facet_tags = _facet_tags_on_fine(
             problem.facet_tags, fine, to_macro, _num_entities(macro, fdim)
