@@ -51,9 +51,13 @@ SMALL_ARGS = {
 }
 
 
-def _run(demo: str, out: Path, nprocs: int) -> subprocess.CompletedProcess:
-    """Run a demo into ``out``; fail with its output if it fails."""
-    cmd = [sys.executable, str(DEMOS / f"{demo}.py"), *SMALL_ARGS[demo], "--output", str(out)]
+def _run(
+    demo: str, out: Path, nprocs: int, extra: tuple[str, ...] = ()
+) -> subprocess.CompletedProcess:
+    """Run a demo into ``out`` (``extra`` arguments after the small ones); fail with its output
+    if it fails."""
+    cmd = [sys.executable, str(DEMOS / f"{demo}.py"), *SMALL_ARGS[demo], *extra, "--output",
+           str(out)]
     if nprocs > 1:
         mpirun = shutil.which("mpirun") or shutil.which("mpiexec")
         if mpirun is None:
@@ -273,6 +277,16 @@ def test_obstacle_parallel_estimates(runs):
                   "obstacle adaptive level 0, 2 processes vs serial")
     marked = [_csv(d / "adaptive" / "adaptive.csv")[0]["num_marked"] for d in (serial, parallel)]
     assert marked[0] == marked[1]
+
+
+def test_obstacle_iterative_solver(runs, tmp_path):
+    """``--solver iterative`` (CG + GAMG on K, CG on S_AA) on 2 processes reproduces the serial
+    direct run's uniform table to the Krylov tolerances."""
+    serial = runs("obstacle_3d", 1)
+    out = tmp_path / "iterative"
+    _run("obstacle_3d", out, 2, ("--solver", "iterative", "--refinement", "uniform", "--no-plots"))
+    _compare_rows(_csv(out / "uniform" / "uniform.csv"), _csv(serial / "uniform" / "uniform.csv"),
+                  1e-7, "obstacle uniform, iterative on 2 processes vs direct serial")
 
 
 # --------------------------------------------------------------------------------------------------
