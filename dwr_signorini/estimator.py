@@ -171,7 +171,9 @@ def estimate(
             (13)). eta_p is reported in both cases.
         weights: ``"patch"`` (the paper's patch-wise reconstructions) or ``"higher_order"`` (dual,
             and for eta the primal, solved in P2 with Lambda_H and the final active set).
-        petsc_options: Linear solver options for the higher-order solves.
+        petsc_options: Linear solver options for the higher-order solves, which use the
+            primal's kind of Newton system (block, or Schur complement with these options for
+            K, e.g. :func:`~dwr_signorini.newton.iterative_petsc_options`).
         quadrature_degree: Quadrature degree of the non-polynomial residual integrals (data);
             polynomial ones are integrated exactly (:mod:`dwr_signorini.quadrature`). The
             default is the degree the solver integrates the load and gap with, so that the
