@@ -428,3 +428,41 @@ def test_hexahedra_and_tetrahedra_agree_without_contact():
     change = min(hexes[1] - hexes[0], tets[1] - tets[0])
     assert abs(hexes[1] - tets[1]) <= 0.25 * change
     assert abs(hexes[1] - tets[1]) <= 0.01 * hexes[1]
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize(
+    "build",
+    [
+        lambda c: analytic_problem(c, 6, 4, mesh.CellType.triangle),
+        lambda c: obstacle_problem(c, (1, 4, 4)),
+    ],
+    ids=["2d", "3d"],
+)
+def test_fine_facet_tags_cover_the_macro_tags(build):
+    """The fine facet tags carried through the parent facets measure what the macro tags do
+    (every tag, before and after a marked refinement), and searching parent facets only next to
+    tagged macro facets finds what the search over all macro facets finds on them."""
+    from dwr_signorini.spaces import discretize, fine_to_macro_facets, refine_marked
+
+    problem = build(MPI.COMM_WORLD)
+    comm = problem.mesh.comm
+    tdim = problem.mesh.topology.dim
+    num_cells = problem.mesh.topology.index_map(tdim).size_local
+    marked, _ = refine_marked(problem, np.arange(0, num_cells, 3, dtype=np.int32))
+    for coarse in (problem, marked):
+        disc = discretize(coarse)
+
+        def measure(msh, tags, value):
+            ds_ = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+            local = fem.assemble_scalar(fem.form(1.0 * ds_(value)))
+            return comm.allreduce(local, op=MPI.SUM)
+
+        values = sorted(set().union(*comm.allgather(set(coarse.facet_tags.values.tolist()))))
+        for value in values:
+            fine = measure(disc.mesh, disc.facet_tags, int(value))
+            assert math.isclose(fine, measure(coarse.mesh, coarse.facet_tags, int(value)),
+                                rel_tol=1e-12)
+        full = fine_to_macro_facets(coarse.mesh, disc.mesh, disc.parent_cell)
+        tagged = np.isin(full, coarse.facet_tags.indices)
+        assert np.array_equal(disc.fine_to_macro_facet, np.where(tagged, full, -1))
