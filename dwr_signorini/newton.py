@@ -261,6 +261,15 @@ def clear_options(names: list[str]) -> None:
     names.clear()
 
 
+def _destroy_attributes(owner: object, names: tuple[str, ...]) -> None:
+    """Destroy the objects held in ``owner``'s attributes ``names`` once (collective)."""
+    for name in names:
+        obj = getattr(owner, name, None)
+        if obj is not None:
+            obj.destroy()
+            setattr(owner, name, None)
+
+
 class NewtonSystem:
     """The algebraic problem of one mesh and the Newton steps by the block matrix (reference).
 
@@ -419,11 +428,7 @@ class NewtonSystem:
 
     def destroy(self) -> None:
         """Destroy the PETSc objects (collective: call on all ranks at the same point)."""
-        for name in self._petsc_objects:
-            obj = getattr(self, name, None)
-            if obj is not None:
-                obj.destroy()
-                setattr(self, name, None)
+        _destroy_attributes(self, self._petsc_objects)
         clear_options(getattr(self, "_option_names", []))
 
     def __del__(self) -> None:
@@ -931,11 +936,7 @@ class KrylovSchurComplement:
 
     def destroy(self) -> None:
         """Destroy the PETSc objects (collective)."""
-        for name in ("ksp", "S", "P", "S_hat", "_y"):
-            obj = getattr(self, name, None)
-            if obj is not None:
-                obj.destroy()
-                setattr(self, name, None)
+        _destroy_attributes(self, ("ksp", "S", "P", "S_hat", "_y"))
         clear_options(self._option_names)
 
 
@@ -1198,10 +1199,11 @@ def solve(
                 res_eq,
                 rel_ncp,
             )
-            resolve = previous is not None and num_changed == 0 and loose
+            settled = previous is not None and num_changed == 0
+            resolve = settled and loose
             if resolve:  # the active set has settled: solve its system again, accurately
                 loose = system.set_loose(False)
-            elif previous is not None and num_changed == 0:
+            elif settled:
                 if res_eq <= rtol and rel_ncp <= rtol:
                     break
                 raise ConvergenceError(
