@@ -56,14 +56,24 @@ _SIMPLEX = {
 }
 
 
+def _lattice_key(points: np.ndarray, radix: int) -> np.ndarray:
+    """Integer lattice points (last axis: coordinates) numbered in base ``radix``."""
+    key = np.zeros(points.shape[:-1], dtype=np.int64)
+    for i in range(points.shape[-1] - 1, -1, -1):
+        key = key * radix + points[..., i]
+    return key
+
+
 def patch_p2_matrix(
     disc: Discretization, V2h: fem.FunctionSpace
 ) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
     """The map fine P1 nodal values -> fine P2 nodal values of i_2h^(2), on simplices.
 
-    Built from the refinement's parent map alone (no point location): in the reference
-    coordinates of its parent, every vertex of a child sits on the lattice of the parent's P2
-    nodes, and every P2 node of a child is a point where the parent's P2 basis is tabulated.
+    Built from the refinement's parent map alone (no point location). In the reference
+    coordinates of its parent, every vertex of a child is one of the parent's P2 nodes (a point
+    of the lattice of step 1/2), found once from the vertex coordinates; every P2 node of a child
+    is a vertex or an edge midpoint of the child, a point of the lattice of step 1/4, where the
+    parent's P2 basis is tabulated once on the reference cell.
 
     Returns:
         A sparse matrix from the local (scalar) nodes of V_h to the local nodes of ``V2h``, and
@@ -71,55 +81,64 @@ def patch_p2_matrix(
     """
     fine, macro = disc.mesh, disc.macro_mesh
     tdim = fine.topology.dim
+    cell = _SIMPLEX[fine.topology.cell_type]
     element = basix.create_element(
-        basix.ElementFamily.P,
-        _SIMPLEX[fine.topology.cell_type],
-        2,
-        basix.LagrangeVariant.equispaced,
+        basix.ElementFamily.P, cell, 2, basix.LagrangeVariant.equispaced
     )
-    lattice = np.rint(2 * element.points).astype(np.int64) @ (3 ** np.arange(tdim))
+    half = np.rint(2 * element.points).astype(np.int64)  # parent P2 nodes, in units of 1/2
     node_of_key = np.full(3**tdim, -1, dtype=np.int64)
-    node_of_key[lattice] = np.arange(len(lattice))
+    node_of_key[_lattice_key(half, 3)] = np.arange(len(half))
 
+    # Which of its parent's P2 nodes each child vertex is (geometry of the P1 cells).
     num_cells = len(disc.parent_cell)
     parents = disc.parent_cell
     gx = macro.geometry.x[:, :tdim]
     pv = gx[macro.geometry.dofmap[parents]]  # (n, tdim+1, tdim): parent vertices
     J = np.transpose(pv[:, 1:, :] - pv[:, :1, :], (0, 2, 1))  # columns: edges from vertex 0
-    Jinv = np.linalg.inv(J)
-
-    def reference(points: np.ndarray) -> np.ndarray:
-        """Parent reference coordinates of (n, k, tdim) points of each child."""
-        return np.einsum("nij,nkj->nki", Jinv, points - pv[:, :1, :])
-
-    # Which fine P1 node is the parent's P2 node k.
-    dofs1 = disc.V.dofmap.list[:num_cells]
-    x1 = disc.V.tabulate_dof_coordinates()[:, :tdim]
-    keys = np.rint(2 * reference(x1[dofs1])).astype(np.int64) @ (3 ** np.arange(tdim))
-    node = node_of_key[keys]
+    vertices = fine.geometry.x[fine.geometry.dofmap[:num_cells], :tdim]  # P1 dof order
+    reference = np.einsum("nij,nkj->nki", np.linalg.inv(J), vertices - pv[:, :1, :])
+    node = node_of_key[_lattice_key(np.rint(2 * reference).astype(np.int64), 3)]  # (n, tdim+1)
     if np.any(node < 0):
         raise RuntimeError(
             "a child vertex is not a P2 node of its parent: not a uniform refinement"
         )
-    num_nodes = len(lattice)
+    dofs1 = disc.V.dofmap.list[:num_cells]
+    num_nodes = len(half)
     parent_node_dof = np.full((macro.topology.index_map(tdim).size_local, num_nodes), -1, np.int64)
     parent_node_dof[np.repeat(parents, dofs1.shape[1]), node.ravel()] = dofs1.ravel()
     if np.any(parent_node_dof[np.unique(parents)] < 0):
         raise RuntimeError("a P2 node of a macro cell is not a vertex of its children")
 
-    # Tabulate the parent's P2 basis at the children's P2 nodes; each fine P2 node once.
+    # The P2 nodes of each child (vertices, then the midpoints of the reference edges), in
+    # units of 1/4 of the parent's reference cell, and the parent's P2 basis there.
+    edges = np.array(basix.topology(cell)[1])
+    corner = half[node]  # (n, tdim+1, tdim)
+    quarter = np.concatenate([2 * corner, corner[:, edges[:, 0]] + corner[:, edges[:, 1]]], axis=1)
+    grid = np.array([q for q in np.ndindex(*(5,) * tdim) if sum(q) <= 4])
+    row_of_key = np.full(5**tdim, -1, dtype=np.int64)
+    row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
+    table = element.tabulate(0, grid / 4.0)[0, :, :, 0]  # (grid points, num_nodes)
+    point = row_of_key[_lattice_key(quarter, 5)]  # (n, num P2 nodes of a child)
+
+    # Each fine P2 node once (any of its cells: on a macro facet the parents' P2 interpolants
+    # agree), found by a scatter rather than a sort.
     dofs2 = V2h.dofmap.list[:num_cells]
-    x2 = V2h.tabulate_dof_coordinates()[:, :tdim]
-    rows, first = np.unique(dofs2.ravel(), return_index=True)
+    if dofs2.shape[1] != point.shape[1]:
+        raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
+    num_rows = V2h.dofmap.index_map.size_local + V2h.dofmap.index_map.num_ghosts
+    occurrence = np.full(num_rows, -1, dtype=np.int64)
+    occurrence[dofs2.ravel()] = np.arange(dofs2.size)
+    rows = np.flatnonzero(occurrence >= 0)
+    first = occurrence[rows]
     cell_of = first // dofs2.shape[1]
-    xi = np.einsum("nij,nj->ni", Jinv[cell_of], x2[rows] - pv[cell_of, 0, :])
-    phi = element.tabulate(0, xi)[0, :, :, 0]  # (rows, num_nodes)
+    phi = table[point.ravel()[first]]  # (rows, num_nodes)
     cols = parent_node_dof[parents[cell_of]]
     # CSR directly: the rows are sorted and each has one entry per parent P2 node.
-    indptr = np.zeros(len(x2) + 1, dtype=np.int64)
+    indptr = np.zeros(num_rows + 1, dtype=np.int64)
     indptr[rows + 1] = num_nodes
+    num_cols = disc.V.dofmap.index_map.size_local + disc.V.dofmap.index_map.num_ghosts
     matrix = scipy.sparse.csr_matrix(
-        (phi.ravel(), cols.ravel(), np.cumsum(indptr)), shape=(len(x2), len(x1))
+        (phi.ravel(), cols.ravel(), np.cumsum(indptr)), shape=(num_rows, num_cols)
     )
     return matrix, parent_node_dof
 
@@ -167,6 +186,24 @@ class Reconstructor:
         """A fine P1 function written in the fine P2 space (exact)."""
         out = fem.Function(self.V2h)
         out.interpolate(v)
+        return out
+
+    def weight(self, v_plus: fem.Function, v: fem.Function) -> fem.Function:
+        """The weight ``v_plus - v`` of the estimators (``A z_h - z_h``, Section 4) in fine P2.
+
+        Args:
+            v_plus: The reconstruction, a function of :attr:`V2h`.
+            v: The fine P1 function.
+
+        Returns:
+            One function of :attr:`V2h` (rather than a UFL difference of two, which the
+            indicator kernels would pack and evaluate twice).
+        """
+        if v_plus.function_space != self.V2h:
+            raise ValueError("the reconstruction must be a function of the fine P2 space V2h")
+        out = self.as_fine_p2(v)
+        out.x.array[:] = v_plus.x.array - out.x.array
+        out.name = f"{v_plus.name}-{v.name}"
         return out
 
     def patch_quadratic(self, v: fem.Function) -> fem.Function:

@@ -27,7 +27,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
 from .problem import SignoriniProblem
-from .quadrature import DATA_QUADRATURE_DEGREE, is_polynomial
+from .quadrature import DATA_QUADRATURE_DEGREE, expand_integer_powers, is_polynomial
 from .timing import timed
 
 __all__ = ["Discretization", "Measures", "discretize"]
@@ -317,7 +317,8 @@ class Discretization:
         )
         space = fem.functionspace(self.mesh, element)
         f = fem.Function(space, name="f")
-        f.interpolate(fem.Expression(expr, space.element.interpolation_points()))
+        points = space.element.interpolation_points()
+        f.interpolate(fem.Expression(expand_integer_powers(expr), points))
         return f, self.m.dx(metadata={"quadrature_degree": DATA_QUADRATURE_DEGREE})
 
     def dirichlet_bcs(self, V: fem.FunctionSpace) -> list[fem.DirichletBC]:

@@ -7,7 +7,12 @@ import pytest
 import ufl
 from dolfinx import fem, mesh
 
-from dwr_signorini.quadrature import DATA_QUADRATURE_DEGREE, is_polynomial, with_quadrature_degrees
+from dwr_signorini.quadrature import (
+    DATA_QUADRATURE_DEGREE,
+    expand_integer_powers,
+    is_polynomial,
+    with_quadrature_degrees,
+)
 
 
 @pytest.fixture(scope="module")
@@ -66,3 +71,37 @@ def test_non_affine_cells_use_the_data_degree():
     v = fem.Function(fem.functionspace(msh, ("Lagrange", 1)))
     (itg,) = with_quadrature_degrees(v * ufl.dx).integrals()
     assert itg.metadata()["quadrature_degree"] == DATA_QUADRATURE_DEGREE
+
+
+def _powers(expr):
+    return [n for n in ufl.corealg.traversal.unique_pre_traversal(expr)
+            if isinstance(n, ufl.algebra.Power)]
+
+
+@pytest.mark.mpi
+def test_integer_powers_become_products_with_the_same_values(setting):
+    """x**n and the pow calls of derivatives (n f**(n-1) f') are products; other powers stay."""
+    msh, u, _, x, _ = setting
+    comm = msh.comm
+    a = x[0] ** 2 / 18.0 + 0.5
+    data = ufl.as_vector(((x[1] - a) ** 4 * (x[0] + 3.0) ** 7.0, ufl.sin(x[0]) ** 3 * u[1] ** 2))
+    expr = ufl.div(ufl.grad(data)) + ufl.as_vector((x[0] ** 0.5, x[1] ** -2))
+    expanded = expand_integer_powers(expr)
+    left = _powers(expanded)
+    assert sorted(float(p.ufl_operands[1]) for p in left) == [-2.0, 0.5]
+    # The same values at a degree-8 rule, and the same integral of a form.
+    V = fem.functionspace(msh, ("DG", 2, (2,)))
+    values = []
+    for e in (expr, expanded):
+        f = fem.Function(V)
+        f.interpolate(fem.Expression(e, V.element.interpolation_points()))
+        values.append(f.x.array.copy())
+    assert np.allclose(values[0], values[1], rtol=1e-12, atol=1e-12)
+    assert np.abs(values[0]).max() > 1.0
+    form = ufl.inner(expr, expr) * ufl.dx(metadata={"quadrature_degree": 8})
+    form_expanded = expand_integer_powers(form)
+    assert not [p for i in form_expanded.integrals() for p in _powers(i.integrand())
+                if float(p.ufl_operands[1]).is_integer() and float(p.ufl_operands[1]) > 1]
+    integrals = [comm.allreduce(fem.assemble_scalar(fem.form(f)), op=MPI.SUM)
+                 for f in (form, form_expanded)]
+    assert np.isclose(integrals[0], integrals[1], rtol=1e-12, atol=0)
