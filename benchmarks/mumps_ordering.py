@@ -1,9 +1,12 @@
-"""Which fill-reducing ordering MUMPS should use: seconds of one factorisation + solve of K.
+"""Which ordering MUMPS should use: seconds of one factorisation + solve of K and of A.
 
 For the stiffness matrix K of example 5.1 (2D, triangles) and example 5.3 (3D, tetrahedra), one
 MUMPS LU factorisation + solve with its default ordering (ICNTL(7)=7, automatic: METIS here),
-METIS (5) and AMD (0); the best of ``--repeat`` runs, and the ratio to the default. It justifies
-the dimension-dependent default of :func:`dwr_signorini.newton.default_petsc_options`::
+METIS (5) and AMD (0); then, for the block Newton matrix of the last Newton step (method
+"block"), with the chosen ordering, MUMPS's default column permutation (ICNTL(6)=7, automatic: a
+maximum transversal on the block matrix, whose active contact rows have a zero diagonal) against
+none (0). The best of ``--repeat`` runs, and the ratio to the default. It justifies the
+dimension-dependent defaults of :func:`dwr_signorini.newton.default_petsc_options`::
 
     scripts/fenicsx python3 benchmarks/mumps_ordering.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/mumps_ordering.py
@@ -21,20 +24,21 @@ from dolfinx import mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.newton import NewtonSystem, clear_options, set_options
+from dwr_signorini.newton import clear_options, default_petsc_options, set_options
 from dwr_signorini.spaces import discretize
 
-ORDERINGS = {"default (7)": None, "METIS (5)": 5, "AMD (0)": 0}
+ORDERINGS = {"default (7)": {}, "METIS (5)": {"mat_mumps_icntl_7": 5},
+             "AMD (0)": {"mat_mumps_icntl_7": 0}}
+PERMUTATIONS = {"default (7)": {}, "none (0)": {"mat_mumps_icntl_6": 0}}
 
 
-def factor_time(K: PETSc.Mat, f: PETSc.Vec, ordering: int | None, repeat: int) -> float:
+def factor_time(K: PETSc.Mat, f: PETSc.Vec, extra: dict, repeat: int) -> float:
     """Best wall-clock seconds (max over ranks) of a fresh MUMPS LU factorisation + solve."""
     best = float("inf")
     for _ in range(repeat):
         ksp = PETSc.KSP().create(K.getComm())
         options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-        if ordering is not None:
-            options["mat_mumps_icntl_7"] = ordering
+        options.update(extra)
         names = set_options(ksp, "dwr_signorini_ordering_", options)
         x = f.duplicate()
         K.getComm().tompi4py().Barrier()
@@ -60,21 +64,34 @@ def main() -> None:
     msh, tags = ex.analytic_2d_mesh(comm, 3 * args.n_2d, 2 * args.n_2d,
                                     cell_type=mesh.CellType.triangle)
     problems = {
-        "2D (5.1)": ds.SignoriniProblem(msh, tags, contact=ex.CONTACT,
-                                        dirichlet=(ex.DIRICHLET,), E=10.0, nu=0.3),
+        "2D (5.1)": ds.SignoriniProblem(
+            msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=10.0, nu=0.3,
+            body_force=ex.analytic_body_force, gap=ex.analytic_gap,
+        ),
         "3D (5.3)": ex.obstacle_problem(comm, n=(args.n_3d, 4 * args.n_3d, 4 * args.n_3d)),
     }
     if comm.rank == 0:
-        print(f"{'mesh':>10} {'DoFs':>9} {'ordering':>12} {'seconds':>9} {'/ default':>9}")
+        print(f"{'mesh':>10} {'matrix':>7} {'DoFs':>9} {'option':>22} {'seconds':>9} "
+              f"{'/ default':>9}")
     for name, problem in problems.items():
-        system = NewtonSystem(discretize(problem))
-        times = {key: factor_time(system.K, system.f, value, args.repeat)
-                 for key, value in ORDERINGS.items()}
-        for key, seconds in times.items():
+        sol = ds.solve(discretize(problem))
+        tdim = problem.mesh.topology.dim
+        chosen = default_petsc_options(tdim)
+        chosen.pop("mat_mumps_icntl_6", None)
+        rows = [("K", sol.system.K, f"ordering {key}", value) for key, value in ORDERINGS.items()]
+        rows += [("Newton", sol.system.A, f"permutation {key}", chosen | value)
+                 for key, value in PERMUTATIONS.items()]
+        default = {}
+        for matrix_name, matrix, label, options in rows:
+            rhs = matrix.createVecLeft()
+            rhs.set(1.0)
+            seconds = factor_time(matrix, rhs, options, args.repeat)
+            rhs.destroy()
+            default.setdefault(matrix_name, seconds)
             if comm.rank == 0:
-                print(f"{name:>10} {system.K.getSize()[0]:>9} {key:>12} {seconds:9.3f} "
-                      f"{seconds / times['default (7)']:9.2f}", flush=True)
-        system.destroy()
+                print(f"{name:>10} {matrix_name:>7} {matrix.getSize()[0]:>9} {label:>22} "
+                      f"{seconds:9.3f} {seconds / default[matrix_name]:9.2f}", flush=True)
+        sol.system.destroy()
 
 
 if __name__ == "__main__":

@@ -122,24 +122,21 @@ class Estimate:
 def _assemble_indicators(
     disc: Any, forms: list[ufl.Form], degree: int | None
 ) -> list[np.ndarray]:
-    """Cell indicators of each scalar form, all in one assembly (Section 4).
+    """Cell indicators of each scalar form: its integrands times a DG0 test function (Section 4).
 
-    Form k is localised with component k of a DG0 test function with ``len(forms)`` components,
-    so the coefficients the forms share are packed once and every cell is visited once.
+    One assembly per form: a fused one would pack the coefficients of all forms for every cell
+    at once, a larger array than any single form's, for no gain in time.
     """
     with timed("indicators"):
-        space = fem.functionspace(disc.mesh, ("DG", 0, (len(forms),)))
-        q = ufl.TestFunction(space)
-        fused = ufl.Form([
-            itg
-            for k, form in enumerate(forms)
-            for itg in localize(with_quadrature_degrees(form, degree), q[k]).integrals()
-        ])
-        vec = fem_petsc.assemble_vector(disc.form(fused))
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        values = vec.array.reshape(-1, len(forms))
-        out = [values[:, k].copy() for k in range(len(forms))]
-        vec.destroy()
+        q = ufl.TestFunction(fem.functionspace(disc.mesh, ("DG", 0)))
+        out = []
+        for form in forms:
+            vec = fem_petsc.assemble_vector(
+                disc.form(localize(with_quadrature_degrees(form, degree), q))
+            )
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            out.append(vec.array.copy())
+            vec.destroy()
     return out
 
 

@@ -124,13 +124,18 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
         tdim: Topological dimension of the mesh, if known. On 2D meshes MUMPS orders with AMD
             (``mat_mumps_icntl_7=0``): at 198k DoFs (example 5.1) it factors K in 0.41 s
             against 0.64 s with MUMPS's default, METIS nested dissection, which stays for 3D,
-            where it is 3 times faster than AMD at 146k DoFs (example 5.3).
+            where it is 3 times faster than AMD at 146k DoFs (example 5.3). On 2D meshes MUMPS
+            also keeps the columns in place (``mat_mumps_icntl_6=0``; it has no effect on
+            several ranks): its default maximum transversal, which moves the block Newton
+            matrix's zero diagonal entries of active contact rows off the diagonal, adds fill
+            under AMD (see ``benchmarks/mumps_ordering.py``).
     """
     opts: dict[str, Any] = {"ksp_type": "preonly", "pc_type": "lu"}
     if PETSc.Sys.hasExternalPackage("mumps"):
         opts["pc_factor_mat_solver_type"] = "mumps"
         if tdim == 2:
             opts["mat_mumps_icntl_7"] = 0
+            opts["mat_mumps_icntl_6"] = 0
     return opts
 
 

@@ -80,7 +80,10 @@ class _IntegerPowers(MultiFunction):
 
     expr = MultiFunction.reuse_if_untouched
 
-    def power(self, o: ufl.core.expr.Expr, base: ufl.core.expr.Expr, exponent: ufl.core.expr.Expr):
+    def power(
+        self, o: ufl.core.expr.Expr, base: ufl.core.expr.Expr, exponent: ufl.core.expr.Expr
+    ) -> ufl.core.expr.Expr:
+        """``base**n`` by squaring if ``n`` is a small integer literal, else unchanged."""
         n = _integer_exponent(exponent)
         if n is None:
             return self.reuse_if_untouched(o, base, exponent)

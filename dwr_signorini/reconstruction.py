@@ -85,19 +85,23 @@ def patch_p2_matrix(
     element = basix.create_element(
         basix.ElementFamily.P, cell, 2, basix.LagrangeVariant.equispaced
     )
-    half = np.rint(2 * element.points).astype(np.int64)  # parent P2 nodes, in units of 1/2
+    half = np.rint(2 * element.points).astype(np.int8)  # parent P2 nodes, in units of 1/2
     node_of_key = np.full(3**tdim, -1, dtype=np.int64)
     node_of_key[_lattice_key(half, 3)] = np.arange(len(half))
 
-    # Which of its parent's P2 nodes each child vertex is (geometry of the P1 cells).
+    # Which of its parent's P2 nodes each child vertex is (geometry of the P1 cells). Arrays
+    # of the size of the mesh are kept few and small (int8 lattice coordinates).
     num_cells = len(disc.parent_cell)
     parents = disc.parent_cell
     gx = macro.geometry.x[:, :tdim]
-    pv = gx[macro.geometry.dofmap[parents]]  # (n, tdim+1, tdim): parent vertices
-    J = np.transpose(pv[:, 1:, :] - pv[:, :1, :], (0, 2, 1))  # columns: edges from vertex 0
-    vertices = fine.geometry.x[fine.geometry.dofmap[:num_cells], :tdim]  # P1 dof order
-    reference = np.einsum("nij,nkj->nki", np.linalg.inv(J), vertices - pv[:, :1, :])
-    node = node_of_key[_lattice_key(np.rint(2 * reference).astype(np.int64), 3)]  # (n, tdim+1)
+    parent_vertices = macro.geometry.dofmap[parents]
+    origin = gx[parent_vertices[:, 0]]  # (n, tdim)
+    J = np.transpose(gx[parent_vertices[:, 1:]] - origin[:, None, :], (0, 2, 1))  # edge columns
+    vertices = fine.geometry.x[fine.geometry.dofmap[:num_cells], :tdim] - origin[:, None, :]
+    reference = np.einsum("nij,nkj->nki", np.linalg.inv(J), vertices)  # P1 dof order
+    del J, vertices, origin, parent_vertices
+    node = node_of_key[_lattice_key(np.rint(2 * reference).astype(np.int8), 3)]  # (n, tdim+1)
+    del reference
     if np.any(node < 0):
         raise RuntimeError(
             "a child vertex is not a P2 node of its parent: not a uniform refinement"
@@ -118,7 +122,8 @@ def patch_p2_matrix(
     row_of_key = np.full(5**tdim, -1, dtype=np.int64)
     row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
     table = element.tabulate(0, grid / 4.0)[0, :, :, 0]  # (grid points, num_nodes)
-    point = row_of_key[_lattice_key(quarter, 5)]  # (n, num P2 nodes of a child)
+    point = row_of_key[_lattice_key(quarter, 5)].astype(np.int8)  # (n, P2 nodes of a child)
+    del corner, quarter
 
     # Each fine P2 node once (any of its cells: on a macro facet the parents' P2 interpolants
     # agree), found by a scatter rather than a sort.
@@ -126,19 +131,21 @@ def patch_p2_matrix(
     if dofs2.shape[1] != point.shape[1]:
         raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
     num_rows = V2h.dofmap.index_map.size_local + V2h.dofmap.index_map.num_ghosts
-    occurrence = np.full(num_rows, -1, dtype=np.int64)
-    occurrence[dofs2.ravel()] = np.arange(dofs2.size)
+    occurrence = np.full(num_rows, -1, dtype=np.int32)
+    occurrence[dofs2.ravel()] = np.arange(dofs2.size, dtype=np.int32)
     rows = np.flatnonzero(occurrence >= 0)
     first = occurrence[rows]
     cell_of = first // dofs2.shape[1]
     phi = table[point.ravel()[first]]  # (rows, num_nodes)
-    cols = parent_node_dof[parents[cell_of]]
-    # CSR directly: the rows are sorted and each has one entry per parent P2 node.
-    indptr = np.zeros(num_rows + 1, dtype=np.int64)
+    cols = parent_node_dof[parents[cell_of]].astype(np.int32)
+    # CSR directly (32-bit indices, no copies): the rows are sorted and each has one entry per
+    # parent P2 node.
+    indptr = np.zeros(num_rows + 1, dtype=np.int32)
     indptr[rows + 1] = num_nodes
     num_cols = disc.V.dofmap.index_map.size_local + disc.V.dofmap.index_map.num_ghosts
     matrix = scipy.sparse.csr_matrix(
-        (phi.ravel(), cols.ravel(), np.cumsum(indptr)), shape=(num_rows, num_cols)
+        (phi.ravel(), cols.ravel(), np.cumsum(indptr, dtype=np.int32)),
+        shape=(num_rows, num_cols),
     )
     return matrix, parent_node_dof
 
