@@ -15,6 +15,8 @@
 
 from __future__ import annotations
 
+import functools
+
 from petsc4py import PETSc
 
 import basix
@@ -64,6 +66,31 @@ def _lattice_key(points: np.ndarray, radix: int) -> np.ndarray:
     return key
 
 
+def _reference_coordinates(edges: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Reference coordinates of points in n simplices, by the dual basis of the edges (Cramer).
+
+    Args:
+        edges: (n, d, d); row j is vertex j+1 minus vertex 0 of the simplex.
+        points: (n, k, d), relative to vertex 0.
+
+    Returns:
+        (n, k, d) coordinates in the basis of the edges.
+    """
+    if edges.shape[1] == 2:
+        e1, e2 = edges[:, 0], edges[:, 1]
+        dual = [np.stack([e2[:, 1], -e2[:, 0]], axis=1), np.stack([-e1[:, 1], e1[:, 0]], axis=1)]
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    else:
+        e1, e2, e3 = edges[:, 0], edges[:, 1], edges[:, 2]
+        dual = [np.cross(e2, e3), np.cross(e3, e1), np.cross(e1, e2)]
+        det = np.einsum("ij,ij->i", e1, dual[0])
+    out = np.empty(points.shape)
+    for i, d in enumerate(dual):
+        out[..., i] = sum(points[..., j] * d[:, None, j] for j in range(points.shape[-1]))
+        out[..., i] /= det[:, None]
+    return out
+
+
 def patch_p2_matrix(
     disc: Discretization, V2h: fem.FunctionSpace
 ) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
@@ -96,10 +123,10 @@ def patch_p2_matrix(
     gx = macro.geometry.x[:, :tdim]
     parent_vertices = macro.geometry.dofmap[parents]
     origin = gx[parent_vertices[:, 0]]  # (n, tdim)
-    J = np.transpose(gx[parent_vertices[:, 1:]] - origin[:, None, :], (0, 2, 1))  # edge columns
+    edges = gx[parent_vertices[:, 1:]] - origin[:, None, :]
     vertices = fine.geometry.x[fine.geometry.dofmap[:num_cells], :tdim] - origin[:, None, :]
-    reference = np.einsum("nij,nkj->nki", np.linalg.inv(J), vertices)  # P1 dof order
-    del J, vertices, origin, parent_vertices
+    reference = _reference_coordinates(edges, vertices)  # P1 dof order
+    del edges, vertices, origin, parent_vertices
     node = node_of_key[_lattice_key(np.rint(2 * reference).astype(np.int8), 3)]  # (n, tdim+1)
     del reference
     if np.any(node < 0):
@@ -115,9 +142,9 @@ def patch_p2_matrix(
 
     # The P2 nodes of each child (vertices, then the midpoints of the reference edges), in
     # units of 1/4 of the parent's reference cell, and the parent's P2 basis there.
-    edges = np.array(basix.topology(cell)[1])
+    ends = np.array(basix.topology(cell)[1])  # the vertices of each reference edge
     corner = half[node]  # (n, tdim+1, tdim)
-    quarter = np.concatenate([2 * corner, corner[:, edges[:, 0]] + corner[:, edges[:, 1]]], axis=1)
+    quarter = np.concatenate([2 * corner, corner[:, ends[:, 0]] + corner[:, ends[:, 1]]], axis=1)
     grid = np.array([q for q in np.ndindex(*(5,) * tdim) if sum(q) <= 4])
     row_of_key = np.full(5**tdim, -1, dtype=np.int64)
     row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
@@ -157,14 +184,12 @@ class Reconstructor:
         self.disc = disc
         gdim = disc.mesh.geometry.dim
         macro = disc.macro_mesh
-        self.V2H = fem.functionspace(macro, ("Lagrange", 2, (gdim,)))
         self.V2h = fem.functionspace(disc.mesh, ("Lagrange", 2, (gdim,)))
         self.P1H = fem.functionspace(macro, ("Lagrange", 1))
         self.P1h = fem.functionspace(disc.mesh, ("Lagrange", 1))
         self.simplex = disc.mesh.topology.cell_type in _SIMPLEX
         if self.simplex:
             self._p2_matrix, self._parent_node_dof = patch_p2_matrix(disc, self.V2h)
-            self.P2H = fem.functionspace(macro, ("Lagrange", 2))
         else:
             # Quadrilaterals/hexahedra (uniform runs only): through the macro Q2 space.
             self._p2_matrix = None
@@ -183,6 +208,12 @@ class Reconstructor:
         mass.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         mass.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         self._mass = mass
+
+    @functools.cached_property
+    def V2H(self) -> fem.FunctionSpace:
+        """The macro P2 vector space (built when first needed: the next level's warm start)."""
+        gdim = self.disc.mesh.geometry.dim
+        return fem.functionspace(self.disc.macro_mesh, ("Lagrange", 2, (gdim,)))
 
     def __del__(self) -> None:
         mass = getattr(self, "_mass", None)
@@ -261,11 +292,13 @@ class Reconstructor:
         out = fem.Function(self.P1h, name=f"i2H({lam.name})")
         if self._parent_node_dof is None:
             return self._scalar_to_fine(out, rec)
-        # Simplices: the macro P1 function as macro P2 (exact), whose nodes are fine vertices.
-        rec2 = fem.Function(self.P2H)
-        rec2.interpolate(rec)
+        # Simplices: the macro P1 function at the macro P2 nodes (the vertices, then the
+        # midpoints of the reference edges), which are fine vertices.
         parents = np.flatnonzero(self._parent_node_dof[:, 0] >= 0)
-        macro_dofs = self.P2H.dofmap.list[parents]
-        out.x.array[self._parent_node_dof[parents].ravel()] = rec2.x.array[macro_dofs.ravel()]
+        corner = rec.x.array[self.P1H.dofmap.list[parents]]  # (cells, tdim+1)
+        ends = np.array(basix.topology(_SIMPLEX[self.disc.mesh.topology.cell_type])[1])
+        midpoint = 0.5 * (corner[:, ends[:, 0]] + corner[:, ends[:, 1]])
+        values = np.concatenate([corner, midpoint], axis=1)
+        out.x.array[self._parent_node_dof[parents].ravel()] = values.ravel()
         out.x.scatter_forward()
         return out

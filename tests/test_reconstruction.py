@@ -77,6 +77,26 @@ def test_multiplier_recovery_reproduces_constants():
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("kind", ["triangle", "tetrahedron"])
+def test_multiplier_recovery_on_the_fine_mesh_equals_point_location(kind):
+    """The macro P1 recovery written at the fine vertices through the parent map equals it
+    interpolated into fine P1 by point location (Gamma_C vertices, where it is used)."""
+    disc = _disc(kind)
+    rec = Reconstructor(disc)
+    lam = fem.Function(disc.Q)
+    mid = disc.contact_mesh.geometry.x[disc.contact_mesh.geometry.dofmap].mean(axis=1)
+    cells = disc.Q.dofmap.list[:, 0]
+    lam.x.array[cells] = 1.0 + mid[:, 1] ** 2 + np.sin(5 * mid[:, 2]) + np.cos(3 * mid[:, 1])
+    fast = rec.patch_linear_multiplier(lam)
+    slow = _Transfer(rec.P1h, rec.P1H)(fem.Function(rec.P1h), rec.macro_linear_multiplier(lam))
+    facets = disc.facet_tags.find(disc.problem.contact)
+    dofs = fem.locate_dofs_topological(rec.P1h, disc.mesh.topology.dim - 1, facets)
+    assert disc.comm.allreduce(dofs.size, op=MPI.SUM) > 0
+    assert np.allclose(fast.x.array[dofs], slow.x.array[dofs], atol=1e-12)
+    assert disc.comm.allreduce(np.ptp(slow.x.array[dofs]) if dofs.size else 0.0, op=MPI.MAX) > 0.1
+
+
+@pytest.mark.mpi
 def test_multiplier_recovery_serial_equals_parallel_3d():
     """On a mesh one macro cell thick, ranks share Gamma_C vertices without sharing contact
     facets; the recovery must still be the same as in serial."""
