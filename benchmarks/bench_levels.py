@@ -204,7 +204,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--examples", default="2d,3d")
     parser.add_argument("--refinements", default="uniform,adaptive")
-    parser.add_argument("--levels-2d", type=int, default=5)
+    parser.add_argument("--levels-2d", type=int, default=6)
     parser.add_argument("--levels-3d", type=int, default=3)
     parser.add_argument("--adaptive-levels-2d", type=int, default=9)
     parser.add_argument("--adaptive-levels-3d", type=int, default=6)

@@ -127,8 +127,9 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
             where it is 3 times faster than AMD at 146k DoFs (example 5.3). On 2D meshes MUMPS
             also keeps the columns in place (``mat_mumps_icntl_6=0``; it has no effect on
             several ranks): its default maximum transversal, which moves the block Newton
-            matrix's zero diagonal entries of active contact rows off the diagonal, adds fill
-            under AMD (see ``benchmarks/mumps_ordering.py``).
+            matrix's zero diagonal entries of active contact rows, adds fill under AMD; at 789k
+            DoFs the block matrix then factors in 0.80 of the time (see
+            ``benchmarks/mumps_ordering.py``).
     """
     opts: dict[str, Any] = {"ksp_type": "preonly", "pc_type": "lu"}
     if PETSc.Sys.hasExternalPackage("mumps"):
