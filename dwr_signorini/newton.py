@@ -67,6 +67,7 @@ __all__ = [
     "default_petsc_options",
     "fieldsplit_petsc_options",
     "iterative_petsc_options",
+    "mumps_failure",
     "solve",
 ]
 
@@ -138,6 +139,53 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
             opts["mat_mumps_icntl_7"] = 0
             opts["mat_mumps_icntl_6"] = 0
     return opts
+
+
+#: MUMPS's error codes (INFOG(1)) of memory that could not be allocated, and of a workspace
+#: that turned out too small (e.g. after delayed pivots), see the MUMPS user guide.
+_MUMPS_NO_MEMORY = (-5, -7, -13)
+_MUMPS_SMALL_WORKSPACE = (-8, -9, -11, -12, -14, -15, -17, -20)
+
+
+def mumps_failure(ksp: PETSc.KSP) -> str | None:
+    """Why MUMPS failed to factor the operator of ``ksp``, from its INFOG(1); None otherwise.
+
+    Local (no communication): MUMPS's INFOG is the same on every rank.
+    """
+    pc = ksp.getPC()
+    if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+        return None
+    try:
+        factor = pc.getFactorMatrix()
+        code, detail = factor.getMumpsInfog(1), factor.getMumpsInfog(2)
+        megabytes = factor.getMumpsInfog(17)
+    except PETSc.Error:
+        return None
+    if code >= 0:
+        return None
+    if code in _MUMPS_NO_MEMORY:
+        need = f" (its estimate: {megabytes} MB over all ranks)" if megabytes > 0 else ""
+        return (
+            f"MUMPS could not allocate the memory of the factorisation{need}, INFOG(1) = {code}: "
+            "the direct solver does not fit; for large 3D meshes use method='schur' with "
+            "iterative_petsc_options()"
+        )
+    if code in _MUMPS_SMALL_WORKSPACE:
+        return (
+            f"MUMPS's workspace was too small (INFOG(1) = {code}, INFOG(2) = {detail}), e.g. "
+            "after delayed pivots: raise it with petsc_options {'mat_mumps_icntl_14': 100} "
+            "(percent of extra workspace; MUMPS's default is 20 to 35)"
+        )
+    if code == -19:
+        return (
+            "MUMPS needs more working memory than mat_mumps_icntl_23 allows (INFOG(1) = -19): "
+            "raise or drop that option"
+        )
+    if code == -10:
+        return f"MUMPS found the matrix numerically singular (INFOG(1) = {code})"
+    if code == -6:
+        return f"MUMPS found the matrix structurally singular (INFOG(1) = {code})"
+    return f"MUMPS failed with INFOG(1) = {code}, INFOG(2) = {detail}"
 
 
 def iterative_petsc_options() -> dict[str, Any]:
@@ -511,8 +559,11 @@ class NewtonSystem:
             self.ksp.solve(self.b, self.x)
         reason = self.ksp.getConvergedReason()
         if reason < 0:
+            cause = mumps_failure(self.ksp)
             raise ConvergenceError(
-                f"linear solve of the Newton step failed (KSP reason {reason})", []
+                f"linear solve of the Newton step failed (KSP reason {reason})"
+                + (f": {cause}" if cause else ""),
+                [],
             )
         self.solved = True
 
@@ -624,9 +675,12 @@ class SchurNewtonSystem(NewtonSystem):
                 clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
                 self._solve_K(self.f, self._u_f)
             except (PETSc.Error, ConvergenceError) as err:
+                cause = mumps_failure(self.ksp)
+                if cause is None or "singular" in cause:
+                    cause = "K is singular (the body is not held in place, check dirichlet)"
                 raise ConvergenceError(
-                    "the factorisation (or preconditioner) of the stiffness matrix K failed: K "
-                    "is singular (the body is not held in place, check dirichlet)",
+                    f"the factorisation (or preconditioner) of the stiffness matrix K failed: "
+                    f"{cause}",
                     [],
                 ) from err
             self._schur: DenseSchurComplement | KrylovSchurComplement = (
@@ -1265,7 +1319,10 @@ def solve(
                     name = f"PETSc error {err.ierr}"
                 elif isinstance(err, np.linalg.LinAlgError):
                     name = str(err)
-                if isinstance(err, (PETSc.Error, np.linalg.LinAlgError)) or reason == (
+                cause = mumps_failure(system.ksp)
+                if cause is not None and "singular" not in cause:
+                    hint = cause
+                elif isinstance(err, (PETSc.Error, np.linalg.LinAlgError)) or reason == (
                     PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED
                 ):
                     hint = (

@@ -770,6 +770,18 @@ def test_dependent_contact_constraints_raise(method, options):
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("method", ["block", "schur"])
+def test_mumps_out_of_memory_is_named(method):
+    """A factorisation that MUMPS cannot fit (here: its working memory capped at 1 MB by
+    ICNTL(23)) is reported as such, with the option to change, not as a singular matrix."""
+    match = r"mat_mumps_icntl_23 allows \(INFOG\(1\) = -19"
+    with pytest.raises(ds.ConvergenceError, match=match) as info:
+        ds.solve(_pressed_block(MPI.COMM_WORLD, 0.0, n=32), method=method,
+                 petsc_options={"mat_mumps_icntl_23": 1})
+    assert "singular" not in str(info.value)
+
+
+@pytest.mark.mpi
 @pytest.mark.parametrize(
     ("options", "match", "steps"),
     [
