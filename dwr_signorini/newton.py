@@ -148,9 +148,13 @@ _MUMPS_SMALL_WORKSPACE = (-8, -9, -11, -12, -14, -15, -17, -20)
 
 
 def mumps_failure(ksp: PETSc.KSP) -> str | None:
-    """Why MUMPS failed to factor the operator of ``ksp``, from its INFOG(1); None otherwise.
+    """Why MUMPS failed to factor the operator of ``ksp``, from its INFOG(1).
 
     Local (no communication): MUMPS's INFOG is the same on every rank.
+
+    Returns:
+        The reason, or None if MUMPS did not fail or found the matrix singular (the callers say
+        what a singular matrix means for them).
     """
     pc = ksp.getPC()
     if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
@@ -181,10 +185,8 @@ def mumps_failure(ksp: PETSc.KSP) -> str | None:
             "MUMPS needs more working memory than mat_mumps_icntl_23 allows (INFOG(1) = -19): "
             "raise or drop that option"
         )
-    if code == -10:
-        return f"MUMPS found the matrix numerically singular (INFOG(1) = {code})"
-    if code == -6:
-        return f"MUMPS found the matrix structurally singular (INFOG(1) = {code})"
+    if code in (-6, -10):  # structurally or numerically singular
+        return None
     return f"MUMPS failed with INFOG(1) = {code}, INFOG(2) = {detail}"
 
 
@@ -675,9 +677,9 @@ class SchurNewtonSystem(NewtonSystem):
                 clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
                 self._solve_K(self.f, self._u_f)
             except (PETSc.Error, ConvergenceError) as err:
-                cause = mumps_failure(self.ksp)
-                if cause is None or "singular" in cause:
-                    cause = "K is singular (the body is not held in place, check dirichlet)"
+                cause = mumps_failure(self.ksp) or (
+                    "K is singular (the body is not held in place, check dirichlet)"
+                )
                 raise ConvergenceError(
                     f"the factorisation (or preconditioner) of the stiffness matrix K failed: "
                     f"{cause}",
@@ -1320,7 +1322,7 @@ def solve(
                 elif isinstance(err, np.linalg.LinAlgError):
                     name = str(err)
                 cause = mumps_failure(system.ksp)
-                if cause is not None and "singular" not in cause:
+                if cause is not None:
                     hint = cause
                 elif isinstance(err, (PETSc.Error, np.linalg.LinAlgError)) or reason == (
                     PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED

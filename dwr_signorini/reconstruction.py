@@ -66,6 +66,22 @@ def _lattice_key(points: np.ndarray, radix: int) -> np.ndarray:
     return key
 
 
+def _p2_nodes_doubled(vertex_values: np.ndarray, cell: basix.CellType) -> np.ndarray:
+    """Twice a linear function at the P2 nodes of each simplex, from its values at the vertices.
+
+    Args:
+        vertex_values: (n, vertices, ...) values (or coordinates) at the vertices.
+        cell: The reference cell.
+
+    Returns:
+        (n, P2 nodes, ...): the vertices, then the midpoints of the reference edges (basix's
+        order). Doubled, so that integer lattice coordinates stay integers.
+    """
+    ends = np.array(basix.topology(cell)[1])
+    midpoints = vertex_values[:, ends[:, 0]] + vertex_values[:, ends[:, 1]]
+    return np.concatenate([2 * vertex_values, midpoints], axis=1)
+
+
 def _reference_coordinates(edges: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Reference coordinates of points in n simplices, by the dual basis of the edges (Cramer).
 
@@ -142,15 +158,13 @@ def patch_p2_matrix(
 
     # The P2 nodes of each child (vertices, then the midpoints of the reference edges), in
     # units of 1/4 of the parent's reference cell, and the parent's P2 basis there.
-    ends = np.array(basix.topology(cell)[1])  # the vertices of each reference edge
-    corner = half[node]  # (n, tdim+1, tdim)
-    quarter = np.concatenate([2 * corner, corner[:, ends[:, 0]] + corner[:, ends[:, 1]]], axis=1)
+    quarter = _p2_nodes_doubled(half[node], cell)  # (n, P2 nodes of a child, tdim)
     grid = np.array([q for q in np.ndindex(*(5,) * tdim) if sum(q) <= 4])
     row_of_key = np.full(5**tdim, -1, dtype=np.int64)
     row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
     table = element.tabulate(0, grid / 4.0)[0, :, :, 0]  # (grid points, num_nodes)
     point = row_of_key[_lattice_key(quarter, 5)].astype(np.int8)  # (n, P2 nodes of a child)
-    del corner, quarter
+    del quarter
 
     # Each fine P2 node once (any of its cells: on a macro facet the parents' P2 interpolants
     # agree), found by a scatter rather than a sort.
@@ -295,10 +309,8 @@ class Reconstructor:
         # Simplices: the macro P1 function at the macro P2 nodes (the vertices, then the
         # midpoints of the reference edges), which are fine vertices.
         parents = np.flatnonzero(self._parent_node_dof[:, 0] >= 0)
-        corner = rec.x.array[self.P1H.dofmap.list[parents]]  # (cells, tdim+1)
-        ends = np.array(basix.topology(_SIMPLEX[self.disc.mesh.topology.cell_type])[1])
-        midpoint = 0.5 * (corner[:, ends[:, 0]] + corner[:, ends[:, 1]])
-        values = np.concatenate([corner, midpoint], axis=1)
+        cell = _SIMPLEX[self.disc.mesh.topology.cell_type]
+        values = 0.5 * _p2_nodes_doubled(rec.x.array[self.P1H.dofmap.list[parents]], cell)
         out.x.array[self._parent_node_dof[parents].ravel()] = values.ravel()
         out.x.scatter_forward()
         return out
