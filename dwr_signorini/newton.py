@@ -123,8 +123,8 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
 
     Args:
         tdim: Topological dimension of the mesh, if known. On 2D meshes MUMPS orders with AMD
-            (``mat_mumps_icntl_7=0``): at 198k DoFs (example 5.1) it factors K in 0.41 s
-            against 0.64 s with MUMPS's default, METIS nested dissection, which stays for 3D,
+            (``mat_mumps_icntl_7=0``): at 198k DoFs (example 5.1) it factors K in 0.43 s
+            against 0.67 s with MUMPS's default, METIS nested dissection, which stays for 3D,
             where it is 3 times faster than AMD at 146k DoFs (example 5.3). On 2D meshes MUMPS
             also keeps the columns in place (``mat_mumps_icntl_6=0``; it has no effect on
             several ranks): its default maximum transversal, which moves the block Newton
