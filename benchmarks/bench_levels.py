@@ -23,14 +23,14 @@ import time
 from pathlib import Path
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 from dolfinx import mesh
+from mumps_ordering import factor_times
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.newton import clear_options, default_petsc_options, set_options
+from dwr_signorini.newton import default_petsc_options
 from dwr_signorini.timing import PHASES, snapshot
 
 COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "higher-order solve",
@@ -45,24 +45,10 @@ def reference_times(sol: ds.Solution) -> tuple[float, float]:
     would (``ref``). The second reuses that memory (``ref_warm``). Where first touches are costly
     (in this sandbox about 2 s per GiB, see :func:`first_touch_seconds_per_gib`) the two differ.
     """
-    K, f = sol.system.K, sol.system.f
     # The same direct solver as the Newton steps' (ordering chosen by dimension).
     options = default_petsc_options(sol.disc.mesh.topology.dim)
-    x = f.duplicate()
-    times = []
-    for _ in range(2):
-        ksp = PETSc.KSP().create(K.getComm())
-        names = set_options(ksp, "dwr_signorini_bench_", options)
-        sol.disc.comm.Barrier()
-        tic = time.perf_counter()
-        ksp.setOperators(K)
-        ksp.setUp()
-        ksp.solve(f, x)
-        times.append(sol.disc.comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))
-        ksp.destroy()
-        clear_options(names)
-    x.destroy()
-    return times[0], times[1]
+    (first, _), (second, _) = factor_times(sol.system.K, sol.system.f, options, repeat=2)
+    return first, second
 
 
 def first_touch_seconds_per_gib(comm: MPI.Comm, gib: float = 0.5) -> tuple[float, float]:

@@ -32,30 +32,31 @@ ORDERINGS = {"default (7)": {}, "METIS (5)": {"mat_mumps_icntl_7": 5},
 PERMUTATIONS = {"default (7)": {}, "none (0)": {"mat_mumps_icntl_6": 0}}
 
 
-def factor_time(K: PETSc.Mat, f: PETSc.Vec, extra: dict, repeat: int) -> tuple[float, int]:
-    """Best seconds (max over ranks) of a fresh MUMPS LU factorisation + solve; factor entries.
+def factor_times(
+    K: PETSc.Mat, f: PETSc.Vec, options: dict, repeat: int
+) -> list[tuple[float, int]]:
+    """``repeat`` fresh factorisations + solves of K with ``options``, in order.
 
-    The entries are MUMPS's INFOG(20) (estimated by the analysis).
+    Returns:
+        For each: the seconds (max over ranks) and the factor entries (MUMPS's INFOG(20),
+        estimated by the analysis).
     """
-    best = float("inf")
+    runs = []
+    x = f.duplicate()
     for _ in range(repeat):
         ksp = PETSc.KSP().create(K.getComm())
-        options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-        options.update(extra)
         names = set_options(ksp, "dwr_signorini_ordering_", options)
-        x = f.duplicate()
         K.getComm().tompi4py().Barrier()
         tic = time.perf_counter()
         ksp.setOperators(K)
         ksp.setUp()
         ksp.solve(f, x)
         elapsed = K.getComm().tompi4py().allreduce(time.perf_counter() - tic, op=MPI.MAX)
-        best = min(best, elapsed)
-        entries = ksp.getPC().getFactorMatrix().getMumpsInfog(20)
+        runs.append((elapsed, ksp.getPC().getFactorMatrix().getMumpsInfog(20)))
         ksp.destroy()
         clear_options(names)
-        x.destroy()
-    return best, entries
+    x.destroy()
+    return runs
 
 
 def main() -> None:
@@ -92,7 +93,8 @@ def main() -> None:
         for matrix_name, matrix, label, options in rows:
             rhs = matrix.createVecLeft()
             rhs.set(1.0)
-            seconds, entries = factor_time(matrix, rhs, options, args.repeat)
+            runs = factor_times(matrix, rhs, default_petsc_options() | options, args.repeat)
+            seconds, entries = min(t for t, _ in runs), runs[0][1]
             rhs.destroy()
             default.setdefault(matrix_name, seconds)
             if comm.rank == 0:
