@@ -15,7 +15,8 @@ derivative of C(w)(mu) = (mu, lam - max(0, lam + u_n - g)) of the paper, scaled 
 transposed system is exactly the discrete dual problem (11)-(12); see :mod:`dwr_signorini.dual`.
 
 Two ways to solve it (``method`` of :func:`solve`): ``"block"`` (:class:`NewtonSystem`, the
-reference) assembles and factors the block matrix in every step; ``"schur"``
+reference) assembles and factors a symmetric form of the block matrix in every step (see
+:meth:`NewtonSystem.newton_matrix`); ``"schur"``
 (:class:`SchurNewtonSystem`) eliminates u,
 
     S_AA lam_A = (N K^-1 f)_A - g_A,    u = K^-1 (f - N_A^T lam_A),    S = N K^-1 N^T,
@@ -68,6 +69,7 @@ __all__ = [
     "fieldsplit_petsc_options",
     "iterative_petsc_options",
     "mumps_failure",
+    "null_pivots",
     "solve",
 ]
 
@@ -119,25 +121,33 @@ class ConvergenceError(RuntimeError):
 
 
 def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
-    """A direct solver: MUMPS LU where PETSc has it, PETSc's LU otherwise.
+    """A direct solver: MUMPS's LDL^T where PETSc has MUMPS, PETSc's LU otherwise.
+
+    Both matrices the package factors are symmetric: K (``method="schur"``) and the symmetric
+    form of the block Newton matrix (``method="block"``, indefinite, see
+    :meth:`NewtonSystem.newton_matrix`). MUMPS's LDL^T (``pc_type="cholesky"`` on an AIJ
+    matrix; 2 x 2 pivots where needed) stores half the factor entries of its LU and factors in
+    less time (see ``benchmarks/mumps_ordering.py``). PETSc's own Cholesky does not pivot, so
+    without MUMPS the solver is PETSc's LU.
+
+    MUMPS counts null pivots (``mat_mumps_icntl_24=1``), which the Newton systems report as a
+    singular matrix (:func:`null_pivots`).
 
     Args:
         tdim: Topological dimension of the mesh, if known. On 2D meshes MUMPS orders with AMD
-            (``mat_mumps_icntl_7=0``): at 198k DoFs (example 5.1) it factors K in 0.43 s
-            against 0.67 s with MUMPS's default, METIS nested dissection, which stays for 3D,
-            where it is 3 times faster than AMD at 146k DoFs (example 5.3). On 2D meshes MUMPS
-            also keeps the columns in place (``mat_mumps_icntl_6=0``; it has no effect on
-            several ranks): its default maximum transversal, which moves the block Newton
-            matrix's zero diagonal entries of active contact rows, adds fill under AMD; at 789k
-            DoFs the block matrix then factors in 0.80 of the time (see
+            (``mat_mumps_icntl_7=0``), faster there than its default, METIS nested dissection,
+            which stays for 3D, where it is several times faster than AMD (see
             ``benchmarks/mumps_ordering.py``).
     """
     opts: dict[str, Any] = {"ksp_type": "preonly", "pc_type": "lu"}
     if PETSc.Sys.hasExternalPackage("mumps"):
+        opts["pc_type"] = "cholesky"
         opts["pc_factor_mat_solver_type"] = "mumps"
+        # ICNTL(24): count null pivots (:func:`null_pivots`). With 2 x 2 pivots, LDL^T may not
+        # fail on a singular matrix, e.g. of linearly dependent active contact constraints.
+        opts["mat_mumps_icntl_24"] = 1
         if tdim == 2:
             opts["mat_mumps_icntl_7"] = 0
-            opts["mat_mumps_icntl_6"] = 0
     return opts
 
 
@@ -188,6 +198,20 @@ def mumps_failure(ksp: PETSc.KSP) -> str | None:
     if code in (-6, -10):  # structurally or numerically singular
         return None
     return f"MUMPS failed with INFOG(1) = {code}, INFOG(2) = {detail}"
+
+
+def null_pivots(ksp: PETSc.KSP) -> int:
+    """How many null pivots MUMPS found in the factorisation of ``ksp`` (INFOG(28)).
+
+    Counted only with null pivot detection (``mat_mumps_icntl_24=1``, as in
+    :func:`default_petsc_options`), which replaces them and goes on: a positive count means a
+    singular matrix. 0 for other solvers (they fail instead). Local: INFOG is the same on every
+    rank.
+    """
+    pc = ksp.getPC()
+    if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+        return 0
+    return pc.getFactorMatrix().getMumpsInfog(28)
 
 
 def iterative_petsc_options() -> dict[str, Any]:
@@ -330,11 +354,13 @@ class NewtonSystem:
     """The algebraic problem of one mesh and the Newton steps by the block matrix (reference).
 
     Owns its PETSc objects (destroyed in ``__del__``); K, N, N^T, M, f and g are assembled once per
-    mesh and reused in every Newton step and for the dual problem. Each Newton step assembles the
-    Newton matrix of its active set and factors it (``method="block"`` of :func:`solve`)::
+    mesh and reused in every Newton step and for the dual problem. Each Newton step solves
 
         [ K          N^T    ] [u  ]   [ f       ]
-        [ -D_A N     D_I M  ] [lam] = [ -D_A g  ].
+        [ -D_A N     D_I M  ] [lam] = [ -D_A g  ]
+
+    (``method="block"`` of :func:`solve`) through the symmetric matrix of the same equations
+    (:meth:`newton_matrix`), which it assembles and factors.
 
     :class:`SchurNewtonSystem` solves the same equations by eliminating u.
 
@@ -344,7 +370,8 @@ class NewtonSystem:
         active: Active set of the last Newton step (owned multiplier rows).
         solved: Whether a Newton step was solved, so that :meth:`solve_transpose` (the dual
             problem) can reuse its factorisation.
-        A: Newton matrix of the last step (None before the first step).
+        A: Symmetric form of the Newton matrix of the last step (:meth:`newton_matrix`; None
+            before the first step).
         ksp: The linear solver (prefix :attr:`prefix`).
     """
 
@@ -401,16 +428,12 @@ class NewtonSystem:
         self.solved = False
         self.ksp = PETSc.KSP().create(disc.comm)
         self.prefix = f"dwr_signorini_primal_{next(_counter)}_"
-        options = self._default_options(disc.mesh.topology.dim)
+        options = default_petsc_options(disc.mesh.topology.dim)
         options.update(petsc_options or {})
         self.options = options
         self._option_names = set_options(self.ksp, self.prefix, options)
         self.direct = self.ksp.getPC().getType() in ("lu", "cholesky")
         self._setup()
-
-    @staticmethod
-    def _default_options(tdim: int) -> dict[str, Any]:
-        return default_petsc_options(tdim)
 
     def _assemble(self, bcs: list[fem.DirichletBC]) -> None:
         """K, N, N^T, f, M, g and c_n (once per mesh)."""
@@ -524,7 +547,18 @@ class NewtonSystem:
         return norm
 
     def newton_matrix(self, active: np.ndarray, out: PETSc.Mat | None = None) -> PETSc.Mat:
-        """The Newton matrix of active set A: contact rows [-D_A N, D_I M].
+        """The symmetric matrix A_s of the Newton step of active set A.
+
+        The Newton matrix of the step is A = L A_s with
+
+            A_s = [ K      N_A^T   0   ]        L = [ I   0    N_I^T M_I^-1 ]
+                  [ N_A    0       0   ],           [ 0   -I   0            ]
+                  [ 0      0       M_I ]            [ 0   0    I            ]
+
+        (rows and columns ordered u, active, inactive multipliers): the inactive columns N_I^T
+        only ever multiply lam_I = 0, and the active rows change sign. So A x = b is
+        A_s x = L^-1 b, and the dual A^T z = r is A_s w = r, z = L^-T w (:meth:`solve_transpose`):
+        one symmetric indefinite matrix, factored by LDL^T, serves both.
 
         All active sets share one sparsity pattern (that of A0, zeros kept), so with ``out`` the
         values are overwritten in place and the solver reuses its symbolic factorisation.
@@ -535,28 +569,36 @@ class NewtonSystem:
             A = out
             self.A0.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         scale = A.createVecLeft()
-        scale.set(1.0)
-        scale.setValues(self._lam_rows, np.where(active, -1.0, 0.0))
-        scale.assemble()
-        A.diagonalScale(L=scale)
-        for row, on, mi in zip(self._lam_rows, active, self.M.array, strict=True):
-            A.setValue(row, row, 0.0 if on else mi, addv=PETSc.InsertMode.INSERT)
-        A.assemble()
-        scale.destroy()
+        scale.array_w[: self.n_u] = 1.0
+        scale.array_w[self.n_u :] = active
+        A.diagonalScale(L=scale, R=scale)
+        diagonal = A.getDiagonal()
+        diagonal.array_w[self.n_u :] = np.where(active, 0.0, self.M.array)
+        A.setDiagonal(diagonal, addv=PETSc.InsertMode.INSERT_VALUES)
+        A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        for vec in (scale, diagonal):
+            vec.destroy()
         return A
 
     def solve_active(self, active: np.ndarray) -> None:
-        """One Newton step: solve the linear system of active set ``active`` into ``self.x``."""
+        """One Newton step: solve the linear system of active set ``active`` into ``self.x``.
+
+        A x = b with b = [f; -g_A; 0], as A_s x = L^-1 b = [f; g_A; 0] (:meth:`newton_matrix`).
+        """
         with timed("assemble"):
             self.A = self.newton_matrix(active, out=self.A)
             self.active = active.copy()
             b = self.b.array_w
             b[: self.n_u] = self.f.array
-            b[self.n_u :] = np.where(active, -self.g.array, 0.0)
+            b[self.n_u :] = np.where(active, self.g.array, 0.0)
         with timed("factorize"):
             self.ksp.setOperators(self.A)
             self.ksp.setUp()
             clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
+        if null_pivots(self.ksp) > 0:
+            raise np.linalg.LinAlgError(
+                f"MUMPS found {null_pivots(self.ksp)} null pivots: the Newton matrix is singular"
+            )
         with timed("newton solve"):
             self.ksp.solve(self.b, self.x)
         reason = self.ksp.getConvergedReason()
@@ -580,7 +622,9 @@ class NewtonSystem:
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
         """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem).
 
-        Reuses the factorisation of the last step (two triangular solves).
+        A^T = A_s L^T (:meth:`newton_matrix`): solve A_s w = rhs with the factors of the last
+        step (two triangular solves), then z = L^-T w, i.e. z_u = w_u, z_A = -w_A and
+        z_I = w_I - (N w_u)_I / M_I.
 
         Args:
             rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
@@ -590,10 +634,18 @@ class NewtonSystem:
             RuntimeError: No Newton step was solved, or the solve failed.
         """
         self._check_solved()
-        self.ksp.solveTranspose(rhs, z)
+        self.ksp.solve(rhs, z)
         reason = self.ksp.getConvergedReason()
         if reason < 0:
             raise RuntimeError(f"the dual solve failed (KSP reason {reason})")
+        w_u = self.N.createVecRight()
+        w_u.array_w[:] = self.split(z)[0]
+        n_w = self.N.createVecLeft()
+        self.N.mult(w_u, n_w)
+        w_lam = z.array_w[self.n_u :]
+        w_lam[:] = np.where(self.active, -w_lam, w_lam - n_w.array / self.M.array)
+        for vec in (w_u, n_w):
+            vec.destroy()
 
     def _check_solved(self) -> None:
         if not self.solved:
@@ -639,14 +691,6 @@ class SchurNewtonSystem(NewtonSystem):
 
     _petsc_objects = (*NewtonSystem._petsc_objects, "_u", "_u_f", "_rhs_u", "_lam_vec", "_schur")
 
-    @staticmethod
-    def _default_options(tdim: int) -> dict[str, Any]:
-        """As :func:`default_petsc_options`, with MUMPS's Cholesky (LDL^T): K is symmetric."""
-        options = default_petsc_options(tdim)
-        if options.get("pc_factor_mat_solver_type") == "mumps":
-            options["pc_type"] = "cholesky"
-        return options
-
     def _setup(self) -> None:
         """Check and set up the solver of K, compute K^-1 f and the Schur complement."""
         ksp_type, pc_type = self.ksp.getType(), self.ksp.getPC().getType()
@@ -672,11 +716,14 @@ class SchurNewtonSystem(NewtonSystem):
             self.K.setNearNullSpace(self._near_nullspace)
         with timed("factorize"):
             self.ksp.setOperators(self.K)
+            error: Exception | None = None
             try:
                 self.ksp.setUp()
                 clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
                 self._solve_K(self.f, self._u_f)
             except (PETSc.Error, ConvergenceError) as err:
+                error = err
+            if error is not None or null_pivots(self.ksp) > 0:
                 cause = mumps_failure(self.ksp) or (
                     "K is singular (the body is not held in place, check dirichlet)"
                 )
@@ -684,7 +731,7 @@ class SchurNewtonSystem(NewtonSystem):
                     f"the factorisation (or preconditioner) of the stiffness matrix K failed: "
                     f"{cause}",
                     [],
-                ) from err
+                ) from error
             self._schur: DenseSchurComplement | KrylovSchurComplement = (
                 DenseSchurComplement(self) if self.direct else KrylovSchurComplement(self)
             )
@@ -969,10 +1016,7 @@ class KrylovSchurComplement:
         free dofs), so null pivots mean linearly dependent active constraints, for which CG
         would return one of many multipliers.
         """
-        pc = self.ksp.getPC()
-        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
-            return
-        if pc.getFactorMatrix().getMumpsInfog(28) > 0:
+        if null_pivots(self.ksp) > 0:
             raise np.linalg.LinAlgError(
                 "N diag(K)^-1 N^T, and so N K^-1 N^T, is singular on the active rows: active "
                 "contact constraints are linearly dependent"
