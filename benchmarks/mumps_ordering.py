@@ -1,12 +1,13 @@
-"""Which ordering MUMPS should use: seconds of one factorisation + solve of K and of A.
+"""Which factorisation and ordering MUMPS should use: seconds of one factorisation + solve.
 
 For the stiffness matrix K of example 5.1 (2D, triangles) and example 5.3 (3D, tetrahedra), one
-MUMPS LU factorisation + solve with its default ordering (ICNTL(7)=7, automatic: METIS here),
-METIS (5) and AMD (0); then, for the block Newton matrix of the last Newton step (method
-"block"), with the chosen ordering, MUMPS's default column permutation (ICNTL(6)=7, automatic: a
-maximum transversal on the block matrix, whose active contact rows have a zero diagonal) against
-none (0). The best of ``--repeat`` runs, and the ratio to the default. It justifies the
-dimension-dependent defaults of :func:`dwr_signorini.newton.default_petsc_options`::
+MUMPS LDL^T factorisation + solve with its default ordering (ICNTL(7)=7, automatic: METIS here),
+METIS (5) and AMD (0), and its LU with the ordering that
+:func:`dwr_signorini.newton.default_petsc_options` chooses; then, for the symmetric form of the
+block Newton matrix of the last Newton step (method "block", see
+:meth:`dwr_signorini.newton.NewtonSystem.newton_matrix`), LDL^T against LU with that ordering.
+The best of ``--repeat`` runs, the ratio to the first row of the matrix, and MUMPS's factor
+entries. It justifies the defaults of ``default_petsc_options``::
 
     scripts/fenicsx python3 benchmarks/mumps_ordering.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/mumps_ordering.py
@@ -29,7 +30,7 @@ from dwr_signorini.spaces import discretize
 
 ORDERINGS = {"default (7)": {}, "METIS (5)": {"mat_mumps_icntl_7": 5},
              "AMD (0)": {"mat_mumps_icntl_7": 0}}
-PERMUTATIONS = {"default (7)": {}, "none (0)": {"mat_mumps_icntl_6": 0}}
+FACTORISATIONS = {"LDL^T": {"pc_type": "cholesky"}, "LU": {"pc_type": "lu"}}
 
 
 def factor_times(
@@ -79,26 +80,27 @@ def main() -> None:
         n = args.n_3d
         problems["3D (5.3)"] = ex.obstacle_problem(comm, n=(n, 4 * n, 4 * n))
     if comm.rank == 0:
-        print(f"{'mesh':>10} {'matrix':>7} {'DoFs':>9} {'option':>22} {'seconds':>9} "
-              f"{'/ default':>9} {'factor entries':>14}")
+        print(f"{'mesh':>10} {'matrix':>7} {'DoFs':>9} {'option':>26} {'seconds':>9} "
+              f"{'/ first':>9} {'factor entries':>14}")
     for name, problem in problems.items():
         sol = ds.solve(discretize(problem))
         tdim = problem.mesh.topology.dim
         chosen = default_petsc_options(tdim)
-        chosen.pop("mat_mumps_icntl_6", None)
-        rows = [("K", sol.system.K, f"ordering {key}", value) for key, value in ORDERINGS.items()]
-        rows += [("Newton", sol.system.A, f"permutation {key}", chosen | value)
-                 for key, value in PERMUTATIONS.items()]
+        rows = [("K", sol.system.K, f"LDL^T, ordering {key}", default_petsc_options() | value)
+                for key, value in ORDERINGS.items()]
+        rows.append(("K", sol.system.K, "LU, chosen ordering", chosen | FACTORISATIONS["LU"]))
+        rows += [("Newton", sol.system.A, f"{key}, chosen ordering", chosen | value)
+                 for key, value in FACTORISATIONS.items()]
         default = {}
         for matrix_name, matrix, label, options in rows:
             rhs = matrix.createVecLeft()
             rhs.set(1.0)
-            runs = factor_times(matrix, rhs, default_petsc_options() | options, args.repeat)
+            runs = factor_times(matrix, rhs, options, args.repeat)
             seconds, entries = min(t for t, _ in runs), runs[0][1]
             rhs.destroy()
             default.setdefault(matrix_name, seconds)
             if comm.rank == 0:
-                print(f"{name:>10} {matrix_name:>7} {matrix.getSize()[0]:>9} {label:>22} "
+                print(f"{name:>10} {matrix_name:>7} {matrix.getSize()[0]:>9} {label:>26} "
                       f"{seconds:9.3f} {seconds / default[matrix_name]:9.2f} {entries:14d}",
                       flush=True)
         sol.system.destroy()
