@@ -204,3 +204,47 @@ def test_higher_order_weights_on_the_krylov_schur_path():
         est = ds.estimate(sol, goal, weights="higher_order", petsc_options=options)
         estimates.append((est.eta, est.eta_p))
     assert np.allclose(estimates[1], estimates[0], rtol=1e-6)
+
+
+@pytest.mark.mpi
+def test_symmetric_newton_matrix_solves_the_newton_step_and_its_transpose():
+    """The block path factors the symmetric A_s (LDL^T) of A = L A_s. With A written out as in
+    the paper, [K, N^T; -D_A N, D_I M], its step solves A x = [f; -D_A g] and the dual solve
+    A^T z = r, for an active set with active and inactive rows."""
+    from petsc4py import PETSc
+
+    sol = ds.solve(strip_problem(MPI.COMM_WORLD, 16, 4))
+    system, comm = sol.system, sol.disc.comm
+    active = system.active
+    assert 0 < comm.allreduce(int(active.sum())) < comm.allreduce(active.size)
+    factor = system.ksp.getPC().getFactorMatrix()
+    assert (system.ksp.getPC().getType(), factor.getMumpsInfog(20) > 0) == ("cholesky", True)
+    assert system.A.isSymmetric(0.0)
+
+    # A = [K, N^T; -D_A N, D_I M], from the assembled pieces.
+    A = system.A0.copy()
+    sign = A.createVecLeft()
+    sign.array_w[: system.n_u] = 1.0
+    sign.array_w[system.n_u :] = np.where(active, -1.0, 0.0)
+    A.diagonalScale(L=sign)
+    diagonal = A.getDiagonal()
+    diagonal.array_w[system.n_u :] = np.where(active, 0.0, system.M.array)
+    A.setDiagonal(diagonal)
+
+    b = A.createVecLeft()
+    b.array_w[: system.n_u] = system.f.array
+    b.array_w[system.n_u :] = np.where(active, -system.g.array, 0.0)
+    residual = b.duplicate()
+    A.mult(system.x, residual)
+    residual.axpy(-1.0, b)
+    assert residual.norm() <= 1e-12 * b.norm()
+
+    r = b.duplicate()
+    r.setRandom(PETSc.Random().create(comm))
+    z = b.duplicate()
+    system.solve_transpose(r, z)
+    A.multTranspose(z, residual)
+    residual.axpy(-1.0, r)
+    assert residual.norm() <= 1e-10 * r.norm()
+    for obj in (A, sign, diagonal, b, residual, r, z):
+        obj.destroy()
