@@ -9,8 +9,10 @@ which is the discrete form of the dual problem (11)-(12):
 ``a(v, y) - int chi xi v_n = J'_u(v)`` and ``int mu y_n + int (1 - chi) xi mu = J'_lambda(mu)``,
 chi the indicator of the active macro facets. It is solved by the Newton system with the
 factorisations of the last Newton step (:meth:`~dwr_signorini.newton.NewtonSystem.solve_transpose`),
-so it costs no factorisation: ``KSP.solveTranspose`` with the block matrix (``method="block"``),
-or, with ``method="schur"``, K symmetric and eta_A = -xi_A,
+so it costs no factorisation: with ``method="block"`` one solve with the factors of the
+symmetric form A_s of the Newton matrix A = L A_s and a sparse back-substitution with L^T
+(:meth:`~dwr_signorini.newton.NewtonSystem.newton_matrix`); with ``method="schur"``, K symmetric
+and eta_A = -xi_A,
 
     K y + N_A^T eta_A = J'_u,    (N y)_A = J'_lambda,A,    xi_I = (J'_lambda,I - (N y)_I) / M_I,
 
