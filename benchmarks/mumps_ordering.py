@@ -91,17 +91,17 @@ def main() -> None:
         rows.append(("K", sol.system.K, "LU, chosen ordering", chosen | FACTORISATIONS["LU"]))
         rows += [("Newton", sol.system.A, f"{key}, chosen ordering", chosen | value)
                  for key, value in FACTORISATIONS.items()]
-        default = {}
+        first = {}
         for matrix_name, matrix, label, options in rows:
             rhs = matrix.createVecLeft()
             rhs.set(1.0)
             runs = factor_times(matrix, rhs, options, args.repeat)
             seconds, entries = min(t for t, _ in runs), runs[0][1]
             rhs.destroy()
-            default.setdefault(matrix_name, seconds)
+            first.setdefault(matrix_name, seconds)
             if comm.rank == 0:
                 print(f"{name:>10} {matrix_name:>7} {matrix.getSize()[0]:>9} {label:>26} "
-                      f"{seconds:9.3f} {seconds / default[matrix_name]:9.2f} {entries:14d}",
+                      f"{seconds:9.3f} {seconds / first[matrix_name]:9.2f} {entries:14d}",
                       flush=True)
         sol.system.destroy()
 

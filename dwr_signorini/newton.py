@@ -157,6 +157,17 @@ _MUMPS_NO_MEMORY = (-5, -7, -13)
 _MUMPS_SMALL_WORKSPACE = (-8, -9, -11, -12, -14, -15, -17, -20)
 
 
+def _mumps_factor(ksp: PETSc.KSP) -> PETSc.Mat | None:
+    """The MUMPS factor of ``ksp``'s preconditioner, None if it is no MUMPS factorisation."""
+    pc = ksp.getPC()
+    if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+        return None
+    try:
+        return pc.getFactorMatrix()
+    except PETSc.Error:
+        return None
+
+
 def mumps_failure(ksp: PETSc.KSP) -> str | None:
     """Why MUMPS failed to factor the operator of ``ksp``, from its INFOG(1).
 
@@ -166,11 +177,10 @@ def mumps_failure(ksp: PETSc.KSP) -> str | None:
         The reason, or None if MUMPS did not fail or found the matrix singular (the callers say
         what a singular matrix means for them).
     """
-    pc = ksp.getPC()
-    if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+    factor = _mumps_factor(ksp)
+    if factor is None:
         return None
     try:
-        factor = pc.getFactorMatrix()
         code, detail = factor.getMumpsInfog(1), factor.getMumpsInfog(2)
         megabytes = factor.getMumpsInfog(17)
     except PETSc.Error:
@@ -208,10 +218,8 @@ def null_pivots(ksp: PETSc.KSP) -> int:
     singular matrix. 0 for other solvers (they fail instead). Local: INFOG is the same on every
     rank.
     """
-    pc = ksp.getPC()
-    if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
-        return 0
-    return pc.getFactorMatrix().getMumpsInfog(28)
+    factor = _mumps_factor(ksp)
+    return 0 if factor is None else factor.getMumpsInfog(28)
 
 
 def iterative_petsc_options() -> dict[str, Any]:
@@ -487,10 +495,6 @@ class NewtonSystem:
             nest.convert("aij", out=self.A0)
             nest.destroy()
             D.destroy()
-            lo, _ = self.A0.getOwnershipRange()
-            self._lam_rows = np.arange(
-                lo + self.n_u, lo + self.n_u + self.n_lam, dtype=PETSc.IntType
-            )
             self.b = self.A0.createVecLeft()
         if self.ksp.getPC().getType() == "fieldsplit":
             self._setup_fieldsplit()
@@ -595,9 +599,10 @@ class NewtonSystem:
             self.ksp.setOperators(self.A)
             self.ksp.setUp()
             clear_options(self._option_names)  # read now (MUMPS's at the factorisation)
-        if null_pivots(self.ksp) > 0:
+        count = null_pivots(self.ksp)
+        if count > 0:
             raise np.linalg.LinAlgError(
-                f"MUMPS found {null_pivots(self.ksp)} null pivots: the Newton matrix is singular"
+                f"MUMPS found {count} null pivots: the Newton matrix is singular"
             )
         with timed("newton solve"):
             self.ksp.solve(self.b, self.x)
