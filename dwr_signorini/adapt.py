@@ -357,9 +357,11 @@ def solve_adaptive(
                 with timed("mark"):
                     marked = mark(disc, est.indicators.x.array, strategy, fraction)
             with timed("refine"):
-                next_problem, macro_parent = refine_marked(
-                    current, marked if refinement == "adaptive" else None
-                )
+                if refinement == "adaptive":
+                    next_problem, macro_parent = refine_marked(current, marked)
+                else:  # T_h is the uniform refinement of T_H: the next macro mesh, as it is
+                    next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
+                    macro_parent = disc.parent_cell
             t_refine = time.perf_counter() - tic
             next_cells = (
                 next_problem.mesh.topology.index_map(next_problem.mesh.topology.dim).size_global

@@ -36,6 +36,7 @@ import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini.marking import mark, patch_indicators
 from dwr_signorini.newton import iterative_petsc_options
+from dwr_signorini.spaces import refine_marked
 
 TRI, QUAD = mesh.CellType.triangle, mesh.CellType.quadrilateral
 TET, HEX = mesh.CellType.tetrahedron, mesh.CellType.hexahedron
@@ -394,6 +395,12 @@ def test_uniform_refinement_multiplies_cells(build, factor, contact_factor):
         assert r.num_marked == 0
     for a, b in zip(res.levels[:-1], res.levels[1:], strict=True):
         assert b.num_contact_elements == contact_factor * a.num_contact_elements
+    # The loop takes each level's T_h as the next T_H: the same as refining T_H twice.
+    macro = problem
+    for _ in range(2):
+        macro, _ = refine_marked(macro, None)
+    J_h = ds.estimate(ds.solve(macro), goal, estimator="eta_p").J_h
+    assert J_h == pytest.approx(res.levels[-1].J_h, rel=1e-10, abs=0.0)
 
 
 # --------------------------------------------------------------------------------------------------
