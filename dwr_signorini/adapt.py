@@ -359,7 +359,7 @@ def solve_adaptive(
             with timed("refine"):
                 if refinement == "adaptive":
                     next_problem, macro_parent = refine_marked(current, marked)
-                else:  # T_h is the uniform refinement of T_H: the next macro mesh, as it is
+                else:  # T_h, the uniform refinement of T_H, is the next macro mesh
                     next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
                     macro_parent = disc.parent_cell
             t_refine = time.perf_counter() - tic

@@ -206,12 +206,26 @@ def refine_marked(
         macro.topology.create_connectivity(tdim, 1)
         edges = np.unique(dmesh.compute_incident_entities(macro.topology, cells, tdim, 1))
         edges = edges.astype(np.int32)
-    fine, parent_cell = refine_uniform(macro, edges)
-    fdim = tdim - 1
+    fine, parent_cell, _, tags = _refine_with_tags(problem, edges)
+    return problem.with_mesh(fine, tags), parent_cell
+
+
+def _refine_with_tags(
+    problem: SignoriniProblem, edges: npt.NDArray[np.int32] | None
+) -> tuple[dmesh.Mesh, npt.NDArray[np.int32], npt.NDArray[np.int32], dmesh.MeshTags]:
+    """Refine the macro mesh (:func:`refine_uniform`) and carry its facet tags.
+
+    Returns:
+        The fine mesh, the parent cell of each local fine cell, the macro facet of each fine
+        facet (:func:`fine_to_macro_facets`, for the tagged macro facets) and the fine facet tags.
+    """
+    macro = problem.mesh
+    fdim = macro.topology.dim - 1
     macro.topology.create_entities(fdim)
+    fine, parent_cell = refine_uniform(macro, edges)
     to_macro = fine_to_macro_facets(macro, fine, parent_cell, problem.facet_tags.indices)
     tags = _facet_tags_on_fine(problem.facet_tags, fine, to_macro, _num_entities(macro, fdim))
-    return problem.with_mesh(fine, tags), parent_cell
+    return fine, parent_cell, to_macro, tags
 
 
 class Discretization:
@@ -243,16 +257,10 @@ class Discretization:
         macro.topology.create_entities(fdim)
         macro.topology.create_connectivity(fdim, tdim)
 
-        fine, parent_cell = refine_uniform(macro)
+        fine, parent_cell, to_macro, self.facet_tags = _refine_with_tags(problem, None)
         self.mesh = fine
         self.parent_cell = parent_cell
-        fine.topology.create_connectivity(fdim, tdim)
-
-        to_macro = fine_to_macro_facets(macro, fine, parent_cell, problem.facet_tags.indices)
         self.fine_to_macro_facet = to_macro
-        self.facet_tags = _facet_tags_on_fine(
-            problem.facet_tags, fine, to_macro, _num_entities(macro, fdim)
-        )
 
         # Sigma_H: the macro contact facets (exterior facets only).
         exterior = dmesh.exterior_facet_indices(macro.topology)
