@@ -43,7 +43,7 @@ def reference_times(sol: ds.Solution) -> tuple[float, float]:
     Run twice, max over ranks. The first run allocates its factors in memory the process has not
     touched before, as the Newton factorisation of every new level does and as a standalone run
     would (``ref``). The second reuses that memory (``ref_warm``). Where first touches are costly
-    (in this sandbox about 2 s per GiB, see :func:`first_touch_seconds_per_gib`) the two differ.
+    (in this sandbox up to 2.3 s per GiB, see :func:`first_touch_seconds_per_gib`) the two differ.
     """
     # The same direct solver as the Newton steps' (ordering chosen by dimension).
     options = default_petsc_options(sol.disc.mesh.topology.dim)
