@@ -222,6 +222,73 @@ def null_pivots(ksp: PETSc.KSP) -> int:
     return 0 if factor is None else factor.getMumpsInfog(28)
 
 
+def _petsc_function(name: str) -> Any:
+    """A PETSc C function that petsc4py does not wrap, from the library petsc4py is linked to."""
+    import ctypes
+
+    function = getattr(ctypes.CDLL(PETSc.__file__), name)
+    function.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+    function.restype = ctypes.c_int
+    return function
+
+
+def mumps_inverse_entries(
+    ksp: PETSc.KSP, rows: np.ndarray, columns: np.ndarray
+) -> np.ndarray | None:
+    """The dense block (A^-1)[rows, columns] of the symmetric operator A factored by MUMPS.
+
+    MUMPS computes selected entries of the inverse (ICNTL(30)) by solves with sparse right-hand
+    sides, pruned to the parts of the factors they touch: much less work than full solves with
+    the unit vectors. (PETSc's call returns entries of A^-T, hence "symmetric".)
+
+    Args:
+        ksp: A KSP whose preconditioner is a MUMPS factorisation of A.
+        rows: Sorted global indices, the same on every rank.
+        columns: Global indices, the same on every rank.
+
+    Returns:
+        The (len(rows), len(columns)) block on rank 0, None on the other ranks.
+    """
+    factor = _mumps_factor(ksp)
+    if factor is None:
+        raise ValueError("mumps_inverse_entries needs a MUMPS factorisation")
+    comm = ksp.getComm().tompi4py()
+    n = ksp.getOperators()[0].getSize()[0]
+    m = len(rows)
+    # Row j of the request is column j of A^-1: MUMPS wants all n of them (the others empty),
+    # the whole request on rank 0.
+    local = n if comm.rank == 0 else 0
+    counts = np.zeros(local, dtype=PETSc.IntType)
+    if comm.rank == 0:
+        counts[columns] = m
+    request = PETSc.Mat().createAIJ(((local, n), (local, n)), nnz=(counts, 0), comm=comm)
+    if comm.rank == 0:
+        request.setValuesCSR(
+            np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType),
+            np.tile(rows, len(columns)).astype(PETSc.IntType),
+            np.zeros(m * len(columns)),
+        )
+    request.assemble()
+    # The call leaves ICNTL(30) on and the solution centralised (ICNTL(21) = 0): both are
+    # restored for the solves that follow.
+    distributed = factor.getMumpsIcntl(21)
+    try:
+        code = _petsc_function("MatMumpsGetInverseTranspose")(factor.handle, request.handle)
+        if code != 0:
+            raise RuntimeError(
+                f"MUMPS could not compute entries of the inverse (PETSc error {code}, "
+                f"INFOG(1) = {factor.getMumpsInfog(1)})"
+            )
+        # Rows of the request in increasing column index, each with the entries at ``rows``.
+        order = np.argsort(np.argsort(columns))
+        block = request.getValuesCSR()[2].reshape(-1, m)[order].T if comm.rank == 0 else None
+    finally:
+        factor.setMumpsIcntl(30, 0)
+        factor.setMumpsIcntl(21, distributed)
+        request.destroy()
+    return block
+
+
 def iterative_petsc_options() -> dict[str, Any]:
     """Krylov solver of K for ``method="schur"`` on large (3D) meshes: CG with GAMG.
 
@@ -822,9 +889,11 @@ class SchurNewtonSystem(NewtonSystem):
 class DenseSchurComplement:
     """S = N K^-1 N^T dense on rank 0, from the factors of K; S_AA by dense Cholesky.
 
-    S is computed once per mesh by solves with blocks of columns of N^T as right-hand sides
-    (8 n_lam^2 bytes on rank 0). Rank 0 runs the dense algebra and scatters the result, so that
-    all ranks use the same numbers.
+    S is computed once per mesh (8 n_lam^2 bytes on rank 0). N only touches the displacement
+    dofs C on Gamma_C, so S = N_C (K^-1)_CC N_C^T: with MUMPS, the block (K^-1)_CC comes from
+    MUMPS's entries of the inverse (:func:`mumps_inverse_entries`); with another direct solver,
+    from solves with blocks of columns of N^T as right-hand sides. Rank 0 runs the dense algebra
+    and scatters the result, so that all ranks use the same numbers.
     """
 
     def __init__(self, system: SchurNewtonSystem) -> None:
@@ -836,6 +905,35 @@ class DenseSchurComplement:
         self.S = self._compute()
 
     def _compute(self) -> np.ndarray | None:
+        """S on rank 0 (None elsewhere): from entries of K^-1 with MUMPS, else by solves."""
+        if _mumps_factor(self.system.ksp) is not None:
+            return self._compute_from_inverse_entries()
+        return self._compute_by_solves()
+
+    def _compute_from_inverse_entries(self) -> np.ndarray | None:
+        """S = N_C (K^-1)_CC N_C^T on rank 0 (None elsewhere), C the columns of N."""
+        system, comm = self.system, self.comm
+        indptr, indices, values = system.N.getValuesCSR()
+        touched = np.unique(indices[values != 0])
+        C = np.unique(np.concatenate(comm.allgather(touched))).astype(PETSc.IntType)
+        rows = comm.gather((indptr, indices, values), root=0)
+        N_C = None
+        if comm.rank == 0:
+            num_u = system.K.getSize()[0]
+            N = scipy.sparse.vstack(
+                [scipy.sparse.csr_matrix((v, i, p), shape=(len(p) - 1, num_u)) for p, i, v in rows]
+            )
+            N_C = N.tocsc()[:, C]
+        S = np.zeros((self.n, self.n)) if comm.rank == 0 else None
+        # (K^-1)_CC a block of columns at a time: S += (N_C (K^-1)_{C,block}) N_C[:, block]^T.
+        width = max(1, _SCHUR_BLOCK_ENTRIES // max(1, len(C)))
+        for start in range(0, len(C), width):
+            block = mumps_inverse_entries(system.ksp, C, C[start : start + width])
+            if comm.rank == 0:
+                S += (N_C @ block) @ N_C[:, start : start + width].T.toarray()
+        return None if S is None else 0.5 * (S + S.T)
+
+    def _compute_by_solves(self) -> np.ndarray | None:
         """S on rank 0 (None elsewhere), a block of columns at a time.
 
         The columns X = K^-1 N^T[:, block] come from one multi-RHS solve, and S[:, block] =

@@ -21,6 +21,7 @@ from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
 from dwr_signorini.newton import (
     METHODS,
+    DenseSchurComplement,
     KrylovSchurComplement,
     NewtonSystem,
     SchurNewtonSystem,
@@ -124,6 +125,34 @@ def test_schur_path_matches_block_path(case, solver):
     est0, est1 = ds.estimate(s0, goal), ds.estimate(s1, goal)
     assert np.isclose(est1.J_h, est0.J_h, rtol=tol)
     assert np.isclose(est1.eta, est0.eta, rtol=100 * tol)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", list(SCHUR_CASES))
+def test_schur_complement_from_mumps_inverse_entries(case, monkeypatch):
+    """S = N_C (K^-1)_CC N_C^T from MUMPS's entries of the inverse equals S from full solves
+    with the columns of N^T, and the factors of K still solve K x = f afterwards (the call
+    changes MUMPS's solve controls, which must be restored). Small blocks of columns, so that
+    S is summed over several requests."""
+    from petsc4py import PETSc
+
+    monkeypatch.setattr(newton, "_SCHUR_BLOCK_ENTRIES", 1000)
+    build, _ = SCHUR_CASES[case]
+    comm = MPI.COMM_WORLD
+    system = SchurNewtonSystem(discretize(build(comm)))
+    assert isinstance(system._schur, DenseSchurComplement)
+    S, S_solves = system._schur.S, system._schur._compute_by_solves()
+    if comm.rank == 0:
+        assert S.shape == (system.n_lam_global,) * 2
+        assert np.abs(S - S_solves).max() <= 1e-12 * np.abs(S_solves).max()
+    x, r = system.K.createVecRight(), system.K.createVecLeft()
+    system.ksp.solve(system.f, x)
+    system.K.mult(x, r)
+    r.axpy(-1.0, system.f)
+    assert r.norm(PETSc.NormType.INFINITY) <= 1e-10 * system.f.norm(PETSc.NormType.INFINITY)
+    for vec in (x, r):
+        vec.destroy()
+    system.destroy()
 
 
 @pytest.mark.mpi
