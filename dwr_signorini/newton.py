@@ -34,6 +34,7 @@ so the active-set test is invariant under scaling E, the loads and the lengths.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import logging
 from dataclasses import dataclass, field
@@ -222,8 +223,12 @@ def null_pivots(ksp: PETSc.KSP) -> int:
     return 0 if factor is None else factor.getMumpsInfog(28)
 
 
+@functools.cache
 def _petsc_function(name: str) -> Any:
-    """A PETSc C function that petsc4py does not wrap, from the library petsc4py is linked to."""
+    """A PETSc C function of two object handles that petsc4py does not wrap.
+
+    Found in the library petsc4py is linked to; it returns a PetscErrorCode.
+    """
     import ctypes
 
     function = getattr(ctypes.CDLL(PETSc.__file__), name)
@@ -886,6 +891,13 @@ class SchurNewtonSystem(NewtonSystem):
         self._write(z, self._u.array_r, xi)
 
 
+def _owned_rows(mat: PETSc.Mat) -> scipy.sparse.csr_matrix:
+    """The rows of ``mat`` this rank owns, with global column indices, as a scipy matrix."""
+    indptr, indices, values = mat.getValuesCSR()
+    shape = (len(indptr) - 1, mat.getSize()[1])
+    return scipy.sparse.csr_matrix((values, indices, indptr), shape=shape)
+
+
 class DenseSchurComplement:
     """S = N K^-1 N^T dense on rank 0, from the factors of K; S_AA by dense Cholesky.
 
@@ -913,17 +925,11 @@ class DenseSchurComplement:
     def _compute_from_inverse_entries(self) -> np.ndarray | None:
         """S = N_C (K^-1)_CC N_C^T on rank 0 (None elsewhere), C the columns of N."""
         system, comm = self.system, self.comm
-        indptr, indices, values = system.N.getValuesCSR()
-        touched = np.unique(indices[values != 0])
+        owned = _owned_rows(system.N)
+        touched = np.unique(owned.indices[owned.data != 0])
         C = np.unique(np.concatenate(comm.allgather(touched))).astype(PETSc.IntType)
-        rows = comm.gather((indptr, indices, values), root=0)
-        N_C = None
-        if comm.rank == 0:
-            num_u = system.K.getSize()[0]
-            N = scipy.sparse.vstack(
-                [scipy.sparse.csr_matrix((v, i, p), shape=(len(p) - 1, num_u)) for p, i, v in rows]
-            )
-            N_C = N.tocsc()[:, C]
+        rows = comm.gather(owned, root=0)
+        N_C = scipy.sparse.vstack(rows).tocsc()[:, C] if comm.rank == 0 else None
         S = np.zeros((self.n, self.n)) if comm.rank == 0 else None
         # (K^-1)_CC a block of columns at a time: S += (N_C (K^-1)_{C,block}) N_C[:, block]^T.
         width = max(1, _SCHUR_BLOCK_ENTRIES // max(1, len(C)))
@@ -940,8 +946,7 @@ class DenseSchurComplement:
         (N^T)^T X is summed over the ranks' owned rows of N^T.
         """
         system, comm, n = self.system, self.comm, self.n
-        indptr, indices, values = system.NT.getValuesCSR()
-        NT = scipy.sparse.csr_matrix((values, indices, indptr), shape=(system.n_u, n))
+        NT = _owned_rows(system.NT)
         width = max(1, min(n, _SCHUR_BLOCK_ENTRIES // system.K.getSize()[0]))
         S = np.empty((n, n)) if comm.rank == 0 else None
         B = X = None
