@@ -1,12 +1,14 @@
 # The two commands a newcomer needs: `make test` and `make demo`.
 # Everything runs through scripts/fenicsx, which provides dolfinx (building a cached Debian
-# trixie root on hosts that lack it).
+# trixie root on hosts that lack it). `make test-current` / `make env-current` do the same with the
+# current dolfinx release (Debian sid, DWR_SIGNORINI_SUITE=sid).
 FENICSX := scripts/fenicsx
+CURRENT_SUITE ?= sid
 NP ?= 2
 PYTEST := python3 -m pytest -q
 DEMO_ARGS ?=
 
-.PHONY: test test-serial test-mpi test-slow demo env lint figures
+.PHONY: test test-serial test-mpi test-slow demo env lint figures test-current env-current
 
 test: test-serial test-mpi
 
@@ -24,7 +26,17 @@ demo:
 	$(FENICSX) mpirun -n $(NP) python3 demos/bar_2d.py $(DEMO_ARGS)
 
 env:
-	$(FENICSX) python3 -c "import dolfinx; print('dolfinx', dolfinx.__version__)"
+	$(FENICSX) python3 -c "import dolfinx, ufl, basix, petsc4py; \
+	print('dolfinx', dolfinx.__version__, 'ufl', ufl.__version__, 'basix', basix.__version__, \
+	'petsc4py', petsc4py.__version__)"
+
+# The same commands with the current dolfinx release (Debian $(CURRENT_SUITE), its own cached root).
+# .ci/run runs env-current first and reports a failed environment build as skipped.
+test-current:
+	$(MAKE) --no-print-directory test FENICSX="DWR_SIGNORINI_SUITE=$(CURRENT_SUITE) scripts/fenicsx"
+
+env-current:
+	$(MAKE) --no-print-directory env FENICSX="DWR_SIGNORINI_SUITE=$(CURRENT_SUITE) scripts/fenicsx"
 
 lint:
 	@command -v ruff >/dev/null 2>&1 || python3 -m pip install --quiet ruff
