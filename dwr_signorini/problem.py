@@ -20,11 +20,60 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
-__all__ = ["MODELS", "SignoriniProblem"]
+__all__ = ["MODELS", "SignoriniProblem", "lame_parameters", "stress"]
 
 MODELS = ("plane_strain", "plane_stress", "3d")
 
 VectorData = Sequence[float] | Callable[[ufl.SpatialCoordinate], Any] | None
+
+
+def lame_parameters(E: float, nu: float, model: str = "plane_strain") -> tuple[float, float]:
+    """Lame parameters ``(mu, lambda)`` of Hooke's law (Section 2).
+
+    Args:
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        model: ``"plane_stress"`` gives the reduced ``lambda* = 2 mu lambda / (lambda + 2 mu)
+            = E nu / (1 - nu^2)``; ``"plane_strain"`` and ``"3d"`` give
+            ``lambda = E nu / ((1 + nu)(1 - 2 nu))``.
+
+    Returns:
+        The shear modulus ``mu = E / (2 (1 + nu))`` and the first Lame parameter.
+    """
+    mu = E / (2.0 * (1.0 + nu))
+    lmbda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+    if model == "plane_stress":
+        lmbda = 2.0 * mu * lmbda / (lmbda + 2.0 * mu)
+    return mu, lmbda
+
+
+def stress(
+    u: ufl.core.expr.Expr,
+    E: float,
+    nu: float,
+    model: str = "plane_strain",
+    constants: bool = False,
+) -> ufl.core.expr.Expr:
+    """Hooke's law ``sigma(u) = 2 mu eps(u) + lambda tr(eps(u)) I`` (Section 2).
+
+    Args:
+        u: Displacement, a UFL vector expression.
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        model: The model of :func:`lame_parameters`.
+        constants: Let ``mu`` and ``lambda`` enter as dolfinx Constants on the mesh of ``u`` (if
+            it has one), so that forms for different materials share their compiled code;
+            otherwise they enter as float literals.
+
+    Returns:
+        The symmetric stress tensor as a UFL expression.
+    """
+    mu, lmbda = lame_parameters(E, nu, model)
+    domain = extract_unique_domain(u) if constants else None
+    if domain is not None:
+        mu, lmbda = fem.Constant(domain, mu), fem.Constant(domain, lmbda)
+    eps = ufl.sym(ufl.grad(u))
+    return 2.0 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(len(u))
 
 
 def _is_real(value: Any) -> bool:
@@ -262,12 +311,7 @@ class SignoriniProblem:
     @property
     def lame(self) -> tuple[float, float]:
         """Lame parameters (mu, lambda) of the model (plane stress uses the reduced lambda)."""
-        E, nu = self.E, self.nu
-        mu = E / (2.0 * (1.0 + nu))
-        lmbda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
-        if self.model == "plane_stress":
-            lmbda = 2.0 * mu * lmbda / (lmbda + 2.0 * mu)
-        return mu, lmbda
+        return lame_parameters(self.E, self.nu, self.model)
 
     def epsilon(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """Linearised strain eps(u) = sym(grad u)."""
@@ -279,12 +323,7 @@ class SignoriniProblem:
         The Lame parameters enter as dolfinx Constants on the mesh of ``u``, so forms for
         different materials share their compiled code (no new JIT compilation per E, nu).
         """
-        mu, lmbda = self.lame
-        domain = extract_unique_domain(u)
-        if domain is not None:
-            mu, lmbda = fem.Constant(domain, mu), fem.Constant(domain, lmbda)
-        eps = self.epsilon(u)
-        return 2.0 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(len(u))
+        return stress(u, self.E, self.nu, self.model, constants=True)
 
     def elastic_form(self, u: Any, v: Any, dx: ufl.Measure) -> ufl.Form:
         """a(u, v) = (sigma(u), eps(v)) (Section 2)."""

@@ -1,22 +1,10 @@
-"""Data of the three numerical examples of Section 5 of the paper.
+"""Example 5.1 of the paper (Section 5.1): a known solution on Omega = (-3, 0) x (-1, 1).
 
-Everything here is pure problem data; no finite element problem is solved:
-
-* mesh builders returning ``(mesh, facet_tags)`` with the boundary tags :data:`DIRICHLET` (1),
-  :data:`NEUMANN` (2, traction-free) and :data:`CONTACT` (3, the possible contact boundary
-  Gamma_C);
-* UFL expressions of a :func:`ufl.SpatialCoordinate` ``x``: the exact solution of Example 5.1 and
-  its body force, gaps, obstacle, weights of the quantities of interest;
-* the quantities of interest of Section 5 as *goal builders*: each returns a function
-  ``goal(u, lam, m) -> ufl.Form`` where ``m`` provides ``m.x``, ``m.dx``, ``m.ds_contact`` and
-  ``m.sigma(u)`` (see :class:`GoalContext`);
-* exact reference values of the quantities of interest of Example 5.1, computed with numpy by
-  high-order composite Gauss quadrature, independently of any finite element code.
-
-Sign conventions (Section 2): ``n`` is the outer unit normal, ``u_n = u . n``,
-``sigma_nn = n . sigma n`` and the contact pressure (Lagrange multiplier) is
-``lambda_n = -sigma_nn(u)``; Signorini's conditions (2) and (7) read
-``u_n - g <= 0``, ``lambda_n >= 0`` and ``lambda_n (u_n - g) = 0`` on Gamma_C.
+Plane strain, E = 10, nu = 0.3; clamped on Gamma_D = {-3} x [-1, 1], traction-free on
+Gamma_N = (-3, 0) x {-1, 1}, possible contact on Gamma_C = {0} x [-1, 1]. Here are its mesh, the
+exact solution with its body force and gap (UFL, and numpy for checks), the quantities of
+interest J_{a,m} and J_{a,2} with their exact values (numpy composite Gauss quadrature,
+independent of any finite element code), and the problem builder :func:`analytic_problem`.
 """
 
 from __future__ import annotations
@@ -24,8 +12,7 @@ from __future__ import annotations
 import functools
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 from mpi4py import MPI
 
@@ -35,18 +22,12 @@ import ufl
 from dolfinx import mesh as _mesh
 from dolfinx.mesh import CellType, GhostMode, Mesh, MeshTags
 
+from ..problem import SignoriniProblem, VectorData, lame_parameters, stress
+from ._common import Goal, GoalContext, Material
+from ._mesh import CONTACT, DIRICHLET, NEUMANN, check_cell_type, tag_exterior_facets
+
 __all__ = [
     "ANALYTIC_MATERIAL",
-    "BAR_BODY_FORCE",
-    "BAR_GAP",
-    "BAR_J_REF",
-    "BAR_MATERIAL",
-    "CONTACT",
-    "DIRICHLET",
-    "NEUMANN",
-    "OBSTACLE_MATERIAL",
-    "GoalContext",
-    "Material",
     "analytic_2d_mesh",
     "analytic_body_force",
     "analytic_contact_pressure",
@@ -54,10 +35,6 @@ __all__ = [
     "analytic_gap",
     "analytic_problem",
     "analytic_stress",
-    "bar_2d_mesh",
-    "bar_body_force",
-    "bar_gap",
-    "bar_problem",
     "exact_J_a",
     "exact_J_a2",
     "exact_contact_pressure_np",
@@ -68,147 +45,16 @@ __all__ = [
     "goal_a",
     "goal_a2",
     "goal_a2_weight",
-    "goal_bar",
-    "goal_obstacle",
-    "lame_parameters",
-    "obstacle_3d_mesh",
-    "obstacle_gap",
-    "obstacle_problem",
-    "obstacle_psi",
     "omega",
-    "stress",
 ]
 
-#: Facet tag of the Dirichlet boundary Gamma_D.
-DIRICHLET = 1
-#: Facet tag of the (homogeneous, traction-free) Neumann boundary Gamma_N.
-NEUMANN = 2
-#: Facet tag of the possible contact boundary Gamma_C.
-CONTACT = 3
-
-
-# --------------------------------------------------------------------------------------------------
-# Material law
-# --------------------------------------------------------------------------------------------------
-
-
-def lame_parameters(E: float, nu: float, plane_stress: bool = False) -> tuple[float, float]:
-    """Lamé parameters ``(mu, lambda)`` of Hooke's law (Section 2).
-
-    Args:
-        E: Young's modulus.
-        nu: Poisson's ratio.
-        plane_stress: If True, return the plane stress parameter
-            ``lambda* = 2 mu lambda / (lambda + 2 mu) = E nu / (1 - nu^2)`` (Example 5.2);
-            otherwise the 3D / plane strain value ``E nu / ((1 + nu)(1 - 2 nu))``
-            (Examples 5.1 and 5.3).
-
-    Returns:
-        The shear modulus ``mu = E / (2 (1 + nu))`` and the first Lamé parameter.
-    """
-    mu = E / (2.0 * (1.0 + nu))
-    lmbda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
-    if plane_stress:
-        lmbda = 2.0 * mu * lmbda / (lmbda + 2.0 * mu)
-    return mu, lmbda
-
-
-@dataclass(frozen=True)
-class Material:
-    """Isotropic linear-elastic material of one example (Section 5).
-
-    Attributes:
-        E: Young's modulus.
-        nu: Poisson's ratio.
-        plane_stress: Plane stress (True) or plane strain / 3D (False).
-    """
-
-    E: float
-    nu: float
-    plane_stress: bool = False
-
-    def lame(self) -> tuple[float, float]:
-        """Return ``(mu, lambda)``, see :func:`lame_parameters`."""
-        return lame_parameters(self.E, self.nu, self.plane_stress)
-
-    def sigma(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-        """Return the stress tensor ``sigma(u)``, see :func:`stress`."""
-        return stress(u, self.E, self.nu, self.plane_stress)
-
-
 #: Example 5.1: E = 10, nu = 0.3, plane strain.
-ANALYTIC_MATERIAL = Material(E=10.0, nu=0.3, plane_stress=False)
-#: Example 5.2: E = 10, nu = 0.33, plane stress.
-BAR_MATERIAL = Material(E=10.0, nu=0.33, plane_stress=True)
-#: Example 5.3: E = 1e5, nu = 0.3 (3D).
-OBSTACLE_MATERIAL = Material(E=1.0e5, nu=0.3, plane_stress=False)
-
-#: Example 5.2: constant volume force f = (0.5, 0).
-BAR_BODY_FORCE = (0.5, 0.0)
-#: Example 5.2: constant gap g = 0.005.
-BAR_GAP = 0.005
-#: Example 5.2: the paper's reference value of J(u) = int_B grad u : grad u dx, obtained there by
-#: extrapolation of uniformly refined solutions (not an exact value).
-BAR_J_REF = 5.934693870188204e-6
-
-
-def stress(
-    u: ufl.core.expr.Expr, E: float, nu: float, plane_stress: bool = False
-) -> ufl.core.expr.Expr:
-    """Hooke's law ``sigma(u) = 2 mu eps(u) + lambda tr(eps(u)) I`` (Section 2).
-
-    Args:
-        u: Displacement (a UFL vector expression, e.g. a ``dolfinx.fem.Function`` or
-            :func:`analytic_displacement`).
-        E: Young's modulus.
-        nu: Poisson's ratio.
-        plane_stress: Use the plane stress Lamé parameter (2D only), see
-            :func:`lame_parameters`.
-
-    Returns:
-        The symmetric stress tensor as a UFL expression.
-    """
-    mu, lmbda = lame_parameters(E, nu, plane_stress)
-    eps = ufl.sym(ufl.grad(u))
-    return 2.0 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(ufl.shape(u)[0])
+ANALYTIC_MATERIAL = Material(E=10.0, nu=0.3, model="plane_strain")
 
 
 # --------------------------------------------------------------------------------------------------
-# Meshes
+# Mesh
 # --------------------------------------------------------------------------------------------------
-
-
-def _tag_exterior_facets(
-    msh: Mesh, classify: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.int32]]
-) -> MeshTags:
-    """Tag every exterior facet of ``msh`` by its midpoint.
-
-    Works in parallel: each process tags the exterior facets it sees (owned or ghost); facets on
-    process boundaries are interior and are not returned by ``exterior_facet_indices``.
-
-    Args:
-        msh: The mesh.
-        classify: Maps midpoints, shape ``(3, num_facets)``, to tags in {1, 2, 3}.
-
-    Returns:
-        Facet tags on all exterior facets.
-    """
-    tdim = msh.topology.dim
-    fdim = tdim - 1
-    msh.topology.create_connectivity(fdim, tdim)
-    facets = _mesh.exterior_facet_indices(msh.topology)
-    midpoints = _mesh.compute_midpoints(msh, fdim, facets).reshape(-1, 3)
-    values = np.asarray(classify(midpoints.T), dtype=np.int32)
-    if not np.all(np.isin(values, (DIRICHLET, NEUMANN, CONTACT))):
-        raise RuntimeError("an exterior facet was not classified as Dirichlet, Neumann or contact")
-    order = np.argsort(facets)
-    return _mesh.meshtags(msh, fdim, facets[order], values[order])
-
-
-def _check_cell_type(cell_type: CellType, allowed: Sequence[CellType]) -> None:
-    if cell_type not in allowed:
-        names = " or ".join(c.name for c in allowed)
-        raise ValueError(f"cell_type must be {names}, got {cell_type}")
 
 
 def analytic_2d_mesh(
@@ -236,7 +82,7 @@ def analytic_2d_mesh(
     Returns:
         The mesh (``GhostMode.none``) and its exterior facet tags.
     """
-    _check_cell_type(cell_type, (CellType.triangle, CellType.quadrilateral))
+    check_cell_type(cell_type, (CellType.triangle, CellType.quadrilateral))
     msh = _mesh.create_rectangle(
         comm,
         [np.array([-3.0, -1.0]), np.array([0.0, 1.0])],
@@ -252,101 +98,11 @@ def analytic_2d_mesh(
         tags[np.abs(p[0]) < tol] = CONTACT
         return tags
 
-    return msh, _tag_exterior_facets(msh, classify)
-
-
-def bar_2d_mesh(
-    comm: MPI.Comm,
-    nx: int = 4,
-    ny: int = 16,
-    cell_type: CellType = CellType.triangle,
-) -> tuple[Mesh, MeshTags]:
-    """Mesh of Example 5.2 (Section 5.2): the bar Omega = (0, 0.05) x (0, 0.2).
-
-    Tags: 1 on Gamma_D = [0, 0.05] x {0}, 3 on Gamma_C = {0.05} x [0.15, 0.2], 2 on the rest.
-    ``ny`` must be a multiple of 4, so that y = 0.15 (end of Gamma_C) and y = 0.05 (top of the
-    region B = [0, 0.05]^2 of the quantity of interest, see :func:`goal_bar`) are mesh lines.
-
-    Args:
-        comm: MPI communicator.
-        nx: Number of cells in x.
-        ny: Number of cells in y, a multiple of 4.
-        cell_type: ``CellType.triangle`` or ``CellType.quadrilateral``.
-
-    Returns:
-        The mesh (``GhostMode.none``) and its exterior facet tags.
-
-    Raises:
-        ValueError: If ``ny`` is not a multiple of 4 or the cell type is not 2D.
-    """
-    _check_cell_type(cell_type, (CellType.triangle, CellType.quadrilateral))
-    if ny % 4 != 0:
-        raise ValueError(f"ny must be a multiple of 4 (Gamma_C a union of facets), got {ny}")
-    msh = _mesh.create_rectangle(
-        comm,
-        [np.array([0.0, 0.0]), np.array([0.05, 0.2])],
-        [nx, ny],
-        cell_type,
-        ghost_mode=GhostMode.none,
-    )
-    tol = 1.0e-10
-
-    def classify(p: npt.NDArray[np.float64]) -> npt.NDArray[np.int32]:
-        tags = np.full(p.shape[1], NEUMANN, dtype=np.int32)
-        tags[np.abs(p[1]) < tol] = DIRICHLET
-        tags[(np.abs(p[0] - 0.05) < tol) & (p[1] > 0.15)] = CONTACT
-        return tags
-
-    return msh, _tag_exterior_facets(msh, classify)
-
-
-def obstacle_3d_mesh(
-    comm: MPI.Comm,
-    n: Sequence[int] = (2, 8, 8),
-    cell_type: CellType = CellType.tetrahedron,
-) -> tuple[Mesh, MeshTags]:
-    """Mesh of Example 5.3 (Section 5.3): Omega = (0, 0.25) x (0, 1) x (0, 1).
-
-    Tags: 1 on Gamma_D = {x1 = 0}, 3 on Gamma_C = {x1 = 0.25, 0 <= x2, x3 <= 0.5}, 2 on the rest.
-    ``n[1]`` and ``n[2]`` must be even so that Gamma_C is a union of facets; with multiples of 8
-    (the default) the region B = {0.625 <= x2, x3 <= 0.875} of the quantity of interest is also
-    resolved by the mesh (see :func:`goal_obstacle`).
-
-    Args:
-        comm: MPI communicator.
-        n: Numbers of cells in x1, x2, x3.
-        cell_type: ``CellType.tetrahedron`` or ``CellType.hexahedron``.
-
-    Returns:
-        The mesh (``GhostMode.none``) and its exterior facet tags.
-
-    Raises:
-        ValueError: If ``n[1]`` or ``n[2]`` is odd or the cell type is not 3D.
-    """
-    _check_cell_type(cell_type, (CellType.tetrahedron, CellType.hexahedron))
-    n = [int(k) for k in n]
-    if len(n) != 3 or n[1] % 2 != 0 or n[2] % 2 != 0:
-        raise ValueError(f"n must have 3 entries with n[1], n[2] even, got {n}")
-    msh = _mesh.create_box(
-        comm,
-        [np.array([0.0, 0.0, 0.0]), np.array([0.25, 1.0, 1.0])],
-        n,
-        cell_type,
-        ghost_mode=GhostMode.none,
-    )
-    tol = 1.0e-10
-
-    def classify(p: npt.NDArray[np.float64]) -> npt.NDArray[np.int32]:
-        tags = np.full(p.shape[1], NEUMANN, dtype=np.int32)
-        tags[np.abs(p[0]) < tol] = DIRICHLET
-        tags[(np.abs(p[0] - 0.25) < tol) & (p[1] < 0.5) & (p[2] < 0.5)] = CONTACT
-        return tags
-
-    return msh, _tag_exterior_facets(msh, classify)
+    return msh, tag_exterior_facets(msh, classify)
 
 
 # --------------------------------------------------------------------------------------------------
-# Example 5.1: exact solution (UFL)
+# Exact solution, data and weights (UFL)
 # --------------------------------------------------------------------------------------------------
 
 
@@ -394,7 +150,7 @@ def analytic_stress(
     Returns:
         The stress tensor, obtained by UFL differentiation of :func:`analytic_displacement`.
     """
-    return stress(analytic_displacement(x), E, nu, plane_stress=False)
+    return stress(analytic_displacement(x), E, nu, "plane_strain")
 
 
 def analytic_body_force(
@@ -482,94 +238,8 @@ def goal_a2_weight(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
 
 
 # --------------------------------------------------------------------------------------------------
-# Examples 5.2 and 5.3: loads and obstacles (UFL)
-# --------------------------------------------------------------------------------------------------
-
-
-def bar_body_force(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
-    """Constant volume force ``f = (0.5, 0)`` of Example 5.2 (Section 5.2).
-
-    Args:
-        x: Spatial coordinate of a 2D mesh (unused; for a uniform interface).
-
-    Returns:
-        The constant vector expression.
-    """
-    del x
-    return ufl.as_vector(BAR_BODY_FORCE)
-
-
-def bar_gap(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
-    """Constant gap ``g = 0.005`` of Example 5.2 (Section 5.2).
-
-    Args:
-        x: Spatial coordinate of a 2D mesh (unused; for a uniform interface).
-
-    Returns:
-        The constant scalar expression.
-    """
-    del x
-    return ufl.as_ufl(BAR_GAP)
-
-
-def obstacle_psi(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
-    """Obstacle surface psi of Example 5.3 (Section 5.3).
-
-    With ``z = sqrt((x2 - 0.25)^2 + (x3 - 0.25)^2)``:
-    ``psi = 0.25 + 0.05 (65536 z^8 - 1)`` for ``z <= 0.25`` and 0.25 otherwise. Since
-    ``65536 = 4^8``, psi is continuous (and C^0 only) at z = 0.25 and ``psi = 0.2`` at the centre.
-    Written in ``z^2`` (no square root).
-
-    Args:
-        x: Spatial coordinate of a 3D mesh.
-
-    Returns:
-        The scalar expression psi.
-    """
-    z2 = (x[1] - 0.25) ** 2 + (x[2] - 0.25) ** 2
-    return ufl.conditional(ufl.le(z2, 0.0625), 0.25 + 0.05 * (65536.0 * z2**4 - 1.0), 0.25)
-
-
-def obstacle_gap(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
-    """Gap of Example 5.3 (Section 5.3): ``g = psi - 0.25``.
-
-    The contact face is flat (x1 = 0.25, outer normal (1, 0, 0)), so ``g = psi - phi`` with
-    ``phi = 0.25`` (Section 2); ``g = -0.05`` at (x2, x3) = (0.25, 0.25) (the obstacle penetrates
-    the undeformed body) and ``g = 0`` for ``z >= 0.25``.
-
-    Args:
-        x: Spatial coordinate of a 3D mesh.
-
-    Returns:
-        The scalar gap expression.
-    """
-    z2 = (x[1] - 0.25) ** 2 + (x[2] - 0.25) ** 2
-    return ufl.conditional(ufl.le(z2, 0.0625), 0.05 * (65536.0 * z2**4 - 1.0), 0.0)
-
-
-# --------------------------------------------------------------------------------------------------
 # Quantities of interest
 # --------------------------------------------------------------------------------------------------
-
-
-class GoalContext(Protocol):
-    """What a goal builder needs from the solver.
-
-    Attributes:
-        x: ``ufl.SpatialCoordinate`` of the mesh.
-        dx: Cell measure of the mesh.
-        ds_contact: Measure of the contact boundary, e.g. ``ds(CONTACT)``.
-        sigma: Callable returning the stress tensor ``sigma(u)`` of the example's material.
-    """
-
-    x: ufl.core.expr.Expr
-    dx: ufl.Measure
-    ds_contact: ufl.Measure
-    sigma: Callable[[ufl.core.expr.Expr], ufl.core.expr.Expr]
-
-
-#: A quantity of interest ``J(u, lambda_n)`` as a function returning a UFL form.
-Goal = Callable[[ufl.core.expr.Expr, ufl.core.expr.Expr, GoalContext], ufl.Form]
 
 
 def goal_a(m_center: float = -0.5) -> Goal:
@@ -605,51 +275,6 @@ def goal_a2() -> Goal:
     def goal(u: ufl.core.expr.Expr, lam: ufl.core.expr.Expr, m: GoalContext) -> ufl.Form:
         del u
         return goal_a2_weight(m.x) * lam**2 * m.ds_contact
-
-    return goal
-
-
-def goal_bar() -> Goal:
-    """Quantity of interest of Example 5.2 (Section 5.2): J(u) = int_B grad u : grad u dx.
-
-    B = [0, 0.05]^2 is the part y <= 0.05 of the bar (its clamped end). It is represented by a
-    ``ufl.conditional`` indicator evaluated at the quadrature points, which is exact only if B is
-    resolved by the mesh: y = 0.05 is a mesh line of :func:`bar_2d_mesh` (``ny`` a multiple of 4)
-    and stays one under refinement.
-
-    Returns:
-        ``goal(u, lam, m) -> chi_B * inner(grad u, grad u) * m.dx``.
-    """
-
-    def goal(u: ufl.core.expr.Expr, lam: ufl.core.expr.Expr, m: GoalContext) -> ufl.Form:
-        del lam
-        chi_b = ufl.conditional(ufl.le(m.x[1], 0.05 + 1.0e-12), 1.0, 0.0)
-        return chi_b * ufl.inner(ufl.grad(u), ufl.grad(u)) * m.dx
-
-    return goal
-
-
-def goal_obstacle() -> Goal:
-    """Quantity of interest of Example 5.3 (Section 5.3).
-
-    ``J(u, lambda_n) = 1e-3 int_B sigma(u) : sigma(u) dx + int_{Gamma_C} lambda_n ds`` with
-    B = {0.625 <= x2, x3 <= 0.875}. B is represented by a ``ufl.conditional`` indicator at the
-    quadrature points, exact if B is resolved by the mesh (n[1], n[2] multiples of 8 in
-    :func:`obstacle_3d_mesh`, preserved under refinement).
-
-    Returns:
-        ``goal(u, lam, m) -> 1e-3 * chi_B * inner(m.sigma(u), m.sigma(u)) * m.dx
-        + lam * m.ds_contact``.
-    """
-
-    def goal(u: ufl.core.expr.Expr, lam: ufl.core.expr.Expr, m: GoalContext) -> ufl.Form:
-        x = m.x
-        eps = 1.0e-12
-        in_2 = ufl.And(ufl.ge(x[1], 0.625 - eps), ufl.le(x[1], 0.875 + eps))
-        in_3 = ufl.And(ufl.ge(x[2], 0.625 - eps), ufl.le(x[2], 0.875 + eps))
-        chi_b = ufl.conditional(ufl.And(in_2, in_3), 1.0, 0.0)
-        s = m.sigma(u)
-        return 1.0e-3 * chi_b * ufl.inner(s, s) * m.dx + lam * m.ds_contact
 
     return goal
 
@@ -887,16 +512,9 @@ def exact_J_a2(E: float = 10.0, nu: float = 0.3) -> float:
     )
 
 
-# --------------------------------------------------------------------------------------------
-# The three examples as ready SignoriniProblems
-# --------------------------------------------------------------------------------------------
-def _problem(mesh_and_tags: tuple[Mesh, MeshTags], **kwargs: Any) -> Any:
-    from .problem import SignoriniProblem
-
-    msh, tags = mesh_and_tags
-    kwargs.setdefault("contact", CONTACT)
-    kwargs.setdefault("dirichlet", (DIRICHLET,))
-    return SignoriniProblem(msh, tags, **kwargs)
+# --------------------------------------------------------------------------------------------------
+# The problem
+# --------------------------------------------------------------------------------------------------
 
 
 def analytic_problem(
@@ -904,51 +522,42 @@ def analytic_problem(
     nx: int = 12,
     ny: int = 8,
     cell_type: CellType = CellType.quadrilateral,
-    **overrides: Any,
-) -> Any:
-    """Example 5.1 (Section 5.1) on an nx x ny macro mesh; keyword arguments override the data."""
-    kwargs = {
-        "E": ANALYTIC_MATERIAL.E,
-        "nu": ANALYTIC_MATERIAL.nu,
-        "model": "plane_strain",
-        "body_force": analytic_body_force,
-        "gap": analytic_gap,
-    }
-    kwargs.update(overrides)
-    return _problem(analytic_2d_mesh(comm, nx, ny, cell_type), **kwargs)
+    *,
+    E: float = ANALYTIC_MATERIAL.E,
+    nu: float = ANALYTIC_MATERIAL.nu,
+    model: str = ANALYTIC_MATERIAL.model,
+    body_force: VectorData = analytic_body_force,
+    gap: float | Callable[[ufl.SpatialCoordinate], Any] = analytic_gap,
+) -> SignoriniProblem:
+    """Example 5.1 (Section 5.1) on the macro mesh :func:`analytic_2d_mesh`.
 
+    The keyword arguments default to the paper's data; callers change them for variants of the
+    example (e.g. ``gap=1e3`` for a contact-free run).
 
-def bar_problem(
-    comm: MPI.Comm,
-    nx: int = 4,
-    ny: int = 16,
-    cell_type: CellType = CellType.triangle,
-    **overrides: Any,
-) -> Any:
-    """Example 5.2 (Section 5.2): the bar, plane stress, pushed towards the obstacle."""
-    kwargs = {
-        "E": BAR_MATERIAL.E,
-        "nu": BAR_MATERIAL.nu,
-        "model": "plane_stress",
-        "body_force": BAR_BODY_FORCE,
-        "gap": BAR_GAP,
-    }
-    kwargs.update(overrides)
-    return _problem(bar_2d_mesh(comm, nx, ny, cell_type), **kwargs)
+    Args:
+        comm: MPI communicator.
+        nx: Number of macro cells in x.
+        ny: Number of macro cells in y.
+        cell_type: ``CellType.triangle`` or ``CellType.quadrilateral``.
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        model: ``"plane_strain"`` or ``"plane_stress"``.
+        body_force: Volume load, see :class:`~dwr_signorini.SignoriniProblem`
+            (default :func:`analytic_body_force`, of E = 10 and nu = 0.3).
+        gap: Gap on Gamma_C (default :func:`analytic_gap`).
 
-
-def obstacle_problem(
-    comm: MPI.Comm,
-    n: Sequence[int] = (2, 8, 8),
-    cell_type: CellType = CellType.tetrahedron,
-    **overrides: Any,
-) -> Any:
-    """Example 5.3 (Section 5.3): a box pushed by a rigid obstacle, no loads."""
-    kwargs = {
-        "E": OBSTACLE_MATERIAL.E,
-        "nu": OBSTACLE_MATERIAL.nu,
-        "model": "3d",
-        "gap": obstacle_gap,
-    }
-    kwargs.update(overrides)
-    return _problem(obstacle_3d_mesh(comm, n, cell_type), **kwargs)
+    Returns:
+        The problem, clamped on :data:`DIRICHLET` with possible contact on :data:`CONTACT`.
+    """
+    msh, tags = analytic_2d_mesh(comm, nx, ny, cell_type)
+    return SignoriniProblem(
+        msh,
+        tags,
+        contact=CONTACT,
+        dirichlet=(DIRICHLET,),
+        E=E,
+        nu=nu,
+        model=model,
+        body_force=body_force,
+        gap=gap,
+    )
