@@ -134,7 +134,7 @@ def bar_runs(comm: MPI.Comm, adaptive_levels: int, uniform_levels: int, J_ref: f
         if comm.rank == 0:
             print(f"\n=== Example 5.2, {refinement}", flush=True)
         res = ds.solve_adaptive(
-            bar_reference.bar_problem(comm), ex.goal_bar(), refinement=refinement, fraction=0.2,
+            ex.bar_problem(comm), ex.goal_bar(), refinement=refinement, fraction=0.2,
             strategy="fixed_fraction", max_levels=levels, estimator="eta", weights="patch",
             exact=J_ref, callback=callback, verbose=True,
         )
@@ -310,14 +310,6 @@ def classify(mid: np.ndarray, radius: float) -> np.ndarray:
     return region
 
 
-def obstacle_problem(comm: MPI.Comm, n: tuple[int, int, int]) -> ds.SignoriniProblem:
-    msh, tags = ex.obstacle_3d_mesh(comm, n=n)
-    return ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=ex.OBSTACLE_MATERIAL.E,
-        nu=ex.OBSTACLE_MATERIAL.nu, model="3d", gap=ex.obstacle_gap,
-    )
-
-
 def obstacle_runs(comm: MPI.Comm, n: tuple[int, int, int], adaptive_levels: int,
                   uniform_levels: int, fraction: float) -> dict[str, Any]:
     out: dict[str, Any] = {}
@@ -351,7 +343,7 @@ def obstacle_runs(comm: MPI.Comm, n: tuple[int, int, int], adaptive_levels: int,
         if comm.rank == 0:
             print(f"\n=== Example 5.3, {refinement}", flush=True)
         res = ds.solve_adaptive(
-            obstacle_problem(comm, n), ex.goal_obstacle(), refinement=refinement,
+            ex.obstacle_problem(comm, n), ex.goal_obstacle(), refinement=refinement,
             fraction=fraction, max_levels=levels, estimator="eta", weights="patch",
             callback=callback, verbose=True,
         )

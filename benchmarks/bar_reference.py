@@ -49,19 +49,10 @@ RESULTS = Path(__file__).resolve().parent / "results"
 JSON_NAME = "bar_reference.json"
 
 
-def bar_problem(comm: MPI.Comm) -> ds.SignoriniProblem:
-    """Example 5.2 on the coarse mesh of the paper's Table 3 (4 x 16 macro squares, halved)."""
-    msh, tags = ex.bar_2d_mesh(comm, nx=4, ny=16)
-    return ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=ex.BAR_MATERIAL.E,
-        nu=ex.BAR_MATERIAL.nu, model="plane_stress", body_force=ex.BAR_BODY_FORCE, gap=ex.BAR_GAP,
-    )
-
-
 def run(comm: MPI.Comm, refinement: str, weights: str, max_cells: int) -> list[dict[str, Any]]:
     """One run of ``solve_adaptive`` until the next level would exceed ``max_cells``."""
     res = ds.solve_adaptive(
-        bar_problem(comm), ex.goal_bar(), refinement=refinement, fraction=0.2,
+        ex.bar_problem(comm), ex.goal_bar(), refinement=refinement, fraction=0.2,
         strategy="fixed_fraction", max_levels=40, max_cells=max_cells, estimator="eta",
         weights=weights, verbose=True,
     )

@@ -64,21 +64,11 @@ def first_touch_seconds_per_gib(comm: MPI.Comm, gib: float = 0.5) -> tuple[float
 
 
 def problem_2d(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
-    msh, tags = ex.analytic_2d_mesh(comm, 3 * n, 2 * n, cell_type=mesh.CellType.triangle)
-    problem = ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=10.0, nu=0.3,
-        body_force=ex.analytic_body_force, gap=ex.analytic_gap,
-    )
-    return problem, ex.goal_a(-0.5)
+    return ex.analytic_problem(comm, 3 * n, 2 * n, mesh.CellType.triangle), ex.goal_a(-0.5)
 
 
 def problem_3d(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
-    msh, tags = ex.obstacle_3d_mesh(comm, n=(2 * n, 8 * n, 8 * n))
-    problem = ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=1e5, nu=0.3, model="3d",
-        gap=ex.obstacle_gap,
-    )
-    return problem, ex.goal_obstacle()
+    return ex.obstacle_problem(comm, (2 * n, 8 * n, 8 * n)), ex.goal_obstacle()
 
 
 def run(

@@ -70,12 +70,8 @@ def main() -> None:
     comm = MPI.COMM_WORLD
     problems = {}
     if "2d" in args.meshes:
-        msh, tags = ex.analytic_2d_mesh(comm, 3 * args.n_2d, 2 * args.n_2d,
-                                        cell_type=mesh.CellType.triangle)
-        problems["2D (5.1)"] = ds.SignoriniProblem(
-            msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=10.0, nu=0.3,
-            body_force=ex.analytic_body_force, gap=ex.analytic_gap,
-        )
+        problems["2D (5.1)"] = ex.analytic_problem(comm, 3 * args.n_2d, 2 * args.n_2d,
+                                                   mesh.CellType.triangle)
     if "3d" in args.meshes:
         n = args.n_3d
         problems["3D (5.3)"] = ex.obstacle_problem(comm, n=(n, 4 * n, 4 * n))

@@ -152,20 +152,12 @@ GOALS = {
 
 # ## Problem and runs
 #
-# `solve_adaptive` with `refinement="uniform"` refines the macro mesh uniformly; it prints one
-# line per level and writes its table and fields to `out/<goal>_<refinement>/`.
+# `ex.analytic_problem` builds the problem on the 12 x 8 macro mesh. `solve_adaptive` with
+# `refinement="uniform"` refines the macro mesh uniformly; it prints one line per level and
+# writes its table and fields to `out/<goal>_<refinement>/`.
 
 
 # +
-def analytic_problem(nx: int = 12, ny: int = 8) -> ds.SignoriniProblem:
-    msh, tags = ex.analytic_2d_mesh(comm, nx, ny, cell_type=cell_type)
-    mat = ex.ANALYTIC_MATERIAL
-    return ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=mat.E, nu=mat.nu,
-        model="plane_strain", body_force=ex.analytic_body_force, gap=ex.analytic_gap,
-    )
-
-
 results: dict[str, ds.AdaptiveResult] = {}
 for goal_key in args.goals:
     goal, exact, name = GOALS[goal_key]
@@ -173,9 +165,9 @@ for goal_key in args.goals:
         label = f"{name} {refinement}"
         print0(f"\n--- {label}: exact J = {exact:.14e} ---")
         results[label] = ds.solve_adaptive(
-            analytic_problem(), goal, refinement=refinement, fraction=args.fraction,
-            max_levels=args.levels, estimator=args.estimator, weights=args.weights,
-            exact=exact, output_dir=out / f"{goal_key}_{refinement}",
+            ex.analytic_problem(comm, cell_type=cell_type), goal, refinement=refinement,
+            fraction=args.fraction, max_levels=args.levels, estimator=args.estimator,
+            weights=args.weights, exact=exact, output_dir=out / f"{goal_key}_{refinement}",
         )
 # -
 
@@ -224,7 +216,7 @@ sweep_rows = []
 if args.sweep > 0:
     L = args.sweep_level
     tic = time.perf_counter()
-    sol = ds.solve(analytic_problem(12 * 2**L, 8 * 2**L))
+    sol = ds.solve(ex.analytic_problem(comm, 12 * 2**L, 8 * 2**L, cell_type))
     print0(f"\nFigure 4 sweep on level {L}: {sol.disc.num_cells} cells "
            f"(solve {time.perf_counter() - tic:.2f} s)")
     print0(f"{'m':>7} {'J(u)':>14} {'J(u_h)':>14} {'Ieff(eta_p)':>11} {'Ieff(eta)':>9}")

@@ -118,17 +118,13 @@ print0(f"Example 5.2 (bar) on {comm.size} process(es); output in {out}/")
 
 # ## The problem on the initial mesh
 #
-# `ex.bar_2d_mesh` tags $\Gamma_D$ (1), $\Gamma_N$ (2) and $\Gamma_C$ (3); this mesh is the
-# macro mesh $T_H$, its uniform refinement is $T_h$.
+# `ex.bar_problem` builds the problem on the mesh of `ex.bar_2d_mesh`, which tags $\Gamma_D$ (1),
+# $\Gamma_N$ (2) and $\Gamma_C$ (3); this mesh is the macro mesh $T_H$, its uniform refinement is
+# $T_h$.
 
 
 def bar_problem() -> ds.SignoriniProblem:
-    msh, tags = ex.bar_2d_mesh(comm, nx=args.nx, ny=args.ny)
-    mat = ex.BAR_MATERIAL
-    return ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=mat.E, nu=mat.nu,
-        model="plane_stress", body_force=ex.BAR_BODY_FORCE, gap=ex.BAR_GAP,
-    )
+    return ex.bar_problem(comm, args.nx, args.ny)
 
 
 # ## Adaptive and uniform runs

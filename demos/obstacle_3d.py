@@ -114,12 +114,7 @@ print0(f"Example 5.3 (3D obstacle) on {comm.size} process(es); output in {out}/"
 
 # +
 def obstacle_problem() -> ds.SignoriniProblem:
-    msh, tags = ex.obstacle_3d_mesh(comm, n=tuple(args.n))
-    mat = ex.OBSTACLE_MATERIAL
-    return ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=mat.E, nu=mat.nu,
-        model="3d", gap=ex.obstacle_gap,
-    )
+    return ex.obstacle_problem(comm, tuple(args.n))
 
 
 # The first solve of a session loads the compiled forms (JIT); do it before the timed runs.

@@ -23,17 +23,16 @@ def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
         cell_type,
         ghost_mode=mesh.GhostMode.none,
     )
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, fdim + 1)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    y = mesh.compute_midpoints(msh, fdim, facets)[:, 1]
-    values = np.full(len(facets), ex.NEUMANN, dtype=np.int32)
-    values[np.isclose(y, 1.0)] = ex.DIRICHLET
-    values[np.isclose(y, 0.0)] = ex.CONTACT
-    tags = mesh.meshtags(msh, fdim, facets, values)
+
+    def classify(x):
+        values = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
+        values[np.isclose(x[1], 1.0)] = ex.DIRICHLET
+        values[np.isclose(x[1], 0.0)] = ex.CONTACT
+        return values
+
     return ds.SignoriniProblem(
         msh,
-        tags,
+        ex.tag_exterior_facets(msh, classify),
         contact=ex.CONTACT,
         dirichlet=(ex.DIRICHLET,),
         E=E,

@@ -60,21 +60,12 @@ FIRST_ASYMPTOTIC_LEVEL = 3
 
 def bar_problem(comm=MPI.COMM_WORLD, nx=4, ny=16, cell_type=TRI):
     """Example 5.2: the bar, plane stress, pushed towards the obstacle by a volume force."""
-    msh, tags = ex.bar_2d_mesh(comm, nx, ny, cell_type)
-    return ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=ex.BAR_MATERIAL.E,
-        nu=ex.BAR_MATERIAL.nu, model="plane_stress", body_force=ex.BAR_BODY_FORCE,
-        gap=ex.BAR_GAP,
-    )
+    return ex.bar_problem(comm, nx, ny, cell_type)
 
 
 def obstacle_problem(comm=MPI.COMM_WORLD, n=(1, 4, 4), cell_type=TET):
     """Example 5.3 on a coarse box; on the fine mesh (one uniform refinement) B is resolved."""
-    msh, tags = ex.obstacle_3d_mesh(comm, n=n, cell_type=cell_type)
-    return ds.SignoriniProblem(
-        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=ex.OBSTACLE_MATERIAL.E,
-        nu=ex.OBSTACLE_MATERIAL.nu, model="3d", gap=ex.obstacle_gap,
-    )
+    return ex.obstacle_problem(comm, n, cell_type)
 
 
 def allgather(comm, values):

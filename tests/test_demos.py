@@ -141,13 +141,6 @@ def _compare_rows(rows: list[dict], reference: list, rtol: float, what: str) -> 
 # --------------------------------------------------------------------------------------------------
 
 
-def _bar_problem(comm):
-    msh, tags = ex.bar_2d_mesh(comm)
-    mat = ex.BAR_MATERIAL
-    return ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=mat.E, nu=mat.nu,
-                               model="plane_stress", body_force=ex.BAR_BODY_FORCE, gap=ex.BAR_GAP)
-
-
 def test_bar_serial(runs):
     out = runs("bar_2d", 1)
     _check_files(out, ["convergence_cells.png", "convergence_time.png", "effectivity.png",
@@ -159,7 +152,7 @@ def test_bar_serial(runs):
     assert {r["refinement"] for r in table} == {"adaptive", "uniform"}
     for refinement in ("adaptive", "uniform"):
         rows = _csv(out / refinement / f"{refinement}.csv")
-        res = ds.solve_adaptive(_bar_problem(MPI.COMM_SELF), ex.goal_bar(),
+        res = ds.solve_adaptive(ex.bar_problem(MPI.COMM_SELF), ex.goal_bar(),
                                 refinement=refinement, max_levels=2, exact=ex.BAR_J_REF,
                                 verbose=False)
         _compare_rows(rows, res.levels, 1e-10, f"bar {refinement}")
@@ -194,11 +187,7 @@ def test_analytic_serial(runs):
                        "sweep.png", "solution.png", "contact_force.png"],
                  ["a1_uniform", "a2_uniform"])
     rows = _csv(out / "a1_uniform" / "uniform.csv")
-    msh, tags = ex.analytic_2d_mesh(MPI.COMM_SELF, 12, 8)
-    mat = ex.ANALYTIC_MATERIAL
-    problem = ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=mat.E, nu=mat.nu,
-                                  model="plane_strain", body_force=ex.analytic_body_force,
-                                  gap=ex.analytic_gap)
+    problem = ex.analytic_problem(MPI.COMM_SELF, 12, 8)
     res = ds.solve_adaptive(problem, ex.goal_a(-0.5), refinement="uniform", max_levels=1,
                             exact=ex.exact_J_a(-0.5), verbose=False)
     _compare_rows(rows[:1], res.levels, 1e-10, "analytic J_a1 level 0")
@@ -236,10 +225,7 @@ def test_obstacle_serial(runs):
                  ["adaptive", "uniform"])
     rows = _csv(out / "adaptive" / "adaptive.csv")
     assert len(rows) == 2
-    msh, tags = ex.obstacle_3d_mesh(MPI.COMM_SELF, n=(1, 8, 8))
-    mat = ex.OBSTACLE_MATERIAL
-    problem = ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=mat.E, nu=mat.nu,
-                                  model="3d", gap=ex.obstacle_gap)
+    problem = ex.obstacle_problem(MPI.COMM_SELF, (1, 8, 8))
     res = ds.solve_adaptive(problem, ex.goal_obstacle(), refinement="adaptive", max_levels=1,
                             verbose=False)
     _compare_rows(rows[:1], res.levels, 1e-10, "obstacle level 0")

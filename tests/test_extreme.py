@@ -49,15 +49,6 @@ EXACT_DATA = {"quadrature_degree": 8}
 # --------------------------------------------------------------------------------------------------
 
 
-def tag_boundary(msh, classify):
-    """Facet tags of all exterior facets from their midpoints (``classify(x) -> tags``)."""
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, msh.topology.dim)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    values = np.asarray(classify(mesh.compute_midpoints(msh, fdim, facets).T), dtype=np.int32)
-    return mesh.meshtags(msh, fdim, facets, values)
-
-
 def block(comm, nx, ny, lx=1.0, ly=1.0, transform=None, cell_type=TRI):
     """(0, lx) x (0, ly): top clamped, bottom y = 0 in possible contact, sides free.
 
@@ -75,7 +66,7 @@ def block(comm, nx, ny, lx=1.0, ly=1.0, transform=None, cell_type=TRI):
         tags[np.isclose(x[1], 0.0)] = CONTACT
         return tags
 
-    return msh, tag_boundary(msh, classify)
+    return msh, ex.tag_exterior_facets(msh, classify)
 
 
 def cantilever(comm, nx, ny, length, diagonal=mesh.DiagonalType.right):
@@ -95,7 +86,7 @@ def cantilever(comm, nx, ny, length, diagonal=mesh.DiagonalType.right):
         tags[np.isclose(x[1], 0.0) & (x[0] > 1e-12)] = CONTACT
         return tags
 
-    return msh, tag_boundary(msh, classify)
+    return msh, ex.tag_exterior_facets(msh, classify)
 
 
 def make(msh, tags, **kwargs):
@@ -180,8 +171,7 @@ def test_nearly_incompressible_newton_converges(model, nu):
     backward error (relative to ||K|| ||u||), which does not degrade with lambda/mu."""
     comm = MPI.COMM_WORLD
     if model == "3d":  # Example 5.3, load-free, on a coarse mesh: the obstacle pushes the body
-        msh, tags = ex.obstacle_3d_mesh(comm, (1, 4, 4))
-        problem = make(msh, tags, E=1e5, nu=nu, model="3d", gap=ex.obstacle_gap)
+        problem = ex.obstacle_problem(comm, (1, 4, 4), nu=nu)
     else:  # a block pressed on a curved obstacle
         msh, tags = block(comm, 8, 8)
         problem = make(
@@ -200,20 +190,10 @@ def _incompressible_levels(comm, model, nu, num_levels):
     levels = []
     for k in range(num_levels):
         if model == "3d":
-            msh, tags = ex.obstacle_3d_mesh(comm, (2**k, 4 * 2**k, 4 * 2**k))
-            problem = make(msh, tags, E=1e5, nu=nu, model="3d", gap=ex.obstacle_gap)
+            problem = ex.obstacle_problem(comm, (2**k, 4 * 2**k, 4 * 2**k), nu=nu)
             goal = ex.goal_obstacle()
         else:
-            msh, tags = ex.bar_2d_mesh(comm, 2 * 2**k, 8 * 2**k)
-            problem = make(
-                msh,
-                tags,
-                E=ex.BAR_MATERIAL.E,
-                nu=nu,
-                model="plane_strain",
-                body_force=ex.BAR_BODY_FORCE,
-                gap=ex.BAR_GAP,
-            )
+            problem = ex.bar_problem(comm, 2 * 2**k, 8 * 2**k, nu=nu, model="plane_strain")
             goal = ex.goal_bar()
         sol = ds.solve(problem)
         assert sol.num_active > 0
@@ -441,8 +421,7 @@ def test_sharply_varying_gap_3d_obstacle():
     """Example 5.3's obstacle (C^0, 0.05 deep) on a coarse mesh, load-free as in the paper:
     partial contact, the contact conditions hold, the contact force is compressive."""
     comm = MPI.COMM_WORLD
-    msh, tags = ex.obstacle_3d_mesh(comm, (1, 4, 4))
-    sol = ds.solve(make(msh, tags, E=1e5, model="3d", gap=ex.obstacle_gap))
+    sol = ds.solve(ex.obstacle_problem(comm, (1, 4, 4)))
     assert 0 < sol.num_active < sol.disc.num_contact_elements
     assert sol.newton_iterations <= 10
     contact_conditions(sol)
@@ -483,16 +462,7 @@ def _grazing(comm, n):
     """Example 5.1 on the n-times refined 12 x 8 macro mesh: (solution, distance from the
     bi-active state on the facets with |y| > 1/2), the distance being max_i lambda_i / max
     lambda + max_i |(N u - g)_i| / |E_i| / max |g|."""
-    msh, tags = ex.analytic_2d_mesh(comm, 12 * n, 8 * n, TRI)
-    problem = make(
-        msh,
-        tags,
-        E=ex.ANALYTIC_MATERIAL.E,
-        nu=ex.ANALYTIC_MATERIAL.nu,
-        body_force=ex.analytic_body_force,
-        gap=ex.analytic_gap,
-    )
-    sol = ds.solve(problem)
+    sol = ds.solve(ex.analytic_problem(comm, 12 * n, 8 * n, TRI))
     assert sol.newton_iterations <= 6
     r, size, lam = contact_conditions(sol)
     sub = sol.disc.contact_mesh
@@ -763,7 +733,7 @@ def test_dependent_contact_constraints_raise(method, options):
         tags[np.isclose(x[2], 0.0)] = CONTACT
         return tags
 
-    problem = make(msh, tag_boundary(msh, classify), model="3d", gap=-0.01)
+    problem = make(msh, ex.tag_exterior_facets(msh, classify), model="3d", gap=-0.01)
     with pytest.raises(ds.ConvergenceError, match=r"Newton step 0.*singular") as info:
         ds.solve(problem, method=method, petsc_options=options)
     assert len(info.value.history) == 1
@@ -876,8 +846,7 @@ def test_bad_problem_input_names_argument_and_fix():
 
 @pytest.fixture(scope="module")
 def small_problem():
-    msh, tags = ex.analytic_2d_mesh(MPI.COMM_WORLD, 6, 4, TRI)
-    return make(msh, tags, E=10.0, nu=0.3, body_force=ex.analytic_body_force, gap=ex.analytic_gap)
+    return ex.analytic_problem(MPI.COMM_WORLD, 6, 4, TRI)
 
 
 def test_bad_solve_and_estimate_input(small_problem):
@@ -1030,11 +999,7 @@ _KILLED_RUN = textwrap.dedent(
     import dwr_signorini as ds
     from dwr_signorini import examples as ex
 
-    msh, tags = ex.analytic_2d_mesh(MPI.COMM_WORLD, 6, 4, ex.CellType.triangle)
-    problem = ds.SignoriniProblem(
-        msh, tags, contact=3, dirichlet=(1,), E=10.0, nu=0.3,
-        body_force=ex.analytic_body_force, gap=ex.analytic_gap,
-    )
+    problem = ex.analytic_problem(MPI.COMM_WORLD, 6, 4, ex.CellType.triangle)
     ds.solve_adaptive(problem, ex.goal_a(-0.5), max_levels=12, output_dir=sys.argv[1])
     """
 )

@@ -402,16 +402,8 @@ def test_solve_rejects_other_objects():
 
 def _box_compliance(n, cell_type):
     """A contact-free box (gap = 1e3): the compliance int f . u dx of a clamped box."""
-    msh, tags = ex.obstacle_3d_mesh(MPI.COMM_WORLD, (n, 2 * n, 2 * n), cell_type)
-    problem = ds.SignoriniProblem(
-        msh,
-        tags,
-        contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,),
-        E=1.0,
-        nu=0.3,
-        body_force=(1.0, 0.0, 0.5),
-        gap=1e3,
+    problem = obstacle_problem(
+        MPI.COMM_WORLD, (n, 2 * n, 2 * n), cell_type, E=1.0, body_force=(1.0, 0.0, 0.5), gap=1e3
     )
     sol = ds.solve(problem)
     assert sol.num_active == 0

@@ -15,10 +15,11 @@ from dwr_signorini.reconstruction import Reconstructor, _Transfer
 def _disc(kind: str) -> ds.Discretization:
     comm = MPI.COMM_WORLD
     if kind == "triangle":
-        msh, tags = ex.analytic_2d_mesh(comm, 6, 4, cell_type=mesh.CellType.triangle)
+        problem = ex.analytic_problem(comm, 6, 4, mesh.CellType.triangle, E=1.0, body_force=None,
+                                      gap=0.0)
     else:
-        msh, tags = ex.obstacle_3d_mesh(comm, n=(1, 4, 4))
-    return ds.discretize(ds.SignoriniProblem(msh, tags, contact=3, dirichlet=(1,), E=1.0, nu=0.3))
+        problem = ex.obstacle_problem(comm, (1, 4, 4), E=1.0, gap=0.0)
+    return ds.discretize(problem)
 
 
 def _smooth(x: np.ndarray) -> np.ndarray:

@@ -37,10 +37,8 @@ from .test_extreme import _cycling_cantilever
 @pytest.mark.mpi
 def test_iterative_fieldsplit_matches_direct_3d():
     """FGMRES + Schur field split + GAMG reproduces the MUMPS solution, dual and estimate."""
-    msh, tags = ex.obstacle_3d_mesh(MPI.COMM_WORLD, n=(2, 8, 8))
-    problem = ds.SignoriniProblem(
-        msh, tags, contact=3, dirichlet=(1,), E=1e5, nu=0.3, model="3d", gap=ex.obstacle_gap
-    )
+    problem = ex.obstacle_problem(MPI.COMM_WORLD, (2, 8, 8))
+    msh = problem.mesh
     results = []
     for opts in (None, fieldsplit_petsc_options()):
         sol = ds.solve(problem, petsc_options=opts)

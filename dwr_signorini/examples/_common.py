@@ -1,4 +1,4 @@
-"""What the three examples share besides their meshes: the material record and the goal interface.
+"""What the three examples share besides mesh tagging: material record, goal interface, problem.
 
 Hooke's law itself is :func:`dwr_signorini.problem.lame_parameters` and
 :func:`dwr_signorini.problem.stress`; :class:`Material` only holds an example's ``E``, ``nu`` and
@@ -9,13 +9,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import ufl
+from dolfinx.mesh import Mesh, MeshTags
 
-from ..problem import lame_parameters, stress
+from ..problem import SignoriniProblem, lame_parameters, stress
+from ._mesh import CONTACT, DIRICHLET
 
-__all__ = ["Goal", "GoalContext", "Material"]
+__all__ = ["Goal", "GoalContext", "Material", "example_problem"]
 
 
 @dataclass(frozen=True)
@@ -60,3 +62,18 @@ class GoalContext(Protocol):
 
 #: A quantity of interest ``J(u, lambda_n)`` as a function returning a UFL form.
 Goal = Callable[[ufl.core.expr.Expr, ufl.core.expr.Expr, GoalContext], ufl.Form]
+
+
+def example_problem(mesh_and_tags: tuple[Mesh, MeshTags], **data: Any) -> SignoriniProblem:
+    """The problem on an example mesh: clamped on DIRICHLET, possible contact on CONTACT.
+
+    Args:
+        mesh_and_tags: An example's macro mesh and its facet tags.
+        **data: Material, loads and gap, the keyword arguments of
+            :class:`~dwr_signorini.SignoriniProblem`.
+
+    Returns:
+        The problem.
+    """
+    msh, tags = mesh_and_tags
+    return SignoriniProblem(msh, tags, contact=CONTACT, dirichlet=(DIRICHLET,), **data)

@@ -20,7 +20,7 @@ from dolfinx import mesh as _mesh
 from dolfinx.mesh import CellType, GhostMode, Mesh, MeshTags
 
 from ..problem import SignoriniProblem, VectorData
-from ._common import Goal, GoalContext, Material
+from ._common import Goal, GoalContext, Material, example_problem
 from ._mesh import CONTACT, DIRICHLET, NEUMANN, check_cell_type, tag_exterior_facets
 
 __all__ = [
@@ -178,12 +178,8 @@ def bar_problem(
     Returns:
         The problem, clamped on :data:`DIRICHLET` with possible contact on :data:`CONTACT`.
     """
-    msh, tags = bar_2d_mesh(comm, nx, ny, cell_type)
-    return SignoriniProblem(
-        msh,
-        tags,
-        contact=CONTACT,
-        dirichlet=(DIRICHLET,),
+    return example_problem(
+        bar_2d_mesh(comm, nx, ny, cell_type),
         E=E,
         nu=nu,
         model=model,
