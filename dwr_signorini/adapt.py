@@ -19,11 +19,7 @@ from typing import Any
 from mpi4py import MPI
 
 import numpy as np
-import numpy.typing as npt
-import ufl
-from dolfinx import fem
 from dolfinx import mesh as dmesh
-from dolfinx.fem import petsc as fem_petsc
 
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
@@ -31,9 +27,10 @@ from .io import OutputDirectory, check_output_dir, write_csv, write_json
 from .marking import STRATEGIES, mark
 from .newton import METHODS, Solution, solve
 from .problem import SignoriniProblem
-from .reconstruction import Reconstructor
-from .spaces import Discretization, discretize, refine_marked
+from .refine import refine_marked
+from .spaces import discretize
 from .timing import timed
+from .transfer import transfer_solution
 
 __all__ = ["AdaptiveResult", "LevelRecord", "solve_adaptive", "transfer_solution"]
 
@@ -80,6 +77,19 @@ class AdaptiveResult:
     meta: dict[str, Any] = field(default_factory=dict)
     comm: MPI.Comm = field(default_factory=lambda: MPI.COMM_WORLD, repr=False)
 
+    def destroy(self) -> None:
+        """Release the last level's solution and estimate (collective; idempotent)."""
+        if self.solution is not None:
+            self.solution.destroy()
+        if self.estimate is not None:
+            self.estimate.destroy()
+
+    def __enter__(self) -> AdaptiveResult:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.destroy()
+
     def rows(self) -> list[dict[str, Any]]:
         """The table as a list of dicts."""
         return [r.as_dict() for r in self.levels]
@@ -93,92 +103,6 @@ class AdaptiveResult:
         """Write the table and the run's settings as JSON (rank 0 of the mesh communicator)."""
         if self.comm.rank == 0:
             write_json(path, {"meta": self.meta, "levels": self.rows()})
-
-
-def transfer_solution(
-    old: Solution,
-    disc: Discretization,
-    rec: Reconstructor | None = None,
-    macro_parent: npt.NDArray[np.int32] | None = None,
-) -> tuple[fem.Function, fem.Function]:
-    """Warm start on a new discretisation.
-
-    lambda_0 on each new macro contact facet is the facet mean of the old vertex-averaged linear
-    recovery i_2H^(1) lambda_H. u_0 is, with ``macro_parent``, the old i_2h^(2) u_h (the fine
-    nodal values read as macro P2 values, Section 4) evaluated at the new fine nodes, and
-    otherwise u_h interpolated.
-
-    Args:
-        old: The solution on the previous level.
-        disc: The new discretisation.
-        rec: The old level's :class:`Reconstructor` (built if not given).
-        macro_parent: The old macro cell of each cell of the new macro mesh, as returned by
-            :func:`~dwr_signorini.spaces.refine_marked`. With it (simplices) every point is
-            evaluated in its known old macro cell: no point location. Without it, or on
-            quadrilaterals/hexahedra, the reconstructions are interpolated with point location.
-
-    Returns:
-        ``(u0, lam0)`` on ``disc.V`` and ``disc.Q``.
-    """
-    rec = rec or Reconstructor(old.disc)
-    if macro_parent is not None and rec.simplex:
-        return _transfer_by_parents(old, disc, rec, macro_parent)
-    u0 = fem.Function(disc.V, name="u")
-    cells = np.arange(
-        disc.mesh.topology.index_map(disc.mesh.topology.dim).size_local, dtype=np.int32
-    )
-    data = fem.create_interpolation_data(disc.V, old.u.function_space, cells, padding=1e-10)
-    u0.interpolate_nonmatching(old.u, cells, data)
-    u0.x.scatter_forward()
-
-    lam_rec_old = rec.patch_linear_multiplier(old.lam)
-    P1 = fem.functionspace(disc.mesh, ("Lagrange", 1))
-    lam_rec = fem.Function(P1)
-    data = fem.create_interpolation_data(P1, lam_rec_old.function_space, cells, padding=1e-10)
-    lam_rec.interpolate_nonmatching(lam_rec_old, cells, data)
-    lam_rec.x.scatter_forward()
-
-    mu = ufl.TestFunction(disc.Q)
-    num = fem_petsc.assemble_vector(disc.form(lam_rec * mu * disc.m.ds_contact))
-    den = fem_petsc.assemble_vector(disc.form(mu * disc.m.ds_contact))
-    lam0 = fem.Function(disc.Q, name="lambda")
-    n = disc.Q.dofmap.index_map.size_local
-    lam0.x.array[:n] = num.array[:n] / den.array[:n]
-    lam0.x.scatter_forward()
-    num.destroy()
-    den.destroy()
-    return u0, lam0
-
-
-def _transfer_by_parents(
-    old: Solution, disc: Discretization, rec: Reconstructor, macro_parent: npt.NDArray[np.int32]
-) -> tuple[fem.Function, fem.Function]:
-    """:func:`transfer_solution` through the parent maps (simplices, no point location).
-
-    A new fine cell lies in the old macro cell ``macro_parent[disc.parent_cell[c]]``; a new
-    macro contact facet in the old macro cell of its new macro cell. Refined meshes carry no
-    ghost cells, so every local entity has a local, owned cell to evaluate in.
-    """
-    u0 = fem.Function(disc.V, name="u")
-    dofs = disc.V.dofmap.list[: len(disc.parent_cell)]
-    nodes, first = np.unique(dofs.ravel(), return_index=True)
-    cells = macro_parent[disc.parent_cell[first // dofs.shape[1]]]
-    x = disc.V.tabulate_dof_coordinates()[nodes]
-    bs = disc.V.dofmap.index_map_bs
-    u0.x.array.reshape(-1, bs)[nodes] = rec.macro_quadratic(old.u).eval(x, cells)
-    u0.x.scatter_forward()
-
-    macro = disc.macro_mesh
-    tdim = macro.topology.dim
-    facets = disc.contact_mesh_to_macro
-    f2c = macro.topology.connectivity(tdim - 1, tdim)
-    cells = macro_parent[f2c.array[f2c.offsets[facets]]]
-    mids = dmesh.compute_midpoints(macro, tdim - 1, facets)
-    lam0 = fem.Function(disc.Q, name="lambda")
-    lam_H = rec.macro_linear_multiplier(old.lam)
-    lam0.x.array[disc.Q.dofmap.list[:, 0]] = lam_H.eval(mids, cells)[:, 0]
-    lam0.x.scatter_forward()
-    return u0, lam0
 
 
 def _validate(
@@ -336,9 +260,10 @@ def solve_adaptive(
                 else transfer_solution(previous, disc, previous_rec, macro_parent)
             )
         if previous is not None:
-            # PETSc destruction is collective: free the last level's solver on all ranks here
-            # rather than whenever each rank's garbage collector gets to it.
-            previous.system.destroy()
+            # PETSc destruction is collective: free the last level's solver and reconstruction
+            # on all ranks here, as soon as the warm start no longer needs them.
+            previous.destroy()
+            previous_rec.destroy()
         t_setup = time.perf_counter() - t_start
 
         tic = time.perf_counter()

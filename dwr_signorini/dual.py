@@ -1,6 +1,6 @@
 """The discrete dual problem: the transposed system of the last Newton step (Section 4).
 
-With the Newton matrix of the final active set A (see :mod:`dwr_signorini.newton`),
+With the Newton matrix of the final active set A (see :mod:`dwr_signorini.linalg`),
 
     [ K        -N^T D_A ] [y ]   [ J'_u      ]
     [ N         D_I M   ] [xi] = [ J'_lambda ],
@@ -8,11 +8,11 @@ With the Newton matrix of the final active set A (see :mod:`dwr_signorini.newton
 which is the discrete form of the dual problem (11)-(12):
 ``a(v, y) - int chi xi v_n = J'_u(v)`` and ``int mu y_n + int (1 - chi) xi mu = J'_lambda(mu)``,
 chi the indicator of the active macro facets. It is solved by the Newton system with the
-factorisations of the last Newton step (:meth:`~dwr_signorini.newton.NewtonSystem.solve_transpose`),
-so it costs no factorisation: with ``method="block"`` one solve with the factors of the
-symmetric form A_s of the Newton matrix A = L A_s and a sparse back-substitution with L^T
-(:meth:`~dwr_signorini.newton.NewtonSystem.newton_matrix`); with ``method="schur"``, K symmetric
-and eta_A = -xi_A,
+factorisations of the last Newton step (``solve_transpose`` of :mod:`dwr_signorini.linalg`), so
+it costs no factorisation: with ``method="block"`` one solve with the factors of the symmetric
+form A_s of the Newton matrix A = L A_s and a sparse back-substitution with L^T
+(:meth:`~dwr_signorini.linalg.block.NewtonSystem.newton_matrix`); with ``method="schur"``, K
+symmetric and eta_A = -xi_A,
 
     K y + N_A^T eta_A = J'_u,    (N y)_A = J'_lambda,A,    xi_I = (J'_lambda,I - (N y)_I) / M_I,
 
@@ -32,7 +32,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
 from .goal import GoalForms
-from .newton import NewtonSystem
+from .linalg import NewtonLinearSystem
 from .timing import timed
 
 __all__ = ["DualSolution", "dual_rhs", "solve_dual"]
@@ -46,7 +46,7 @@ class DualSolution:
     xi: fem.Function
 
 
-def dual_rhs(system: NewtonSystem, goal: GoalForms, out: PETSc.Vec) -> PETSc.Vec:
+def dual_rhs(system: NewtonLinearSystem, goal: GoalForms, out: PETSc.Vec) -> PETSc.Vec:
     """Assemble [J'_u(w_h); J'_lambda(w_h)] into the block vector ``out`` (zero on Gamma_D)."""
     disc = system.disc
     arr = out.array_w
@@ -69,7 +69,7 @@ def dual_rhs(system: NewtonSystem, goal: GoalForms, out: PETSc.Vec) -> PETSc.Vec
     return out
 
 
-def solve_dual(system: NewtonSystem, goal: GoalForms) -> DualSolution:
+def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:
     """Solve the dual problem (11)-(12) with the transposed last Newton matrix.
 
     Args:

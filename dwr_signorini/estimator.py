@@ -113,6 +113,17 @@ class Estimate:
     timings: dict[str, float] = field(default_factory=dict)
     reconstructor: Reconstructor | None = field(default=None, repr=False)
 
+    def destroy(self) -> None:
+        """Release the PETSc objects of the reconstruction (collective; idempotent)."""
+        if self.reconstructor is not None:
+            self.reconstructor.destroy()
+
+    def __enter__(self) -> Estimate:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.destroy()
+
     @property
     def value(self) -> float:
         """The estimate of J(w) - J(w_h) of the chosen estimator."""
@@ -144,22 +155,28 @@ def _higher_order_solutions(
     sol: Solution, goal: GoalForms, rec: Reconstructor, primal: bool, petsc_options: Any
 ) -> tuple[DualSolution, tuple[fem.Function, fem.Function] | None]:
     """Dual (and primal) solved in P2 on T_h with Lambda_H and the final active set."""
+    # The same kind of linear solver as the primal problem's (block or Schur complement), with
+    # the options prefix <primal prefix>p2_.
     with timed("higher-order solve"):
-        # The same kind of linear solver as the primal problem's (block or Schur complement).
-        system2 = type(sol.system)(sol.disc, petsc_options, V=rec.V2h)
-        system2.solve_active(sol.active)
-        z2 = solve_dual(system2, goal)
-    w2 = None
-    if primal:
-        u2 = fem.Function(rec.V2h, name="u2")
-        lam2 = fem.Function(sol.disc.Q, name="lambda2")
-        u_arr, lam_arr = system2.split(system2.x)
-        u2.x.array[: system2.n_u] = u_arr
-        u2.x.scatter_forward()
-        lam2.x.array[: system2.n_lam] = lam_arr
-        lam2.x.scatter_forward()
-        w2 = (u2, lam2)
-    system2.destroy()
+        system2 = type(sol.system)(
+            sol.disc, petsc_options, V=rec.V2h, prefix=sol.system.prefix + "p2_"
+        )
+    try:
+        with timed("higher-order solve"):
+            system2.solve_active(sol.active)
+            z2 = solve_dual(system2, goal)
+        w2 = None
+        if primal:
+            u2 = fem.Function(rec.V2h, name="u2")
+            lam2 = fem.Function(sol.disc.Q, name="lambda2")
+            u_arr, lam_arr = system2.split(system2.x)
+            u2.x.array[: system2.n_u] = u_arr
+            u2.x.scatter_forward()
+            lam2.x.array[: system2.n_lam] = lam_arr
+            lam2.x.scatter_forward()
+            w2 = (u2, lam2)
+    finally:
+        system2.destroy()
     return z2, w2
 
 
@@ -182,7 +199,8 @@ def estimate(
             and for eta the primal, solved in P2 with Lambda_H and the final active set).
         petsc_options: Linear solver options for the higher-order solves, which use the
             primal's kind of Newton system (block, or Schur complement with these options for
-            K, e.g. :func:`~dwr_signorini.newton.iterative_petsc_options`).
+            K, e.g. :func:`~dwr_signorini.newton.iterative_petsc_options`), under the
+            options prefix ``<prefix of the solve>p2_``.
         quadrature_degree: Quadrature degree of the non-polynomial residual integrals (data);
             polynomial ones are integrated exactly (:mod:`dwr_signorini.quadrature`). The
             default is the degree the solver integrates the load and gap with, so that the

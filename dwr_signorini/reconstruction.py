@@ -229,10 +229,11 @@ class Reconstructor:
         gdim = self.disc.mesh.geometry.dim
         return fem.functionspace(self.disc.macro_mesh, ("Lagrange", 2, (gdim,)))
 
-    def __del__(self) -> None:
-        mass = getattr(self, "_mass", None)
-        if mass is not None:
-            mass.destroy()
+    def destroy(self) -> None:
+        """Destroy the PETSc vector this reconstructor owns (collective; idempotent)."""
+        if self._mass is not None:
+            self._mass.destroy()
+            self._mass = None
 
     def as_fine_p2(self, v: fem.Function) -> fem.Function:
         """A fine P1 function written in the fine P2 space (exact)."""

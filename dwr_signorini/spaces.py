@@ -20,14 +20,19 @@ from mpi4py import MPI
 
 import basix.ufl
 import numpy as np
-import numpy.typing as npt
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
-from dolfinx.cpp import mesh as _cpp_mesh
 
 from .problem import SignoriniProblem
 from .quadrature import DATA_QUADRATURE_DEGREE, expand_integer_powers, is_polynomial
+from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
+    fine_to_macro_facets,
+    num_entities,
+    refine_marked,
+    refine_uniform,
+    refine_with_tags,
+)
 from .timing import timed
 
 __all__ = ["Discretization", "Measures", "discretize"]
@@ -64,170 +69,6 @@ class Measures:
         return self.problem.epsilon(u)
 
 
-def _num_entities(msh: dmesh.Mesh, dim: int) -> int:
-    imap = msh.topology.index_map(dim)
-    return imap.size_local + imap.num_ghosts
-
-
-def refine_uniform(
-    macro: dmesh.Mesh, edges: npt.NDArray[np.int32] | None = None
-) -> tuple[dmesh.Mesh, npt.NDArray[np.int32]]:
-    """One refinement (uniform, or of the given edges), children kept on their parent's process.
-
-    Simplices use ``dolfinx.mesh.refine`` (Plaza's algorithm, which keeps the mesh conforming);
-    quadrilaterals and hexahedra, which dolfinx cannot refine, are split into 4 / 8 by
-    :func:`dwr_signorini.tensor_refine.refine_uniform_tensor` (uniform refinement only).
-
-    Returns:
-        The fine mesh and the parent cell of each local fine cell (parent facets are found
-        geometrically, see :func:`fine_to_macro_facets`).
-    """
-    tdim = macro.topology.dim
-    if macro.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
-        macro.topology.create_entities(1)
-        fine, parent_cell, _ = dmesh.refine(
-            macro, edges, partitioner=None, option=dmesh.RefinementOption.parent_cell
-        )
-        # dolfinx 0.9 returns the parent maps in the order of the cells *before* create_mesh
-        # reordered them; bring them into the fine mesh's local cell order.
-        num_local = fine.topology.index_map(tdim).size_local
-        offset = fine.comm.exscan(num_local) or 0
-        order = np.asarray(fine.topology.original_cell_index[:num_local], dtype=np.int64) - offset
-        if order.size and (order.min() < 0 or order.max() >= len(parent_cell)):
-            raise RuntimeError("unexpected cell numbering of the refined mesh")
-        parent_cell = np.asarray(parent_cell)[order]
-    else:
-        if edges is not None:
-            raise ValueError(
-                "adaptive refinement needs a simplex mesh (triangles/tetrahedra); "
-                "quadrilateral and hexahedral meshes can only be refined uniformly"
-            )
-        from .tensor_refine import refine_uniform_tensor
-
-        fine, parent_cell, _ = refine_uniform_tensor(macro)
-    fine.topology.create_entities(tdim - 1)
-    return fine, np.asarray(parent_cell, dtype=np.int32)
-
-
-def fine_to_macro_facets(
-    macro: dmesh.Mesh,
-    fine: dmesh.Mesh,
-    parent_cell: npt.NDArray[np.int32],
-    macro_facets: npt.NDArray[np.int32] | None = None,
-) -> npt.NDArray[np.int32]:
-    """For each fine facet, the macro facet containing it (-1 for facets inside macro cells).
-
-    Decided geometrically from the parent cell: a facet of a child lies on a facet of its (convex)
-    parent iff its midpoint lies in that facet's hyperplane. Only facets of local fine cells are
-    set. (The ``parent_facet`` array of ``dolfinx.mesh.refine`` is not used: with dolfinx 0.9 it
-    did not match the refined topology's local facet numbering in our checks.)
-
-    Args:
-        macro: The coarse mesh.
-        fine: Its refinement.
-        parent_cell: The macro cell of each local fine cell.
-        macro_facets: Only look for fine facets on these macro facets (local indices; e.g. the
-            tagged ones), and only in the children of their cells; None: all macro facets.
-    """
-    tdim = macro.topology.dim
-    fdim = tdim - 1
-    macro.topology.create_connectivity(tdim, fdim)
-    fine.topology.create_connectivity(tdim, fdim)
-    fine.topology.create_connectivity(fdim, tdim)
-    nf = _cpp_mesh.cell_num_entities(fine.topology.cell_type, fdim)
-    nfm = _cpp_mesh.cell_num_entities(macro.topology.cell_type, fdim)
-    num_fine_cells = fine.topology.index_map(tdim).size_local
-    fine_c2f = fine.topology.connectivity(tdim, fdim).array.reshape(-1, nf)[:num_fine_cells]
-    macro_c2f = macro.topology.connectivity(tdim, fdim).array.reshape(-1, nfm)
-
-    out = np.full(_num_entities(fine, fdim), -1, dtype=np.int32)
-    candidates = macro_c2f[parent_cell[:num_fine_cells]]  # (cells, nfm)
-    wanted = None
-    if macro_facets is not None:
-        wanted = np.zeros(_num_entities(macro, fdim), dtype=bool)
-        wanted[macro_facets] = True
-        cells = np.flatnonzero(wanted[candidates].any(axis=1))
-        fine_c2f, candidates = fine_c2f[cells], candidates[cells]
-    if len(fine_c2f) == 0:  # dolfinx 0.9 fails on empty entity lists
-        return out
-    mids = dmesh.compute_midpoints(fine, fdim, fine_c2f.ravel()).reshape(-1, nf, 1, 3)
-    nodes = dmesh.entities_to_geometry(macro, fdim, candidates.ravel().astype(np.int32), False)
-    x = macro.geometry.x[nodes[:, :tdim]].reshape(-1, 1, nfm, tdim, 3)
-    a = x[..., 0, :]
-    if tdim == 2:
-        t = x[..., 1, :] - a
-        normal = np.stack([-t[..., 1], t[..., 0], np.zeros_like(t[..., 0])], axis=-1)
-    else:
-        normal = np.cross(x[..., 1, :] - a, x[..., 2, :] - a)
-    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
-    h = np.linalg.norm(x[..., 1, :] - a, axis=-1)
-    dist = np.abs(np.sum((mids - a) * normal, axis=-1))  # (cells, nf, nfm)
-    on = dist <= 1e-8 * h
-    if np.any(on.sum(axis=2) > 1):
-        raise RuntimeError("a fine facet lies on two facets of its parent cell")
-    if wanted is not None:
-        on &= wanted[candidates][:, None, :]
-    cells, local, k = np.nonzero(on)
-    out[fine_c2f[cells, local]] = candidates[cells, k]
-    return out
-
-
-def _facet_tags_on_fine(
-    macro_tags: dmesh.MeshTags, fine: dmesh.Mesh, to_macro: npt.NDArray[np.int32], num_macro: int
-) -> dmesh.MeshTags:
-    """Carry facet tags from a mesh to its refinement through the parent-facet map."""
-    fdim = fine.topology.dim - 1
-    tag_of = np.full(num_macro, -1, dtype=np.int32)
-    tag_of[macro_tags.indices] = macro_tags.values
-    fine_facets = np.flatnonzero(to_macro >= 0)
-    values = tag_of[to_macro[fine_facets]]
-    keep = values >= 0
-    return dmesh.meshtags(fine, fdim, fine_facets[keep].astype(np.int32), values[keep])
-
-
-def refine_marked(
-    problem: SignoriniProblem, cells: npt.NDArray[np.int32] | None
-) -> tuple[SignoriniProblem, npt.NDArray[np.int32]]:
-    """Refine the macro mesh at the marked cells (all their edges) and carry the facet tags.
-
-    Args:
-        problem: The problem on the current macro mesh T_H.
-        cells: Local indices of marked macro cells (simplices), or ``None`` for a uniform
-            refinement (any cell type).
-
-    Returns:
-        The problem on the refined macro mesh, and the parent of each new macro cell.
-    """
-    macro = problem.mesh
-    tdim = macro.topology.dim
-    edges = None
-    if cells is not None:
-        macro.topology.create_entities(1)
-        macro.topology.create_connectivity(tdim, 1)
-        edges = np.unique(dmesh.compute_incident_entities(macro.topology, cells, tdim, 1))
-        edges = edges.astype(np.int32)
-    fine, parent_cell, _, tags = _refine_with_tags(problem, edges)
-    return problem.with_mesh(fine, tags), parent_cell
-
-
-def _refine_with_tags(
-    problem: SignoriniProblem, edges: npt.NDArray[np.int32] | None
-) -> tuple[dmesh.Mesh, npt.NDArray[np.int32], npt.NDArray[np.int32], dmesh.MeshTags]:
-    """Refine the macro mesh (:func:`refine_uniform`) and carry its facet tags.
-
-    Returns:
-        The fine mesh, the parent cell of each local fine cell, the macro facet of each fine
-        facet (:func:`fine_to_macro_facets`, for the tagged macro facets) and the fine facet tags.
-    """
-    macro = problem.mesh
-    fdim = macro.topology.dim - 1
-    macro.topology.create_entities(fdim)
-    fine, parent_cell = refine_uniform(macro, edges)
-    to_macro = fine_to_macro_facets(macro, fine, parent_cell, problem.facet_tags.indices)
-    tags = _facet_tags_on_fine(problem.facet_tags, fine, to_macro, _num_entities(macro, fdim))
-    return fine, parent_cell, to_macro, tags
-
-
 class Discretization:
     """Macro mesh, fine mesh, the spaces V_h and Lambda_H and the maps between them.
 
@@ -257,7 +98,7 @@ class Discretization:
         macro.topology.create_entities(fdim)
         macro.topology.create_connectivity(fdim, tdim)
 
-        fine, parent_cell, to_macro, self.facet_tags = _refine_with_tags(problem, None)
+        fine, parent_cell, to_macro, self.facet_tags = refine_with_tags(problem, None)
         self.mesh = fine
         self.parent_cell = parent_cell
         self.fine_to_macro_facet = to_macro
@@ -269,7 +110,7 @@ class Discretization:
         sub, sub_to_macro, _, _ = dmesh.create_submesh(macro, fdim, self.contact_macro_facets)
         self.contact_mesh = sub
         self.contact_mesh_to_macro = np.asarray(sub_to_macro, dtype=np.int32)
-        macro_to_sub = np.full(_num_entities(macro, fdim), -1, dtype=np.int32)
+        macro_to_sub = np.full(num_entities(macro, fdim), -1, dtype=np.int32)
         macro_to_sub[sub_to_macro] = np.arange(len(sub_to_macro), dtype=np.int32)
         fine_to_sub = np.full(len(to_macro), -1, dtype=np.int32)
         fine_contact = self.facet_tags.find(problem.contact)
@@ -358,9 +199,15 @@ class Discretization:
         V_map = self.V.dofmap.index_map
         return V_map.size_global * self.V.dofmap.index_map_bs + self.num_contact_elements
 
-    def form(self, expr: ufl.Form) -> fem.Form:
-        """Compile a form on T_h that may use functions of Q (through the entity maps)."""
-        return fem.form(expr, entity_maps=self.entity_maps)
+    def form(self, expr: ufl.Form, **options: Any) -> fem.Form:
+        """Compile a form on T_h that may use functions of Q (through the entity maps).
+
+        Args:
+            expr: The form.
+            options: Passed to ``dolfinx.fem.form`` (``form_compiler_options``,
+                ``jit_options``).
+        """
+        return fem.form(expr, entity_maps=self.entity_maps, **options)
 
     def macro_form(self, expr: ufl.Form) -> fem.Form:
         """Compile a form on T_H that may use functions of Q."""

@@ -149,7 +149,7 @@ def test_contact_conditions_hold_at_convergence(case):
         # The point of the strip: Gamma_C is shared by the ranks.
         assert comm.allreduce(system.n_lam > 0, op=MPI.LAND)
     _, lam = owned(sol)
-    gap = system.gap_residual(sol.u.x.petsc_vec)  # N u - g, owned rows
+    gap = system.algebra.gap_residual(sol.u.x.petsc_vec)  # N u - g, owned rows
     Mlam = system.M.array * lam
     gap_scale = global_max(comm, system.g.array)
     lam_scale = global_max(comm, Mlam)
@@ -177,7 +177,7 @@ def test_contact_conditions_hold_at_convergence(case):
     for vec in (r, lam_vec, reaction):
         vec.destroy()
     # The NCP residual (20) of the package vanishes too.
-    assert global_max(comm, system.ncp_residual(sol.u.x.petsc_vec, lam)) <= tol * lam_scale
+    assert global_max(comm, system.algebra.ncp_residual(sol.u.x.petsc_vec, lam)) <= tol * lam_scale
 
 
 # --------------------------------------------------------------------------------------------------

@@ -16,7 +16,7 @@ from dolfinx import fem
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini import newton
+from dwr_signorini.linalg import schur
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
 from dwr_signorini.newton import (
@@ -99,7 +99,7 @@ def test_schur_path_matches_block_path(case, solver):
         runs[method] = (sol, z)
     (s0, z0), (s1, z1) = runs["block"], runs["schur"]
     assert isinstance(s1.system, SchurNewtonSystem)
-    assert isinstance(s1.system._schur, KrylovSchurComplement) == (solver == "krylov")
+    assert isinstance(s1.system.schur, KrylovSchurComplement) == (solver == "krylov")
     assert type(s0.system) is NewtonSystem
     n_u, n_lam = s0.system.n_u, s0.system.n_lam
     assert s0.num_active > 0
@@ -134,12 +134,12 @@ def test_schur_complement_from_mumps_inverse_entries(case, monkeypatch):
     S is summed over several requests."""
     from petsc4py import PETSc
 
-    monkeypatch.setattr(newton, "_SCHUR_BLOCK_ENTRIES", 1000)
+    monkeypatch.setattr(schur, "SCHUR_BLOCK_ENTRIES", 1000)
     build, _ = SCHUR_CASES[case]
     comm = MPI.COMM_WORLD
     system = SchurNewtonSystem(discretize(build(comm)))
-    assert isinstance(system._schur, DenseSchurComplement)
-    S, S_solves = system._schur.S, system._schur._compute_by_solves()
+    assert isinstance(system.schur, DenseSchurComplement)
+    S, S_solves = system.schur.S, system.schur.compute_by_solves()
     if comm.rank == 0:
         assert S.shape == (system.n_lam_global,) * 2
         assert np.abs(S - S_solves).max() <= 1e-12 * np.abs(S_solves).max()
@@ -178,7 +178,7 @@ def test_schur_path_bad_input(monkeypatch):
         ds.solve(problem, method="schur", petsc_options={"ksp_type": "preonly", "pc_type": "sor"})
     with pytest.raises(ValueError, match=r"multigrid.*method='schur'"):
         ds.solve(problem, petsc_options=iterative_petsc_options())
-    monkeypatch.setattr(newton, "SCHUR_MAX_MULTIPLIERS", 3)
+    monkeypatch.setattr(schur, "SCHUR_MAX_MULTIPLIERS", 3)
     with pytest.raises(ValueError, match=r"SCHUR_MAX_MULTIPLIERS = 3.*method='block'"):
         ds.solve(problem, method="schur")
     sol = ds.solve(problem, method="schur", petsc_options=iterative_petsc_options())
@@ -201,7 +201,8 @@ def test_dual_needs_a_solved_system():
 @pytest.mark.parametrize("method", METHODS)
 def test_solver_options_reach_mumps_and_are_removed(method):
     """Options read only at the factorisation (mat_mumps_*) reach MUMPS: AMD ordering on 2D
-    meshes by default, the user's choice over it; no option is left in PETSc's database."""
+    meshes by default, the user's choice over it; they stay in PETSc's database while the
+    solution lives and none is left after its destroy()."""
     from petsc4py import PETSc
 
     problem = strip_problem(MPI.COMM_WORLD, 8, 2)
@@ -215,6 +216,8 @@ def test_solver_options_reach_mumps_and_are_removed(method):
         if workspace is not None:
             assert factor.getMumpsIcntl(14) == workspace
         prefix = sol.system.prefix
+        assert PETSc.Options().getInt(prefix + "mat_mumps_icntl_7") == ordering
+        sol.destroy()
         assert not [k for k in PETSc.Options().getAll() if k.startswith(prefix)]
 
 

@@ -1,0 +1,189 @@
+"""The algebra of one mesh (Section 4): K, N, N^T, M, f, g and c_n, assembled once.
+
+K is the stiffness matrix of V_h, f the load vector, N_ij = int_GC psi_i (phi_j . n) the coupling
+of the multipliers psi_i of Lambda_H to the normal displacement, M = diag(|E_i|) (the lumped
+mass of the macro contact facets) and g_i = int_GC g psi_i. The discrete contact conditions (19)
+are written with the NCP function (20),
+
+    C_N(u, lam)_i = (M lam)_i - max(0, (M lam)_i + c_n,i (N u - g)_i) = 0,
+
+whose active set (21) is A = {i : (M lam + c_n (N u - g))_i > 0}.
+
+Choice of c_n: c_n,i = E / H_i with H_i the size of macro contact facet i (length in 2D, square
+root of the area in 3D). (M lam)_i scales like E u H^(d-2) and c_n (N u)_i like E u H^(d-2) too,
+so the active-set test is invariant under scaling E, the loads and the lengths.
+
+:class:`ContactAlgebra` assembles these pieces once per mesh (and per displacement space: the
+higher-order solves assemble them in P2) and owns them; every linear solver of the Newton steps
+(:mod:`dwr_signorini.linalg`) and the dual problem share them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+
+from .quadrature import with_quadrature_degrees
+from .spaces import Discretization
+from .timing import timed
+
+__all__ = ["ContactAlgebra", "distributed_norm"]
+
+
+def distributed_norm(comm: MPI.Comm, local: np.ndarray) -> float:
+    """Euclidean norm of a distributed array given by its owned entries (collective)."""
+    return float(np.sqrt(comm.allreduce(float(local @ local), op=MPI.SUM)))
+
+
+class ContactAlgebra:
+    """K, N, N^T, f, M, g and c_n of one discretisation, with the block layout [u; lam].
+
+    Owns its PETSc objects; release them with :meth:`destroy` (collective).
+
+    Args:
+        disc: The discretisation.
+        V: The displacement space (default ``disc.V``; the P2 space of the higher-order
+            solves).
+        c_n_scale: Factor on c_n,i = E / H_i.
+        compile_options: ``form_compiler_options`` and ``jit_options`` of ``dolfinx.fem.form``
+            (None values are left out).
+
+    Attributes:
+        disc, V: The discretisation and the displacement space.
+        bcs: Homogeneous Dirichlet conditions on V (applied to K, N, N^T, f).
+        K, N, NT, f, M, g: The assembled pieces (PETSc Mat/Vec; M and g on the multiplier rows).
+        c_n: c_n,i on the owned multiplier rows.
+        n_u, n_lam: Owned displacement dofs and multiplier rows of this rank.
+    """
+
+    _petsc_objects = ("K", "N", "NT", "f", "M", "g")
+
+    def __init__(
+        self,
+        disc: Discretization,
+        V: fem.FunctionSpace | None = None,
+        c_n_scale: float = 1.0,
+        compile_options: dict[str, Any] | None = None,
+    ) -> None:
+        self.disc = disc
+        problem = disc.problem
+        V = disc.V if V is None else V
+        Q, m = disc.Q, disc.m
+        self.V = V
+        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        mu = ufl.TestFunction(Q)
+        coupling = ufl.inner(mu, ufl.dot(u, m.n)) * m.ds_contact
+        options = {k: v for k, v in (compile_options or {}).items() if v is not None}
+
+        def form(expr: ufl.Form) -> fem.Form:
+            return disc.form(expr, **options)
+
+        # Non-polynomial loads and gaps at DATA_QUADRATURE_DEGREE, as in the residuals.
+        forms = {
+            "a": form(problem.elastic_form(u, v, m.dx)),
+            "L": form(with_quadrature_degrees(disc.load_form(v))),
+            "N": form(coupling),
+            "NT": form(ufl.adjoint(coupling)),
+            "M": form(mu * m.ds_contact),
+            "g": form(with_quadrature_degrees(problem.gap_expr(m.x) * mu * m.ds_contact)),
+        }
+        self.bcs = disc.bcs if V is disc.V else disc.dirichlet_bcs(V)
+        with timed("assemble"):
+            self.K = self._matrix(forms["a"])
+            self.N = self._matrix(forms["N"])
+            self.NT = self._matrix(forms["NT"])
+            self.f = self._vector(forms["L"])
+            for bc in self.bcs:
+                bc.set(self.f.array_w)
+            self.M = self._vector(forms["M"])
+            self.g = self._vector(forms["g"])
+        fdim = disc.mesh.topology.dim - 1
+        size = self.M.array.copy()
+        size = size if fdim == 1 else np.sqrt(size)
+        self.c_n = problem.E / size * float(c_n_scale)
+        self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        self.n_lam = Q.dofmap.index_map.size_local
+
+    def _matrix(self, form: fem.Form) -> PETSc.Mat:
+        A = fem_petsc.assemble_matrix(form, bcs=self.bcs)
+        A.assemble()
+        return A
+
+    @staticmethod
+    def _vector(form: fem.Form) -> PETSc.Vec:
+        vec = fem_petsc.assemble_vector(form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return vec
+
+    @property
+    def comm(self) -> MPI.Comm:
+        """The communicator of the mesh."""
+        return self.disc.comm
+
+    def destroy(self) -> None:
+        """Destroy the PETSc objects (collective: call on all ranks at the same point)."""
+        for name in self._petsc_objects:
+            obj = getattr(self, name, None)
+            if obj is not None:
+                obj.destroy()
+                setattr(self, name, None)
+
+    # -- the algebraic NCP (eq. 19-21) ---------------------------------------------------------
+    def gap_residual(self, u: PETSc.Vec) -> np.ndarray:
+        """(N u - g) on the owned multiplier rows."""
+        Nu = self.N.createVecLeft()
+        self.N.mult(u, Nu)
+        out = Nu.array - self.g.array
+        Nu.destroy()
+        return out
+
+    def active_set(self, u: PETSc.Vec, lam: np.ndarray) -> np.ndarray:
+        """A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21), owned rows."""
+        return self.M.array * lam + self.c_n * self.gap_residual(u) > 0.0
+
+    def ncp_residual(self, u: PETSc.Vec, lam: np.ndarray) -> np.ndarray:
+        """C_N(u, lam) of eq. (20), owned rows."""
+        Mlam = self.M.array * lam
+        return Mlam - np.maximum(0.0, Mlam + self.c_n * self.gap_residual(u))
+
+    def coupling_force(self, lam: np.ndarray) -> PETSc.Vec:
+        """N^T lam for the owned multiplier values ``lam`` (a new vector; destroy it)."""
+        lam_vec = self.N.createVecLeft()
+        lam_vec.array_w[:] = lam
+        out = self.f.duplicate()
+        self.NT.mult(lam_vec, out)
+        lam_vec.destroy()
+        return out
+
+    def equilibrium_residual(self, u: PETSc.Vec, lam: np.ndarray) -> float:
+        """||K u + N^T lam - f||."""
+        r = self.coupling_force(lam)
+        tmp = self.f.duplicate()
+        self.K.mult(u, tmp)
+        r.axpy(1.0, tmp)
+        r.axpy(-1.0, self.f)
+        norm = r.norm()
+        for obj in (r, tmp):
+            obj.destroy()
+        return norm
+
+    def stiffness_norm(self) -> float:
+        """Max row sum of |K| over the rows that are not Dirichlet rows (collective).
+
+        Dirichlet rows hold a lone 1 on the diagonal; every row of K holds its diagonal entry,
+        so no row is empty.
+        """
+        rows, _, values = self.K.getValuesCSR()
+        row_sum = np.add.reduceat(np.abs(values), rows[:-1]) if len(rows) > 1 else np.zeros(0)
+        diagonal = self.K.getDiagonal()
+        coupled = row_sum > np.abs(diagonal.array) * (1.0 + 1e-14)
+        diagonal.destroy()
+        local = float(np.max(row_sum[coupled], initial=0.0))
+        return self.comm.allreduce(local, op=MPI.MAX)

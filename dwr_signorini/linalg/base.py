@@ -1,0 +1,193 @@
+"""What the linear solvers of the Newton steps share: the algebra, the options, the block layout.
+
+A Newton system (:class:`~dwr_signorini.linalg.block.NewtonSystem`,
+:class:`~dwr_signorini.linalg.schur.SchurNewtonSystem`) solves, for an active set A, the
+linear system of one semi-smooth Newton step
+
+    K u + N^T lam = f,    (N u)_A = g_A,    lam_I = 0,
+
+into the block vector x = [u; lam] (per rank: owned displacement dofs, then owned multiplier
+rows), and the transposed system of the last step (the dual problem, :mod:`dwr_signorini.dual`)
+with the same factorisations.
+
+Lifetimes: a system owns its PETSc objects (its :class:`~dwr_signorini.algebra.ContactAlgebra`,
+solvers, vectors) and its options (:class:`~dwr_signorini.linalg.options.OptionsScope`), and
+releases them in :meth:`NewtonLinearSystem.destroy`, which is collective. Nothing is destroyed
+from ``__del__``, and no helper holds a reference back to its system, so no reference cycle
+keeps PETSc objects alive; an object dropped without ``destroy()`` is released by petsc4py's
+deferred, collective garbage collection (``PETSc.garbage_cleanup``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from petsc4py import PETSc
+
+import numpy as np
+from dolfinx import fem
+
+from ..algebra import ContactAlgebra
+from ..spaces import Discretization
+from .options import OptionsScope, default_petsc_options, unique_prefix
+
+__all__ = ["NewtonLinearSystem"]
+
+
+def _defaults_for(tdim: int, options: dict[str, Any] | None) -> dict[str, Any]:
+    """The default options, without the factorisation's when ``options`` choose another PC."""
+    defaults = default_petsc_options(tdim)
+    if (options or {}).get("pc_type", defaults["pc_type"]) not in ("lu", "cholesky"):
+        defaults = {
+            k: v
+            for k, v in defaults.items()
+            if k != "pc_factor_mat_solver_type" and not k.startswith("mat_mumps_")
+        }
+    return defaults
+
+
+class NewtonLinearSystem:
+    """Base of the Newton systems: algebra, options scope, block vector, active set.
+
+    Args:
+        disc: The discretisation.
+        petsc_options: Options of the linear solver, merged on top of
+            :func:`~dwr_signorini.linalg.options.default_petsc_options`.
+        V: The displacement space (default ``disc.V``).
+        prefix: The options prefix (default: a new unique ``dwr_signorini_<n>_``).
+        c_n_scale: Factor on c_n of the NCP function (20).
+        compile_options: ``form_compiler_options`` and ``jit_options`` for the forms.
+
+    Attributes:
+        algebra: K, N, N^T, M, f, g, c_n of this mesh and space.
+        prefix: The options prefix of the linear solver.
+        options: The options in effect (defaults and ``petsc_options``).
+        ksp: The linear solver (prefix :attr:`prefix`).
+        x: Block vector [u; lam] of the last Newton step (split it with :meth:`split`).
+        active: Active set of the last Newton step (owned multiplier rows).
+        solved: Whether a Newton step was solved, so that :meth:`solve_transpose` can reuse
+            its factorisation.
+    """
+
+    #: Attributes holding PETSc objects (besides the algebra), destroyed by :meth:`destroy`.
+    _petsc_objects: tuple[str, ...] = ("ksp", "x")
+
+    def __init__(
+        self,
+        disc: Discretization,
+        petsc_options: dict[str, Any] | None = None,
+        V: fem.FunctionSpace | None = None,
+        prefix: str | None = None,
+        c_n_scale: float = 1.0,
+        compile_options: dict[str, Any] | None = None,
+    ) -> None:
+        self.disc = disc
+        self.prefix = unique_prefix() if prefix is None else prefix
+        self.algebra = ContactAlgebra(disc, V, c_n_scale, compile_options)
+        self._scope = OptionsScope(
+            self.prefix, _defaults_for(disc.mesh.topology.dim, petsc_options), petsc_options
+        )
+        self.options = self._scope.options
+        self.ksp = PETSc.KSP().create(disc.comm)
+        self._scope.apply(self.ksp)
+        n = self.algebra.n_u + self.algebra.n_lam
+        self.x = PETSc.Vec().createMPI((n, None), comm=disc.comm)
+        self.active = np.zeros(self.algebra.n_lam, dtype=bool)
+        self.solved = False
+
+    # The algebra's pieces, for the callers that read them off the system.
+    @property
+    def V(self) -> fem.FunctionSpace:
+        """The displacement space."""
+        return self.algebra.V
+
+    @property
+    def bcs(self) -> list[fem.DirichletBC]:
+        """Homogeneous Dirichlet conditions on V."""
+        return self.algebra.bcs
+
+    @property
+    def n_u(self) -> int:
+        """Owned displacement dofs of this rank."""
+        return self.algebra.n_u
+
+    @property
+    def n_lam(self) -> int:
+        """Owned multiplier rows of this rank."""
+        return self.algebra.n_lam
+
+    @property
+    def K(self) -> PETSc.Mat:
+        """The stiffness matrix."""
+        return self.algebra.K
+
+    @property
+    def N(self) -> PETSc.Mat:
+        """The coupling matrix N."""
+        return self.algebra.N
+
+    @property
+    def NT(self) -> PETSc.Mat:
+        """N^T, assembled."""
+        return self.algebra.NT
+
+    @property
+    def f(self) -> PETSc.Vec:
+        """The load vector."""
+        return self.algebra.f
+
+    @property
+    def M(self) -> PETSc.Vec:
+        """The diagonal of M (sizes of the macro contact facets)."""
+        return self.algebra.M
+
+    @property
+    def g(self) -> PETSc.Vec:
+        """The gap vector."""
+        return self.algebra.g
+
+    @property
+    def c_n(self) -> np.ndarray:
+        """c_n,i of the NCP function (20) on the owned multiplier rows."""
+        return self.algebra.c_n
+
+    def split(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray]:
+        """Owned parts (u, lam) of a block vector."""
+        return x.array_r[: self.n_u], x.array_r[self.n_u :]
+
+    def write(self, out: PETSc.Vec, u: np.ndarray, lam: np.ndarray) -> None:
+        """Write owned parts (u, lam) into a block vector."""
+        arr = out.array_w
+        arr[: self.n_u] = u
+        arr[self.n_u :] = lam
+
+    def set_loose(self, loose: bool) -> bool:
+        """Loose or full-accuracy linear solves; direct solvers are always exact.
+
+        Returns:
+            Whether the following Newton steps are solved loosely (here never).
+        """
+        return False
+
+    def solve_active(self, active: np.ndarray) -> None:
+        """One Newton step for the active set ``active`` (owned rows) into :attr:`x`."""
+        raise NotImplementedError
+
+    def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
+        """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem)."""
+        raise NotImplementedError
+
+    def check_solved(self) -> None:
+        """RuntimeError if no Newton step was solved (no matrix to transpose)."""
+        if not self.solved:
+            raise RuntimeError("the Newton system has not been solved: no matrix to transpose")
+
+    def destroy(self) -> None:
+        """Destroy the PETSc objects and remove the options (collective; idempotent)."""
+        for name in self._petsc_objects:
+            obj = getattr(self, name, None)
+            if obj is not None:
+                obj.destroy()
+                setattr(self, name, None)
+        self.algebra.destroy()
+        self._scope.destroy()
