@@ -9,6 +9,7 @@
 * Every timed interval is charged to exactly one phase.
 """
 
+import itertools
 import logging
 import os
 import subprocess
@@ -216,7 +217,7 @@ def test_every_timed_interval_is_charged_to_one_phase():
         ds.estimate(sol, ex.goal_a(-0.5), estimator="eta", weights="higher_order").destroy()
     after = timing.snapshot()
     segments = sorted(segments, key=lambda s: s[1])
-    for (_, _, end), (_, start, _) in zip(segments, segments[1:]):
+    for (_, _, end), (_, start, _) in itertools.pairwise(segments):
         assert start >= end
     phases = {s[0] for s in segments}
     assert {"higher-order solve", "assemble", "factorize", "dual solve"} <= phases
