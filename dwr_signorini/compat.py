@@ -1,0 +1,429 @@
+"""One place for the differences between dolfinx 0.9 (Debian trixie) and 0.11 (Debian sid).
+
+Every wrapper detects the feature it needs (``hasattr``, ``inspect.signature``, an import that may
+fail), never a version string, so a dolfinx between or after the two works as long as it has one
+of the two APIs. Each docstring says what differs. Nothing here changes behaviour on 0.9: there
+the wrappers call the 0.9 API with the arguments the package has always used.
+
+Differences the package meets, in short:
+
+* ``create_submesh`` returns :class:`dolfinx.mesh.EntityMap` objects (0.11) instead of arrays
+  (0.9) for the entity and vertex maps: :func:`create_submesh` returns arrays on both.
+* ``fem.form(..., entity_maps=...)`` takes a list of ``EntityMap`` (0.11) instead of a dict
+  ``{mesh: array}`` indexed by the integration domain's entities (0.9): :func:`entity_maps` builds
+  either from the 0.9 dict, including the many-to-one map from fine facets to the cells of a
+  macro facet submesh; :func:`form` compiles with it.
+* ``dolfinx.mesh.refine``: the default partitioner changed (0.11: keep cells on their rank but
+  add a ghost layer); ``partitioner=None`` keeps the refined mesh free of ghost cells on both, and
+  on both the parent arrays come in creation order, not local cell order: :func:`refine`.
+* ``create_mesh(comm, cells, x, e)`` (0.9) became ``create_mesh(comm, cells, e, x)`` (0.11):
+  :func:`create_mesh` passes them by name.
+* ``create_cell_partitioner(mode)`` (0.9) needs ``max_facet_to_cell_links`` (0.11):
+  :func:`cell_partitioner`.
+* ``dolfinx.io.gmshio.model_to_mesh`` -> ``dolfinx.io.gmsh.model_to_mesh``, returning a
+  ``MeshData`` named tuple of six fields instead of three values: :func:`gmsh_model_to_mesh`.
+* ``fem.petsc.LinearProblem`` requires ``petsc_options_prefix`` (0.11): :func:`linear_problem`.
+* ``fem.petsc.create_vector(L)`` takes function spaces (0.11), and the ``*_block`` / ``*_nest``
+  assemblers are gone (0.11: ``assemble_matrix(forms, kind=...)``): :func:`create_vector`,
+  :func:`assemble_matrix_block`.
+* ``element.interpolation_points`` is a property (0.11) instead of a method:
+  :func:`interpolation_points`; ``ufl.Cell.is_simplex`` likewise (ufl 2026): :func:`is_simplex`.
+* ``Geometry.dofmap`` / ``Geometry.cmap`` are deprecated for ``dofmaps[0]`` / ``cmaps[0]``
+  (0.11): :func:`geometry_dofmap`, :func:`geometry_cmap`.
+* ``geometry.bb_tree(mesh, dim, entities)``: ``entities`` is keyword-only (0.11):
+  :func:`bb_tree`; ``PointOwnershipData.dest_cells`` etc. are properties (0.11) instead of
+  methods: :func:`ownership_field`.
+
+Unchanged (checked): ``fem.create_interpolation_data(V_to, V_from, cells, padding)`` and
+``Function.interpolate_nonmatching(u, cells, data)`` (0.11 adds optional ``tol``, ``maxit``);
+``mesh.topology`` is a Python ``Topology`` with ``_cpp_object`` on both; ``fem.petsc.set_bc``,
+``assemble_matrix(form, bcs=...)``, ``assemble_vector(form)``.
+"""
+
+from __future__ import annotations
+
+import inspect
+import itertools
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+__all__ = [
+    "HAS_ENTITY_MAP",
+    "assemble_matrix_block",
+    "bb_tree",
+    "cell_partitioner",
+    "create_mesh",
+    "create_submesh",
+    "create_vector",
+    "entity_maps",
+    "form",
+    "geometry_cmap",
+    "geometry_dofmap",
+    "gmsh_model_to_mesh",
+    "interpolation_points",
+    "is_simplex",
+    "linear_problem",
+    "ownership_field",
+    "refine",
+]
+
+#: dolfinx has ``mesh.EntityMap`` (0.10 and later): submesh maps are objects, and forms take a
+#: list of them instead of a dict of arrays.
+HAS_ENTITY_MAP: bool = hasattr(dmesh, "EntityMap") and hasattr(dmesh, "entity_map")
+
+
+def _num_entities(msh: dmesh.Mesh, dim: int) -> int:
+    imap = msh.topology.index_map(dim)
+    return imap.size_local + imap.num_ghosts
+
+
+def _parameters(func: Callable) -> list[str]:
+    """Parameter names of ``func`` (empty if it has no Python signature, e.g. a nanobind one)."""
+    try:
+        return list(inspect.signature(func).parameters)
+    except (TypeError, ValueError):
+        return []
+
+
+# -- submeshes and entity maps ---------------------------------------------------------------
+
+
+def _entity_map_array(emap: Any, num: int) -> npt.NDArray[np.int32]:
+    """The sub -> parent array of a 0.11 ``EntityMap`` (or a 0.9 array, as it is)."""
+    if hasattr(emap, "sub_topology_to_topology"):
+        return np.asarray(
+            emap.sub_topology_to_topology(np.arange(num, dtype=np.int32), False), dtype=np.int32
+        )
+    return np.asarray(emap, dtype=np.int32)
+
+
+def create_submesh(
+    msh: dmesh.Mesh, dim: int, entities: npt.NDArray[np.int32]
+) -> tuple[dmesh.Mesh, npt.NDArray[np.int32], npt.NDArray[np.int32], npt.NDArray[np.int32]]:
+    """``dolfinx.mesh.create_submesh`` with the maps as arrays, as dolfinx 0.9 returns them.
+
+    What differs: 0.9 returns ``(submesh, entity_map, vertex_map, node_map)`` with int32 arrays
+    (local sub entity -> local parent entity); 0.11 returns :class:`dolfinx.mesh.EntityMap`
+    objects for the first two maps (the node map stays an array). Here all three are arrays on
+    both, covering the submesh's local and ghost entities.
+
+    Returns:
+        ``(submesh, sub_to_parent_entity, sub_to_parent_vertex, sub_to_parent_node)``.
+    """
+    sub, emap, vmap, nodes = dmesh.create_submesh(msh, dim, entities)
+    tdim = sub.topology.dim
+    sub_to_parent = _entity_map_array(emap, _num_entities(sub, tdim))
+    vertices = _entity_map_array(vmap, _num_entities(sub, 0))
+    return sub, sub_to_parent, vertices, np.asarray(nodes, dtype=np.int32)
+
+
+def entity_maps(
+    integration_mesh: dmesh.Mesh, maps: Mapping[dmesh.Mesh, npt.NDArray[np.int32]]
+) -> Any:
+    """The ``entity_maps`` argument of ``fem.form`` from dolfinx 0.9's dict.
+
+    ``maps[other][e]`` is the cell of ``other`` (a mesh whose functions appear in the form) that
+    corresponds to entity ``e`` of ``integration_mesh`` (the mesh of the measures), or -1. The
+    entities are those of dimension ``other.topology.dim``: cells for a cell submesh, facets for
+    a facet submesh; the array covers local and ghost entities. Several entities may map to the
+    same cell: e.g. the 2 (2D) or 4 (3D) fine facets of one macro facet map to that macro facet's
+    cell of a facet submesh of the macro mesh.
+
+    What differs: 0.9 takes this dict as it is. 0.11 takes a list of
+    :class:`dolfinx.mesh.EntityMap`, each relating a "topology" and a "sub_topology" by an array
+    indexed by the sub_topology's entities; a form maps the integration entities to a function's
+    mesh through it, looking the array up directly when the integration mesh is the
+    sub_topology. So the map is built with ``topology=other``, ``sub_topology=integration_mesh``
+    and the same array, which expresses a many-to-one map exactly (the direction
+    ``create_submesh`` uses, submesh -> parent, could not: it holds one parent entity per
+    submesh cell). Checked on 1 and 2 ranks in 2D and 3D against 0.9's assembly.
+
+    Note:
+        In 0.11 the ``EntityMap`` docstring asks for sub_topology to be a sub-topology of
+        topology; this use relies on ``Form`` only reading the array in the direction
+        integration entity -> other cell, which it does in 0.11. Build the result once per
+        mesh pair and reuse it: constructing it copies the arrays.
+    """
+    return _entity_maps(integration_mesh, maps)
+
+
+def _entity_maps(
+    integration_mesh: dmesh.Mesh, maps: Mapping[dmesh.Mesh, npt.NDArray[np.int32]]
+) -> Any:
+    if not HAS_ENTITY_MAP:
+        return {other: np.asarray(array, dtype=np.int32) for other, array in maps.items()}
+    out = []
+    for other, array in maps.items():
+        dim = other.topology.dim
+        integration_mesh.topology.create_entities(dim)
+        array = np.ascontiguousarray(array, dtype=np.int32)
+        if array.shape != (_num_entities(integration_mesh, dim),):
+            raise ValueError(
+                f"entity map has {array.size} entries, the integration mesh has "
+                f"{_num_entities(integration_mesh, dim)} entities of dimension {dim}"
+            )
+        out.append(
+            dmesh.entity_map(
+                _py_topology(other.topology), _py_topology(integration_mesh.topology), dim, array
+            )
+        )
+    return out
+
+
+def _py_topology(topology: Any) -> Any:
+    """The Python ``Topology`` of a Python or C++ topology (a UFL domain carries the C++ mesh)."""
+    return topology if hasattr(topology, "_cpp_object") else dmesh.Topology(topology)
+
+
+def _integration_mesh(expr: Any) -> dmesh.Mesh:
+    integrals = expr.integrals()
+    if not integrals:
+        raise ValueError("the form has no integrals")
+    return integrals[0].ufl_domain().ufl_cargo()
+
+
+def form(expr: Any, entity_maps: Any = None, **kwargs: Any) -> fem.Form:
+    """``fem.form`` with ``entity_maps`` given as 0.9's dict (or as :func:`entity_maps` built it).
+
+    What differs: see :func:`entity_maps`. A dict is converted for the form's integration mesh
+    (the mesh of its first integral's measure); a value already built by :func:`entity_maps`
+    (a dict on 0.9, a list on 0.11) is passed through. ``expr`` is a single UFL form.
+    """
+    if entity_maps is None:
+        return fem.form(expr, **kwargs)
+    if HAS_ENTITY_MAP and isinstance(entity_maps, Mapping):
+        entity_maps = _entity_maps(_integration_mesh(expr), entity_maps)
+    return fem.form(expr, entity_maps=entity_maps, **kwargs)
+
+
+# -- meshes ------------------------------------------------------------------------------------
+
+
+def refine(
+    msh: dmesh.Mesh, edges: npt.NDArray[np.int32] | None = None, *, facets: bool = False
+) -> tuple[dmesh.Mesh, npt.NDArray[np.int32], npt.NDArray[np.int8] | None]:
+    """Refine a simplex mesh (Plaza), children on their parent's rank, no ghost cells.
+
+    Returns ``(fine, parent_cell, parent_facet)`` indexed by the *local cell order of the fine
+    mesh*: ``parent_cell[c]`` is the local parent cell of fine cell ``c`` and, if ``facets``,
+    ``parent_facet[c * nf + j]`` the local facet index (in the parent cell) of the parent facet
+    containing local facet ``j`` of ``c``, or -1 (else ``None``).
+
+    What differs: the default partitioner of ``dolfinx.mesh.refine`` is a redistributing
+    partitioner (0.9) and ``IdentityPartitionerPlaceholder()`` (0.11: cells stay, a ghost layer
+    is added); ``partitioner=None`` means no redistribution and no ghost cells on both (checked on
+    1 and 2 ranks, ghosted and unghosted parents). Common to both: the parent arrays come in the
+    order in which the cells were created, so they are permuted here with
+    ``topology.original_cell_index``.
+
+    Raises:
+        RuntimeError: If the refined mesh has ghost cells or an unexpected cell numbering.
+    """
+    tdim = msh.topology.dim
+    msh.topology.create_entities(1)
+    option = (
+        dmesh.RefinementOption.parent_cell_and_facet
+        if facets
+        else dmesh.RefinementOption.parent_cell
+    )
+    fine, parent_cell, parent_facet = dmesh.refine(msh, edges, partitioner=None, option=option)
+    cells = fine.topology.index_map(tdim)
+    if cells.num_ghosts:
+        raise RuntimeError("the refined mesh has ghost cells")
+    num_local = cells.size_local
+    offset = fine.comm.exscan(num_local) or 0
+    order = np.asarray(fine.topology.original_cell_index[:num_local], dtype=np.int64) - offset
+    parent_cell = np.asarray(parent_cell, dtype=np.int32)
+    if order.size and (order.min() < 0 or order.max() >= len(parent_cell)):
+        raise RuntimeError("unexpected cell numbering of the refined mesh")
+    parent_cell = np.ascontiguousarray(parent_cell[order])
+    if not facets:
+        return fine, parent_cell, None
+    nf = tdim + 1
+    parent_facet = np.asarray(parent_facet, dtype=np.int8).reshape(-1, nf)[order].reshape(-1)
+    return fine, parent_cell, np.ascontiguousarray(parent_facet)
+
+
+def create_mesh(
+    comm: Any, cells: npt.ArrayLike, x: npt.ArrayLike, e: Any, partitioner: Callable | None = None
+) -> dmesh.Mesh:
+    """``dolfinx.mesh.create_mesh`` with 0.9's argument order ``(comm, cells, x, e)``.
+
+    What differs: 0.11 swapped ``x`` and ``e``: ``create_mesh(comm, cells, e, x, partitioner,
+    max_facet_to_cell_links)``. Both name the parameters ``x`` and ``e``, so they are passed by
+    name. The partitioner's signature, ``(comm, nparts, cell_types, cells) -> AdjacencyList``,
+    is the same on both.
+    """
+    return dmesh.create_mesh(comm, cells, x=x, e=e, partitioner=partitioner)
+
+
+def cell_partitioner(ghost_mode: dmesh.GhostMode, max_facet_to_cell_links: int = 2) -> Callable:
+    """``dolfinx.mesh.create_cell_partitioner(ghost_mode)``.
+
+    What differs: 0.11 requires ``max_facet_to_cell_links`` (2 for a manifold mesh); 0.9's
+    binding accepts only the ghost mode.
+    """
+    if "max_facet_to_cell_links" in _parameters(dmesh.create_cell_partitioner):
+        return dmesh.create_cell_partitioner(ghost_mode, max_facet_to_cell_links)
+    return dmesh.create_cell_partitioner(ghost_mode)
+
+
+def gmsh_model_to_mesh(
+    model: Any, comm: Any, rank: int, gdim: int = 3, partitioner: Callable | None = None
+) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
+    """A dolfinx mesh from a gmsh model: ``(mesh, cell_tags, facet_tags)``.
+
+    What differs: 0.9 has ``dolfinx.io.gmshio.model_to_mesh`` returning these three values; 0.11
+    has ``dolfinx.io.gmsh.model_to_mesh`` returning ``MeshData(mesh, cell_tags, facet_tags,
+    ridge_tags, peak_tags, physical_groups)``. Needs the gmsh Python module.
+    """
+    try:
+        from dolfinx.io import gmsh as _gmsh
+
+        model_to_mesh = _gmsh.model_to_mesh
+    except ImportError:
+        from dolfinx.io import gmshio as _gmsh
+
+        model_to_mesh = _gmsh.model_to_mesh
+    data = model_to_mesh(model, comm, rank, gdim=gdim, partitioner=partitioner)
+    if hasattr(data, "facet_tags"):
+        return data.mesh, data.cell_tags, data.facet_tags
+    msh, cell_tags, facet_tags = data
+    return msh, cell_tags, facet_tags
+
+
+def geometry_dofmap(msh: dmesh.Mesh) -> npt.NDArray[np.int32]:
+    """The geometry dofmap (cells x nodes) of a single-cell-type mesh.
+
+    What differs: 0.11 deprecates ``geometry.dofmap`` for ``geometry.dofmaps[0]`` (a
+    ``DeprecationWarning``); 0.9's Python ``Geometry`` has only ``dofmap``.
+    """
+    geometry = msh.geometry
+    if hasattr(geometry, "dofmaps"):
+        dofmaps = geometry.dofmaps
+        return (dofmaps() if callable(dofmaps) else dofmaps)[0]
+    return geometry.dofmap
+
+
+def geometry_cmap(msh: dmesh.Mesh) -> Any:
+    """The coordinate element of a single-cell-type mesh.
+
+    What differs: 0.11 deprecates ``geometry.cmap`` for ``geometry.cmaps[0]``; 0.9's Python
+    ``Geometry`` has only ``cmap``.
+    """
+    geometry = msh.geometry
+    if hasattr(geometry, "cmaps"):
+        cmaps = geometry.cmaps
+        return (cmaps() if callable(cmaps) else cmaps)[0]
+    return geometry.cmap
+
+
+def bb_tree(
+    msh: dmesh.Mesh,
+    dim: int,
+    entities: npt.NDArray[np.int32] | None = None,
+    padding: float = 0.0,
+) -> Any:
+    """``dolfinx.geometry.bb_tree(msh, dim, entities, padding)``.
+
+    What differs: ``entities`` and ``padding`` are keyword-only in 0.11 (positional in 0.9); the
+    names are the same, so they are passed by name.
+    """
+    from dolfinx import geometry
+
+    return geometry.bb_tree(msh, dim, entities=entities, padding=padding)
+
+
+def ownership_field(data: Any, name: str) -> np.ndarray:
+    """A field of ``PointOwnershipData``, e.g. of ``fem.create_interpolation_data``.
+
+    ``name`` is ``src_owner``, ``dest_owner``, ``dest_points`` or ``dest_cells``. What differs:
+    methods in 0.9, properties in 0.11.
+    """
+    value = getattr(data, name)
+    return value() if callable(value) else value
+
+
+# -- forms, elements, solvers ------------------------------------------------------------------
+
+
+def interpolation_points(element: Any) -> np.ndarray:
+    """The reference interpolation points of a ``FunctionSpace.element``.
+
+    What differs: a method in 0.9, a property in 0.11.
+    """
+    points = element.interpolation_points
+    return points() if callable(points) else points
+
+
+def is_simplex(cell: Any) -> bool:
+    """Whether a UFL cell (``domain.ufl_cell()``) is a simplex.
+
+    What differs: ``ufl.Cell.is_simplex`` is a method in ufl 2024.2 (with dolfinx 0.9) and a
+    property in ufl 2026.1 (with dolfinx 0.11).
+    """
+    value = cell.is_simplex
+    return bool(value() if callable(value) else value)
+
+
+_prefix_counter = itertools.count()
+
+
+def linear_problem(
+    a: Any,
+    L: Any,
+    bcs: Sequence[Any] | None = None,
+    petsc_options: Mapping[str, Any] | None = None,
+    petsc_options_prefix: str | None = None,
+    **kwargs: Any,
+) -> Any:
+    """``dolfinx.fem.petsc.LinearProblem`` on both versions.
+
+    What differs: 0.11 requires the keyword ``petsc_options_prefix`` (and makes ``bcs`` keyword-
+    only); 0.9 has no such parameter and sets the options under an internal prefix. Without a
+    prefix, a unique one (``dwr_signorini_lp<n>_``) is used on 0.11 and it is ignored on 0.9.
+    ``solve()`` returns the solution Function on both.
+    """
+    from dolfinx.fem import petsc as fem_petsc
+
+    kwargs = dict(kwargs, bcs=list(bcs or []), petsc_options=dict(petsc_options or {}))
+    if "petsc_options_prefix" in _parameters(fem_petsc.LinearProblem):
+        if petsc_options_prefix is None:
+            petsc_options_prefix = f"dwr_signorini_lp{next(_prefix_counter)}_"
+        kwargs["petsc_options_prefix"] = petsc_options_prefix
+    return fem_petsc.LinearProblem(a, L, **kwargs)
+
+
+def create_vector(L: fem.Form) -> Any:
+    """A PETSc vector (ghosted) for the compiled linear form ``L``.
+
+    What differs: ``fem.petsc.create_vector`` takes the form in 0.9 and its function space(s) in
+    0.11.
+    """
+    from dolfinx.fem import petsc as fem_petsc
+
+    if _parameters(fem_petsc.create_vector)[:1] == ["V"]:
+        return fem_petsc.create_vector(L.function_spaces[0])
+    return fem_petsc.create_vector(L)
+
+
+def assemble_matrix_block(a: Sequence[Sequence[fem.Form]], bcs: Sequence[Any] = ()) -> Any:
+    """One monolithic PETSc matrix (AIJ) of a block of compiled bilinear forms, assembled.
+
+    What differs: 0.9 has ``fem.petsc.assemble_matrix_block``; 0.11 removed the ``*_block`` and
+    ``*_nest`` functions: ``assemble_matrix(a, bcs, kind=None)`` on a list of lists gives the
+    monolithic matrix (``kind=PETSc.Mat.Type.NEST`` a nest).
+    """
+    from dolfinx.fem import petsc as fem_petsc
+
+    if hasattr(fem_petsc, "assemble_matrix_block"):
+        A = fem_petsc.assemble_matrix_block(a, bcs=list(bcs))
+    else:
+        A = fem_petsc.assemble_matrix(a, bcs=list(bcs))
+    A.assemble()
+    return A
