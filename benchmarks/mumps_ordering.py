@@ -25,7 +25,7 @@ from dolfinx import mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.newton import clear_options, default_petsc_options, set_options
+from dwr_signorini.linalg.options import OptionsScope, default_petsc_options
 from dwr_signorini.spaces import discretize
 
 ORDERINGS = {"default (7)": {}, "METIS (5)": {"mat_mumps_icntl_7": 5},
@@ -46,7 +46,8 @@ def factor_times(
     x = f.duplicate()
     for _ in range(repeat):
         ksp = PETSc.KSP().create(K.getComm())
-        names = set_options(ksp, "dwr_signorini_ordering_", options)
+        scope = OptionsScope("dwr_signorini_ordering_", options=options)
+        scope.apply(ksp)
         K.getComm().tompi4py().Barrier()
         tic = time.perf_counter()
         ksp.setOperators(K)
@@ -55,7 +56,7 @@ def factor_times(
         elapsed = K.getComm().tompi4py().allreduce(time.perf_counter() - tic, op=MPI.MAX)
         runs.append((elapsed, ksp.getPC().getFactorMatrix().getMumpsInfog(20)))
         ksp.destroy()
-        clear_options(names)
+        scope.destroy()
     x.destroy()
     return runs
 

@@ -44,10 +44,10 @@ def main() -> None:
         system = newton.SchurNewtonSystem(disc)
         options = newton.default_petsc_options(disc.mesh.topology.dim)
         seconds = {"factor": factor_times(system.K, system.f, options, repeat=1)[0][0]}
-        schur = system._schur
+        schur = system.schur
         results = {}
-        for name, method in (("entries", schur._compute_from_inverse_entries),
-                             ("solves", schur._compute_by_solves)):
+        for name, method in (("entries", schur.compute_from_inverse_entries),
+                             ("solves", schur.compute_by_solves)):
             comm.Barrier()
             tic = time.perf_counter()
             results[name] = method()

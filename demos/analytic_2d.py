@@ -56,7 +56,6 @@
 from __future__ import annotations
 
 import argparse
-import gc
 import sys
 import time
 from pathlib import Path
@@ -229,6 +228,7 @@ if args.sweep > 0:
         sweep_rows.append(row)
         print0(f"{m:7.3f} {exact:14.8e} {est.J_h:14.8e} {row['ieff_p']:11.5f} "
                f"{row['ieff']:9.5f}")
+        est.destroy()
     if comm.rank == 0:
         write_csv(out / "sweep.csv", sweep_rows)
 # -
@@ -281,13 +281,12 @@ if comm.rank == 0:
     print(f"\nwritten to {out}/: {', '.join(written)}")
 # -
 
-# PETSc objects (the MUMPS factorisations of the last level) are destroyed collectively. Release
-# them here, on all processes at the same point, rather than during the interpreter's shutdown,
-# whose order differs between processes (only rank 0 imported matplotlib): that can deadlock.
+# The last levels' solvers (MUMPS factorisations) are released here with `destroy()`, which is
+# collective: every process calls it at the same point.
 
 # +
-for name in ("results", "res", "first", "sol", "est"):
-    globals().pop(name, None)
-gc.collect()
-comm.Barrier()
+for res in results.values():
+    res.destroy()
+if args.sweep > 0:
+    sol.destroy()
 # -

@@ -46,7 +46,6 @@
 from __future__ import annotations
 
 import argparse
-import gc
 import sys
 from pathlib import Path
 
@@ -204,13 +203,10 @@ if comm.rank == 0:
     print(f"\nwritten to {out}/: {', '.join(written)}")
 # -
 
-# PETSc objects (the MUMPS factorisations of the last level) are destroyed collectively. Release
-# them here, on all processes at the same point, rather than during the interpreter's shutdown,
-# whose order differs between processes (only rank 0 imported matplotlib): that can deadlock.
+# The last levels' solvers (MUMPS factorisations) are released here with `destroy()`, which is
+# collective: every process calls it at the same point.
 
 # +
-for name in ("results", "res", "best", "sol"):
-    globals().pop(name, None)
-gc.collect()
-comm.Barrier()
+for res in results.values():
+    res.destroy()
 # -

@@ -21,6 +21,7 @@ from mpi4py import MPI
 import numpy as np
 from dolfinx import mesh as dmesh
 
+from .algebra import check_ncp_scale
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
@@ -188,6 +189,7 @@ def solve_adaptive(
     petsc_options: dict[str, Any] | None = None,
     method: str = "block",
     verbose: bool = True,
+    ncp_scale: str | float = "physical",
 ) -> AdaptiveResult:
     """Goal-oriented adaptive (or uniform) refinement for Signorini's problem.
 
@@ -209,6 +211,9 @@ def solve_adaptive(
         method: Linear algebra of the Newton steps, ``"block"`` or ``"schur"`` (see
             :func:`~dwr_signorini.solve`).
         verbose: Print a progress line per level on rank 0.
+        ncp_scale: c of the NCP function, for the Newton method and the estimator (see
+            :func:`~dwr_signorini.solve`): ``"physical"`` (E / H per macro contact facet) or a
+            number (1.0 reproduces the paper's Tables 1-2).
 
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level.
@@ -236,6 +241,7 @@ def solve_adaptive(
         "estimator": estimator,
         "weights": weights,
         "method": method,
+        "ncp_scale": check_ncp_scale(ncp_scale),
         "exact": exact,
         "num_processes": comm.size,
     }
@@ -267,7 +273,13 @@ def solve_adaptive(
         t_setup = time.perf_counter() - t_start
 
         tic = time.perf_counter()
-        sol = solve(disc, petsc_options=petsc_options, initial_guess=guess, method=method)
+        sol = solve(
+            disc,
+            petsc_options=petsc_options,
+            initial_guess=guess,
+            method=method,
+            ncp_scale=ncp_scale,
+        )
         t_solve = time.perf_counter() - tic
         est = estimate(sol, goal, estimator=estimator, weights=weights, petsc_options=petsc_options)
 

@@ -9,9 +9,12 @@ are written with the NCP function (20),
 
 whose active set (21) is A = {i : (M lam + c_n (N u - g))_i > 0}.
 
-Choice of c_n: c_n,i = E / H_i with H_i the size of macro contact facet i (length in 2D, square
-root of the area in 3D). (M lam)_i scales like E u H^(d-2) and c_n (N u)_i like E u H^(d-2) too,
-so the active-set test is invariant under scaling E, the loads and the lengths.
+Choice of c_n (``ncp_scale``, one c for the Newton method, the dual problem and the estimator,
+see :mod:`dwr_signorini.residuals`): ``"physical"`` (the default) is c_n,i = E / H_i with H_i
+the size of macro contact facet i (length in 2D, square root of the area in 3D). (M lam)_i
+scales like E u H^(d-2) and c_n (N u)_i like E u H^(d-2) too, so the active-set test, and the
+estimator's contact terms, are invariant under scaling E, the loads and the lengths. A number c
+gives c_n,i = c (the paper's c = 1, whose terms add a force per area to a length).
 
 :class:`ContactAlgebra` assembles these pieces once per mesh (and per displacement space: the
 higher-order solves assemble them in P2) and owns them; every linear solver of the Newton steps
@@ -34,7 +37,30 @@ from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
 from .timing import timed
 
-__all__ = ["ContactAlgebra", "distributed_norm"]
+__all__ = ["NCP_SCALES", "ContactAlgebra", "check_ncp_scale", "distributed_norm"]
+
+#: The named choices of ``ncp_scale`` (besides a positive number).
+NCP_SCALES = ("physical",)
+
+
+def check_ncp_scale(ncp_scale: Any) -> str | float:
+    """``ncp_scale`` validated: ``"physical"`` or a finite number > 0 (as a float).
+
+    Raises:
+        ValueError: Anything else, naming the argument.
+    """
+    if isinstance(ncp_scale, str) and ncp_scale in NCP_SCALES:
+        return ncp_scale
+    if (
+        isinstance(ncp_scale, (int, float))
+        and not isinstance(ncp_scale, bool)
+        and 0 < ncp_scale < np.inf
+    ):
+        return float(ncp_scale)
+    raise ValueError(
+        f"ncp_scale must be 'physical' (c = E / H on each macro contact facet) or a finite "
+        f"number c > 0 (e.g. 1.0, the paper's choice), got {ncp_scale!r}"
+    )
 
 
 def distributed_norm(comm: MPI.Comm, local: np.ndarray) -> float:
@@ -51,7 +77,7 @@ class ContactAlgebra:
         disc: The discretisation.
         V: The displacement space (default ``disc.V``; the P2 space of the higher-order
             solves).
-        c_n_scale: Factor on c_n,i = E / H_i.
+        ncp_scale: ``"physical"`` (c_n,i = E / H_i) or a number c (c_n,i = c).
         compile_options: ``form_compiler_options`` and ``jit_options`` of ``dolfinx.fem.form``
             (None values are left out).
 
@@ -60,6 +86,7 @@ class ContactAlgebra:
         bcs: Homogeneous Dirichlet conditions on V (applied to K, N, N^T, f).
         K, N, NT, f, M, g: The assembled pieces (PETSc Mat/Vec; M and g on the multiplier rows).
         c_n: c_n,i on the owned multiplier rows.
+        ncp_scale: The validated ``ncp_scale``.
         n_u, n_lam: Owned displacement dofs and multiplier rows of this rank.
     """
 
@@ -69,7 +96,7 @@ class ContactAlgebra:
         self,
         disc: Discretization,
         V: fem.FunctionSpace | None = None,
-        c_n_scale: float = 1.0,
+        ncp_scale: str | float = "physical",
         compile_options: dict[str, Any] | None = None,
     ) -> None:
         self.disc = disc
@@ -104,10 +131,14 @@ class ContactAlgebra:
                 bc.set(self.f.array_w)
             self.M = self._vector(forms["M"])
             self.g = self._vector(forms["g"])
-        fdim = disc.mesh.topology.dim - 1
-        size = self.M.array.copy()
-        size = size if fdim == 1 else np.sqrt(size)
-        self.c_n = problem.E / size * float(c_n_scale)
+        self.ncp_scale = check_ncp_scale(ncp_scale)
+        if self.ncp_scale == "physical":
+            fdim = disc.mesh.topology.dim - 1
+            size = self.M.array.copy()
+            size = size if fdim == 1 else np.sqrt(size)
+            self.c_n = problem.E / size
+        else:
+            self.c_n = np.full(len(self.M.array), self.ncp_scale)
         self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         self.n_lam = Q.dofmap.index_map.size_local
 

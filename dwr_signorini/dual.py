@@ -5,12 +5,16 @@ With the Newton matrix of the final active set A (see :mod:`dwr_signorini.linalg
     [ K        -N^T D_A ] [y ]   [ J'_u      ]
     [ N         D_I M   ] [xi] = [ J'_lambda ],
 
-which is the discrete form of the dual problem (11)-(12):
+which is the discrete form of the dual problem (11)-(12) with c = 1 in b:
 ``a(v, y) - int chi xi v_n = J'_u(v)`` and ``int mu y_n + int (1 - chi) xi mu = J'_lambda(mu)``,
-chi the indicator of the active macro facets. It is solved by the Newton system with the
-factorisations of the last Newton step (``solve_transpose`` of :mod:`dwr_signorini.linalg`), so
-it costs no factorisation: with ``method="block"`` one solve with the factors of the symmetric
-form A_s of the Newton matrix A = L A_s and a sparse back-substitution with L^T
+chi the indicator of the active macro facets. With the scale c of the NCP
+(:mod:`dwr_signorini.residuals`) the dual problem has ``int c chi xi v_n``; its xi is the
+computed one divided by c on the active facets, which :func:`solve_dual` returns.
+
+It is solved by the Newton system with the factorisations of the last Newton step
+(``solve_transpose`` of :mod:`dwr_signorini.linalg`), so it costs no factorisation: with
+``method="block"`` one solve with the factors of the symmetric form A_s of the Newton matrix
+A = L A_s and a sparse back-substitution with L^T
 (:meth:`~dwr_signorini.linalg.block.NewtonSystem.newton_matrix`); with ``method="schur"``, K
 symmetric and eta_A = -xi_A,
 
@@ -91,7 +95,10 @@ def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:
     xi = fem.Function(system.disc.Q, name="xi")
     y.x.array[: system.n_u] = z.array_r[: system.n_u]
     y.x.scatter_forward()
-    xi.x.array[: system.n_lam] = z.array_r[system.n_u :]
+    # The transposed Newton matrix has the rows of N in its active block, i.e. c = 1 in b_h:
+    # xi = xi^(1) / c on the active facets (see dwr_signorini.residuals).
+    xi_1 = z.array_r[system.n_u :]
+    xi.x.array[: system.n_lam] = np.where(system.active, xi_1 / system.c_n, xi_1)
     xi.x.scatter_forward()
     finite = bool(np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi.x.array)))
     if not system.disc.comm.allreduce(finite, op=MPI.LAND):

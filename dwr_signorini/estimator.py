@@ -5,6 +5,8 @@ With w_h = (u_h, lambda_H), z_h = (y_h, xi_H) and the reconstruction operator A,
     eta_p = rho(w_h)(A z_h - z_h) - C(w_h)(xi_H)                                     (from (13))
     eta   = 1/2 rho(w_h)(A z_h - z_h) + 1/2 rho*(w_h, z_h)(A w_h - w_h) - C(w_h)(xi_H)  (from (15))
 
+The residuals rho, rho* and the contact term C, with the scale c of the NCP that the Newton
+method used (``Solution.ncp_scale``), are in :mod:`dwr_signorini.residuals`, which derives them.
 Every term is a UFL functional; multiplying its integrands by a DG0 test function on T_h gives the
 cell indicators (facet terms go to the adjacent cell), whose signed sum is the estimate.
 """
@@ -28,6 +30,7 @@ from .goal import Goal, GoalForms, localize
 from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
 from .reconstruction import Reconstructor
+from .residuals import contact_violation, dual_residual, primal_residual
 from .timing import timed
 
 __all__ = [
@@ -42,43 +45,6 @@ __all__ = [
 
 ESTIMATORS = ("eta", "eta_p")
 WEIGHTS = ("patch", "higher_order")
-
-
-def ncp_argument(u: Any, lam: Any, gap: Any, n: Any) -> Any:
-    """Lambda + u_n - g, whose sign decides contact in the NCP function (8)."""
-    return lam + ufl.dot(u, n) - gap
-
-
-def contact_violation(u: Any, lam: Any, mu: Any, gap: Any, n: Any, ds_c: ufl.Measure) -> ufl.Form:
-    """C(w)(mu) = (mu, lambda - max(0, lambda + u_n - g))_GC (Section 2, after eq. 8)."""
-    return mu * (lam - ufl.max_value(0.0, ncp_argument(u, lam, gap, n))) * ds_c
-
-
-def primal_residual(sol: Solution, v: Any, mu: Any) -> ufl.Form:
-    """rho(w_h)(v, mu) = l(v) - a(u_h, v) - (lambda_H, v_n)_GC - C(w_h)(mu) (Proposition 4)."""
-    problem, m = sol.disc.problem, sol.disc.m
-    form = sol.disc.load_form(v) - problem.elastic_form(sol.u, v, m.dx)
-    form -= sol.lam * ufl.dot(v, m.n) * m.ds_contact
-    return form - contact_violation(sol.u, sol.lam, mu, problem.gap_expr(m.x), m.n, m.ds_contact)
-
-
-def dual_residual(sol: Solution, goal: GoalForms, z: DualSolution, v: Any, mu: Any) -> ufl.Form:
-    """rho*(w_h, z_h)(v, mu) of Proposition 8.
-
-    ``J'(w_h)(v, mu) - a(v, y_h) + b_h(xi_H, v) - (mu, y_h,n) - c_h(xi_H, mu)`` with
-    ``b_h(xi, v) = int xi chi_h v_n``, ``c_h(xi, mu) = int xi (1 - chi_h) mu`` and the pointwise
-    ``chi_h = [lambda_H + u_h,n - g > 0]``.
-    """
-    problem, m = sol.disc.problem, sol.disc.m
-    chi = ufl.conditional(
-        ufl.gt(ncp_argument(sol.u, sol.lam, problem.gap_expr(m.x), m.n), 0.0), 1.0, 0.0
-    )
-    form = -problem.elastic_form(v, z.y, m.dx)
-    form += z.xi * chi * ufl.dot(v, m.n) * m.ds_contact
-    form -= mu * ufl.dot(z.y, m.n) * m.ds_contact
-    form -= z.xi * (1.0 - chi) * mu * m.ds_contact
-    dJ = goal.directional(v, mu)
-    return form if dJ is None else dJ + form
 
 
 @dataclass
@@ -130,6 +96,14 @@ class Estimate:
         return self.eta if self.estimator == "eta" else self.eta_p
 
 
+def ncp_scale_function(sol: Solution) -> fem.Function:
+    """The c of the NCP function the solution was computed with, as a function on Lambda_H."""
+    c = fem.Function(sol.disc.Q, name="c")
+    c.x.array[: sol.system.n_lam] = sol.system.c_n
+    c.x.scatter_forward()
+    return c
+
+
 def _assemble_indicators(
     disc: Any, forms: list[ufl.Form], DG0: fem.FunctionSpace, degree: int | None
 ) -> list[np.ndarray]:
@@ -159,7 +133,11 @@ def _higher_order_solutions(
     # the options prefix <primal prefix>p2_.
     with timed("higher-order solve"):
         system2 = type(sol.system)(
-            sol.disc, petsc_options, V=rec.V2h, prefix=sol.system.prefix + "p2_"
+            sol.disc,
+            petsc_options,
+            V=rec.V2h,
+            prefix=sol.system.prefix + "p2_",
+            ncp_scale=sol.ncp_scale,
         )
     try:
         with timed("higher-order solve"):
@@ -242,8 +220,9 @@ def estimate(
     w_xi = xi_plus - z.xi
 
     gap, m = disc.problem.gap_expr(disc.m.x), disc.m
-    rho_form = primal_residual(sol, w_y, w_xi)
-    c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact)
+    c = ncp_scale_function(sol)
+    rho_form = primal_residual(sol, w_y, w_xi, c)
+    c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c)
 
     forms = [rho_form, c_form]
     if want_eta:
@@ -256,7 +235,7 @@ def estimate(
                 lam_plus = rec.patch_linear_multiplier(w2[1])
             w_u = rec.weight(u_plus, sol.u)
         w_lam = lam_plus - sol.lam
-        forms.append(dual_residual(sol, goal_forms, z, w_u, w_lam))
+        forms.append(dual_residual(sol, goal_forms, z, w_u, w_lam, c))
     DG0 = fem.functionspace(disc.mesh, ("DG", 0))
     ind_rho, ind_c, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
     ind_star = rest[0] if want_eta else None

@@ -33,7 +33,7 @@ from petsc4py import PETSc
 import numpy as np
 from dolfinx import fem
 
-from .algebra import distributed_norm
+from .algebra import check_ncp_scale, distributed_norm
 from .linalg import (
     LOOSE_RTOL,
     METHODS,
@@ -116,6 +116,8 @@ class Solution:
             (:meth:`~dwr_signorini.linalg.base.NewtonLinearSystem.solve_transpose`).
         num_active: Global number of active macro contact facets (computed once, in
             :func:`solve`: reading it needs no communication).
+        ncp_scale: The c of the NCP function (20) the solution was computed with; the
+            estimator uses the same (:attr:`system`'s ``c_n``).
     """
 
     u: fem.Function
@@ -126,6 +128,7 @@ class Solution:
     disc: Discretization
     system: NewtonLinearSystem = field(repr=False)
     num_active: int = 0
+    ncp_scale: str | float = "physical"
 
     def destroy(self) -> None:
         """Release the Newton system's PETSc objects and options (collective; idempotent)."""
@@ -154,7 +157,7 @@ def solve(
     initial_guess: tuple[fem.Function, fem.Function] | None = None,
     max_iterations: int = 50,
     rtol: float = 1e-8,
-    c_n_scale: float = 1.0,
+    ncp_scale: str | float = "physical",
     method: str = "block",
     petsc_options_prefix: str | None = None,
     form_compiler_options: dict[str, Any] | None = None,
@@ -183,7 +186,7 @@ def solve(
     iterate the convergence test then checks); direct solvers are always exact.
 
     After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
-    lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``c_n_scale`` times E / H_i)
+    lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``ncp_scale``)
     only weighs an initial guess against the gap, and the iterates from a zero initial guess do
     not depend on it.
 
@@ -200,7 +203,10 @@ def solve(
             its terms (max of ||K|| ||u||, ||N^T lam||, ||f||: a backward error, which does not
             grow with lambda/mu or mesh grading), and on the NCP residual (20), entry by entry
             relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|).
-        c_n_scale: Factor on the default c_n,i = E / H_i of the NCP function (20), > 0.
+        ncp_scale: c of the NCP function (20), the same for the Newton method, the dual
+            problem and the estimator (:mod:`dwr_signorini.residuals`): ``"physical"`` (default,
+            c_n,i = E / H_i on macro contact facet i, invariant under a change of units) or a
+            number c > 0 (c_n,i = c; the paper's c = 1 reproduces its Tables 1-2).
         method: Linear solver of the Newton steps, one of :data:`METHODS`. ``"block"``
             (reference, :class:`NewtonSystem`) factors the block Newton matrix in every step
             (``petsc_options`` for the block matrix, e.g. :func:`fieldsplit_petsc_options`);
@@ -245,7 +251,8 @@ def solve(
         or max_iterations < 1
     ):
         raise ValueError(f"max_iterations must be a positive integer, got {max_iterations!r}")
-    for name, value in (("rtol", rtol), ("c_n_scale", c_n_scale)):
+    ncp_scale = check_ncp_scale(ncp_scale)
+    for name, value in (("rtol", rtol),):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < np.inf:
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     if method not in METHODS:
@@ -278,7 +285,7 @@ def solve(
             disc,
             petsc_options,
             prefix=petsc_options_prefix,
-            c_n_scale=c_n_scale,
+            ncp_scale=ncp_scale,
             compile_options={
                 "form_compiler_options": form_compiler_options,
                 "jit_options": jit_options,
@@ -287,7 +294,7 @@ def solve(
     except LinearSolveError as err:
         raise ConvergenceError(str(err), []) from err
     try:
-        return _semismooth_newton(system, initial_guess, max_iterations, rtol, c_n_scale)
+        return _semismooth_newton(system, initial_guess, max_iterations, rtol)
     except BaseException:
         system.destroy()
         raise
@@ -298,7 +305,6 @@ def _semismooth_newton(
     initial_guess: tuple[fem.Function, fem.Function] | None,
     max_iterations: int,
     rtol: float,
-    c_n_scale: float,
 ) -> Solution:
     """The loop of :func:`solve` on a set-up Newton system (see there)."""
     disc = system.disc
@@ -387,7 +393,7 @@ def _semismooth_newton(
                 "num_changed": num_changed,
                 "residual_equilibrium": res_eq,
                 "residual_ncp": rel_ncp,
-                "c_n_scale": float(c_n_scale),
+                "ncp_scale": system.algebra.ncp_scale,
                 "safeguard": safeguard_since is not None,
                 "loose": loose,
             }
@@ -504,5 +510,6 @@ def _semismooth_newton(
         history=history,
         disc=disc,
         system=system,
+        ncp_scale=system.algebra.ncp_scale,
         num_active=comm.allreduce(int(system.active.sum()), op=MPI.SUM),
     )

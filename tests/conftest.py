@@ -1,18 +1,17 @@
 """Shared test set-up: collective clean-up after each test and an MPI-aware temporary directory."""
 
-import gc
-
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import pytest
 
 
 @pytest.fixture(autouse=True)
-def _collective_teardown():
-    """PETSc objects are destroyed collectively: collect garbage on every rank, then wait."""
+def _collective_garbage_cleanup():
+    """PETSc objects a test dropped without destroy() wait in PETSc's garbage (petsc4py defers
+    the destruction of parallel objects): clean it up collectively between tests."""
     yield
-    gc.collect()
-    MPI.COMM_WORLD.Barrier()
+    PETSc.garbage_cleanup(MPI.COMM_WORLD)
 
 
 @pytest.fixture

@@ -137,7 +137,8 @@ def test_adjoint_consistency_for_a_linear_goal(case):
     J_direct = integrate(sol, linear_goal(sol.u, sol.lam, sol.disc.m))
     # Right-hand side of the last Newton system: [f; -D_A g] (see NewtonSystem.solve_active).
     F_u = s.f.array
-    F_lam = np.where(sol.active, -s.g.array, 0.0)
+    # The contact rows of the NCP with scale c read c (N u)_A = c g_A: F_lam = -c g on A.
+    F_lam = np.where(sol.active, -s.c_n * s.g.array, 0.0)
     y = est.dual.y.x.array[: s.n_u]
     xi = est.dual.xi.x.array[: s.n_lam]
     z_dot_F = global_sum(comm, y @ F_u + xi @ F_lam)
@@ -168,9 +169,16 @@ def test_dual_solution_solves_the_discrete_dual_problem(case, goal):
     chi = active_indicator(sol)
     v, mu = ufl.TestFunction(disc.V), ufl.TestFunction(disc.Q)
     J = goal(sol.u, sol.lam, m)
-    sigma = ex.stress(v, E, NU)  # Hooke's law of the examples module, not of the package
+    # Hooke's law written out here (plane strain), independent of the package's.
+    lmbda, mu_s = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))
+    eps = ufl.sym(ufl.grad(v))
+    sigma = 2 * mu_s * eps + lmbda * ufl.tr(eps) * ufl.Identity(2)
     a_vy = assemble_owned(sol, ufl.inner(sigma, ufl.sym(ufl.grad(y))) * m.dx, disc.bcs)
-    b = assemble_owned(sol, chi * xi * ufl.dot(v, m.n) * m.ds_contact, disc.bcs)
+    # b_h(xi, v) = int c chi xi v_n with the scale c of the NCP (dwr_signorini.residuals).
+    c_scale = fem.Function(disc.Q)
+    c_scale.x.array[: sol.system.n_lam] = sol.system.c_n
+    c_scale.x.scatter_forward()
+    b = assemble_owned(sol, c_scale * chi * xi * ufl.dot(v, m.n) * m.ds_contact, disc.bcs)
     dJ_u = ufl.derivative(J, sol.u, v)
     Ju = (
         assemble_owned(sol, dJ_u, disc.bcs)

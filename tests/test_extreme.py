@@ -685,14 +685,14 @@ def _cycling_cantilever(comm):
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("c_n_scale", [1e-6, 1.0, 1e6])
-def test_active_set_cycling_is_broken_by_the_safeguard(c_n_scale):
+@pytest.mark.parametrize("ncp_scale", [1e-6, "physical", 1e6])
+def test_active_set_cycling_is_broken_by_the_safeguard(ncp_scale):
     """The plain active-set iteration revisits an active set on this problem; the solver detects
     it, switches to the least-index rule, and converges to the solution of the contact
-    conditions. Whatever c_n (scaled by 1e-6 ... 1e6), the iterates are the same: after the
+    conditions. Whatever c_n (1e-6, E / H, 1e6), the iterates are the same: after the
     first step, (N u - g)_A = 0 and lambda_I = 0, so c_n drops out of the active-set test."""
     comm = MPI.COMM_WORLD
-    sol = ds.solve(_cycling_cantilever(comm), c_n_scale=c_n_scale)
+    sol = ds.solve(_cycling_cantilever(comm), ncp_scale=ncp_scale)
     assert any(h["safeguard"] for h in sol.history)
     contact_conditions(sol)
     reference = ds.solve(_cycling_cantilever(comm))
@@ -853,7 +853,8 @@ def test_bad_solve_and_estimate_input(small_problem):
     for kwargs, error, match in [
         ({"max_iterations": 0}, ValueError, "max_iterations"),
         ({"rtol": -1.0}, ValueError, "rtol"),
-        ({"c_n_scale": 0.0}, ValueError, "c_n_scale"),
+        ({"ncp_scale": 0.0}, ValueError, "ncp_scale"),
+        ({"ncp_scale": "paper"}, ValueError, "ncp_scale"),
         ({"petsc_options": [("pc_type", "lu")]}, TypeError, "petsc_options must be a dict"),
         ({"initial_guess": (1.0,)}, TypeError, "initial_guess"),
     ]:

@@ -16,9 +16,9 @@ from dolfinx import fem
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.linalg import schur
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
+from dwr_signorini.linalg import schur
 from dwr_signorini.newton import (
     METHODS,
     DenseSchurComplement,

@@ -55,7 +55,7 @@ class NewtonLinearSystem:
             :func:`~dwr_signorini.linalg.options.default_petsc_options`.
         V: The displacement space (default ``disc.V``).
         prefix: The options prefix (default: a new unique ``dwr_signorini_<n>_``).
-        c_n_scale: Factor on c_n of the NCP function (20).
+        ncp_scale: c of the NCP function (20): ``"physical"`` (c_n,i = E / H_i) or a number.
         compile_options: ``form_compiler_options`` and ``jit_options`` for the forms.
 
     Attributes:
@@ -78,12 +78,12 @@ class NewtonLinearSystem:
         petsc_options: dict[str, Any] | None = None,
         V: fem.FunctionSpace | None = None,
         prefix: str | None = None,
-        c_n_scale: float = 1.0,
+        ncp_scale: str | float = "physical",
         compile_options: dict[str, Any] | None = None,
     ) -> None:
         self.disc = disc
         self.prefix = unique_prefix() if prefix is None else prefix
-        self.algebra = ContactAlgebra(disc, V, c_n_scale, compile_options)
+        self.algebra = ContactAlgebra(disc, V, ncp_scale, compile_options)
         self._scope = OptionsScope(
             self.prefix, _defaults_for(disc.mesh.topology.dim, petsc_options), petsc_options
         )

@@ -1,0 +1,111 @@
+r"""The residuals of Section 3 with a scale-consistent NCP: rho, rho*, C and the indicator chi_h.
+
+**The NCP with a scale c.** For any c > 0 (a number, or a positive function on Gamma_C, here
+piecewise constant c_i on the macro contact facets), the contact conditions
+lambda >= 0, u_n - g <= 0, lambda (u_n - g) = 0 are equivalent to
+
+    lambda - max(0, lambda + c (u_n - g)) = 0.
+
+The package uses one c everywhere (``ncp_scale`` of :func:`~dwr_signorini.solve`, the ``c_n`` of
+:mod:`dwr_signorini.algebra`): ``"physical"``, c_i = E / H_i, by default, so that
+lambda + c (u_n - g) is a force per area in any units; c = 1 is the paper's choice.
+
+**The forms.** With w = (u, lambda), phi = (v, mu),
+
+    C(w)(mu)      = (mu, lambda - max(0, lambda + c (u_n - g)))_GC,
+    rho(w)(phi)   = l(v) - a(u, v) - (lambda, v_n)_GC - C(w)(mu),
+
+so w solves the problem iff rho(w)(phi) = 0 for all phi. The error identities (13) and (15)
+are those of the Lagrangian L(w, z) = J(w) + rho(w)(z) and hold for every c > 0, provided the
+dual problem is the linearisation of the same rho at w_h. Its derivative, with the pointwise
+indicator chi_h = [lambda_h + c (u_h,n - g) > 0], is
+
+    C'(w_h)(dv, dmu)(mu) = (mu, (1 - chi_h) dmu - c chi_h dv_n)_GC,
+
+so the dual problem (11)-(12) reads, for z = (y, xi),
+
+    a(v, y) - b_h(xi, v) = J'_u(v),        (mu, y_n)_GC + c_h(xi, mu) = J'_lambda(mu),
+    b_h(xi, v) = (c chi_h xi, v_n)_GC,     c_h(xi, mu) = ((1 - chi_h) xi, mu)_GC:
+
+the form b carries c, the form c does not. The dual residual (Proposition 8) is
+
+    rho*(w_h, z_h)(phi) = J'(w_h)(phi) - a(v, y_h) + b_h(xi_h, v) - (mu, y_h,n)_GC
+                          - c_h(xi_h, mu).
+
+**The discrete dual.** The transposed Newton matrix (:mod:`dwr_signorini.dual`) has the rows
+of N, not of c N, in its active block: its solution xi^(1) is that of c = 1 in b_h. Since chi
+of the discrete dual is the active set A of whole macro facets and c is constant on each,
+xi = xi^(1) / c on A and xi = xi^(1) off A (:func:`~dwr_signorini.dual.solve_dual` returns
+xi). Then C(w_h)(xi_H) is independent of c where the discrete and pointwise contact sets
+agree; where the obstacle penetrates an inactive facet pointwise (unresolved contact),
+-C(w_h)(xi_H) = (xi_H, c (u_h,n - g))_GC there, which needs the physical c to be of the right
+size.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import ufl
+
+from .dual import DualSolution
+from .goal import GoalForms
+
+__all__ = [
+    "active_indicator",
+    "contact_violation",
+    "dual_residual",
+    "ncp_argument",
+    "primal_residual",
+]
+
+
+def ncp_argument(u: Any, lam: Any, gap: Any, n: Any, c: Any) -> Any:
+    """Lambda + c (u_n - g), whose sign decides contact in the NCP function (eq. 8, scaled)."""
+    return lam + c * (ufl.dot(u, n) - gap)
+
+
+def active_indicator(u: Any, lam: Any, gap: Any, n: Any, c: Any) -> Any:
+    """The pointwise chi_h = [lambda_h + c (u_h,n - g) > 0] (Proposition 8)."""
+    return ufl.conditional(ufl.gt(ncp_argument(u, lam, gap, n, c), 0.0), 1.0, 0.0)
+
+
+def contact_violation(
+    u: Any, lam: Any, mu: Any, gap: Any, n: Any, ds_c: ufl.Measure, c: Any
+) -> ufl.Form:
+    """C(w)(mu) = (mu, lambda - max(0, lambda + c (u_n - g)))_GC (Section 2, after eq. 8)."""
+    return mu * (lam - ufl.max_value(0.0, ncp_argument(u, lam, gap, n, c))) * ds_c
+
+
+def primal_residual(sol: Any, v: Any, mu: Any, c: Any) -> ufl.Form:
+    """rho(w_h)(v, mu) = l(v) - a(u_h, v) - (lambda_H, v_n)_GC - C(w_h)(mu) (Proposition 4).
+
+    Args:
+        sol: The :class:`~dwr_signorini.newton.Solution`.
+        v: The displacement weight.
+        mu: The multiplier weight.
+        c: The scale of the NCP (a function on the multiplier space, or a number).
+    """
+    problem, m = sol.disc.problem, sol.disc.m
+    form = sol.disc.load_form(v) - problem.elastic_form(sol.u, v, m.dx)
+    form -= sol.lam * ufl.dot(v, m.n) * m.ds_contact
+    gap = problem.gap_expr(m.x)
+    return form - contact_violation(sol.u, sol.lam, mu, gap, m.n, m.ds_contact, c)
+
+
+def dual_residual(
+    sol: Any, goal: GoalForms, z: DualSolution, v: Any, mu: Any, c: Any
+) -> ufl.Form:
+    """rho*(w_h, z_h)(v, mu) of Proposition 8, with b_h carrying c (see the module docstring).
+
+    ``J'(w_h)(v, mu) - a(v, y_h) + b_h(xi_H, v) - (mu, y_h,n) - c_h(xi_H, mu)`` with
+    ``b_h(xi, v) = int c chi_h xi v_n``, ``c_h(xi, mu) = int (1 - chi_h) xi mu``.
+    """
+    problem, m = sol.disc.problem, sol.disc.m
+    chi = active_indicator(sol.u, sol.lam, problem.gap_expr(m.x), m.n, c)
+    form = -problem.elastic_form(v, z.y, m.dx)
+    form += c * z.xi * chi * ufl.dot(v, m.n) * m.ds_contact
+    form -= mu * ufl.dot(z.y, m.n) * m.ds_contact
+    form -= z.xi * (1.0 - chi) * mu * m.ds_contact
+    dJ = goal.directional(v, mu)
+    return form if dJ is None else dJ + form
