@@ -19,7 +19,8 @@ Differences the package meets, in short:
 * ``create_mesh(comm, cells, x, e)`` (0.9) became ``create_mesh(comm, cells, e, x)`` (0.11):
   :func:`create_mesh` passes them by name.
 * ``create_cell_partitioner(mode)`` (0.9) needs ``max_facet_to_cell_links`` (0.11):
-  :func:`cell_partitioner`.
+  :func:`cell_partitioner`; ``graph.adjacencylist`` returns a Python wrapper (0.11) where a
+  Python cell partitioner must return the C++ object: :func:`cpp_adjacencylist`.
 * ``dolfinx.io.gmshio.model_to_mesh`` -> ``dolfinx.io.gmsh.model_to_mesh``, returning a
   ``MeshData`` named tuple of six fields instead of three values: :func:`gmsh_model_to_mesh`.
 * ``fem.petsc.LinearProblem`` requires ``petsc_options_prefix`` (0.11): :func:`linear_problem`.
@@ -57,6 +58,7 @@ __all__ = [
     "assemble_matrix_block",
     "bb_tree",
     "cell_partitioner",
+    "cpp_adjacencylist",
     "create_mesh",
     "create_submesh",
     "create_vector",
@@ -257,7 +259,8 @@ def create_mesh(
     What differs: 0.11 swapped ``x`` and ``e``: ``create_mesh(comm, cells, e, x, partitioner,
     max_facet_to_cell_links)``. Both name the parameters ``x`` and ``e``, so they are passed by
     name. The partitioner's signature, ``(comm, nparts, cell_types, cells) -> AdjacencyList``,
-    is the same on both.
+    is the same on both, but a Python partitioner must return the C++ adjacency list
+    (:func:`cpp_adjacencylist`).
     """
     return dmesh.create_mesh(comm, cells, x=x, e=e, partitioner=partitioner)
 
@@ -271,6 +274,24 @@ def cell_partitioner(ghost_mode: dmesh.GhostMode, max_facet_to_cell_links: int =
     if "max_facet_to_cell_links" in _parameters(dmesh.create_cell_partitioner):
         return dmesh.create_cell_partitioner(ghost_mode, max_facet_to_cell_links)
     return dmesh.create_cell_partitioner(ghost_mode)
+
+
+def cpp_adjacencylist(
+    data: npt.NDArray[np.int32], offsets: npt.NDArray[np.int32] | None = None
+) -> Any:
+    """A C++ ``AdjacencyList_int32``, as a Python cell partitioner must return it.
+
+    What differs: ``dolfinx.graph.adjacencylist`` returns the C++ object in 0.9 and a Python
+    ``dolfinx.graph.AdjacencyList`` wrapping it in 0.11; C++ calling back into a Python
+    partitioner (``create_mesh(..., partitioner=f)``) needs the C++ object and fails with
+    ``std::bad_cast`` on the wrapper. The callback's arguments ``(comm, nparts, cell_types,
+    cells)`` are the same on both.
+    """
+    from dolfinx import graph
+
+    data = np.asarray(data, dtype=np.int32)
+    adj = graph.adjacencylist(data, offsets) if offsets is not None else graph.adjacencylist(data)
+    return getattr(adj, "_cpp_object", adj)
 
 
 def gmsh_model_to_mesh(

@@ -195,6 +195,29 @@ def test_create_mesh_argument_order_and_partitioner():
     assert comm.allreduce(fem.assemble_scalar(one), op=MPI.SUM) == pytest.approx(1.0)
 
 
+@pytest.mark.mpi
+def test_python_partitioner_keeps_cells_on_their_rank():
+    """A Python partitioner (as tensor_refine's) returning compat.cpp_adjacencylist."""
+    comm = MPI.COMM_WORLD
+    r = comm.rank
+    # Rank r contributes the two triangles of the square [r, r + 1] x [0, 1].
+    x = np.array([[r, 0.0], [r + 1, 0.0], [r, 1.0], [r + 1, 1.0]])
+    cells = (np.array([[0, 1, 2], [1, 3, 2]], dtype=np.int64) + 4 * r)
+
+    def keep(comm_, nparts, cell_types, cells_):
+        n = sum(np.asarray(c).size for c in cells_) // 3
+        return compat.cpp_adjacencylist(
+            np.full(n, comm_.rank, dtype=np.int32), np.arange(n + 1, dtype=np.int32)
+        )
+
+    domain = ufl.Mesh(_macro(2, MPI.COMM_SELF).ufl_domain().ufl_coordinate_element())
+    msh = compat.create_mesh(comm, cells, x, domain, partitioner=keep)
+    assert msh.topology.index_map(2).size_local == 2
+    assert msh.topology.index_map(2).num_ghosts == 0
+    one = fem.form(fem.Constant(msh, 1.0) * ufl.dx(domain=msh))
+    assert comm.allreduce(fem.assemble_scalar(one), op=MPI.SUM) == pytest.approx(comm.size)
+
+
 def test_cell_partitioner_in_a_mesh_constructor():
     part = compat.cell_partitioner(mesh.GhostMode.none)
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 3, 3, partitioner=part)
