@@ -20,6 +20,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
+from . import compat
+
 __all__ = ["MODELS", "SignoriniProblem", "lame_parameters", "stress"]
 
 MODELS = ("plane_strain", "plane_stress", "3d")
@@ -159,7 +161,7 @@ class SignoriniProblem:
             )
         if tdim not in (2, 3) or mesh.geometry.dim != tdim:
             raise ValueError("mesh must be a 2D mesh in the plane or a 3D volume mesh")
-        if mesh.geometry.cmap.degree != 1:
+        if compat.geometry_cmap(mesh).degree != 1:
             raise ValueError(
                 "only meshes with affine/multilinear geometry (degree 1) are supported"
             )

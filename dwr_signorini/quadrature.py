@@ -30,6 +30,8 @@ from ufl.corealg.map_dag import map_expr_dag
 from ufl.corealg.multifunction import MultiFunction
 from ufl.corealg.traversal import unique_pre_traversal
 
+from . import compat
+
 __all__ = [
     "DATA_QUADRATURE_DEGREE",
     "expand_integer_powers",
@@ -112,7 +114,7 @@ def _constant(expr: ufl.core.expr.Expr) -> bool:
 
 def _affine_simplex(domain: ufl.AbstractDomain) -> bool:
     element = domain.ufl_coordinate_element()
-    return domain.ufl_cell().is_simplex() and element.embedded_superdegree == 1
+    return compat.is_simplex(domain.ufl_cell()) and element.embedded_superdegree == 1
 
 
 def is_polynomial(expr: ufl.core.expr.Expr) -> bool:

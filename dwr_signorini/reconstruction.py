@@ -27,6 +27,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 
+from . import compat
 from .spaces import Discretization
 
 __all__ = ["Reconstructor"]
@@ -137,10 +138,10 @@ def patch_p2_matrix(
     num_cells = len(disc.parent_cell)
     parents = disc.parent_cell
     gx = macro.geometry.x[:, :tdim]
-    parent_vertices = macro.geometry.dofmap[parents]
+    parent_vertices = compat.geometry_dofmap(macro)[parents]
     origin = gx[parent_vertices[:, 0]]  # (n, tdim)
     edges = gx[parent_vertices[:, 1:]] - origin[:, None, :]
-    vertices = fine.geometry.x[fine.geometry.dofmap[:num_cells], :tdim] - origin[:, None, :]
+    vertices = fine.geometry.x[compat.geometry_dofmap(fine)[:num_cells], :tdim] - origin[:, None, :]
     reference = _reference_coordinates(edges, vertices)  # P1 dof order
     del edges, vertices, origin, parent_vertices
     node = node_of_key[_lattice_key(np.rint(2 * reference).astype(np.int8), 3)]  # (n, tdim+1)

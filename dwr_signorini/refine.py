@@ -14,6 +14,7 @@ import numpy.typing as npt
 from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
+from . import compat
 from .problem import SignoriniProblem
 
 __all__ = [
@@ -47,18 +48,7 @@ def refine_uniform(
     """
     tdim = macro.topology.dim
     if macro.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
-        macro.topology.create_entities(1)
-        fine, parent_cell, _ = dmesh.refine(
-            macro, edges, partitioner=None, option=dmesh.RefinementOption.parent_cell
-        )
-        # dolfinx 0.9 returns the parent maps in the order of the cells *before* create_mesh
-        # reordered them; bring them into the fine mesh's local cell order.
-        num_local = fine.topology.index_map(tdim).size_local
-        offset = fine.comm.exscan(num_local) or 0
-        order = np.asarray(fine.topology.original_cell_index[:num_local], dtype=np.int64) - offset
-        if order.size and (order.min() < 0 or order.max() >= len(parent_cell)):
-            raise RuntimeError("unexpected cell numbering of the refined mesh")
-        parent_cell = np.asarray(parent_cell)[order]
+        fine, parent_cell, _ = compat.refine(macro, edges)
     else:
         if edges is not None:
             raise ValueError(

@@ -24,6 +24,7 @@ import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
+from . import compat
 from .problem import SignoriniProblem
 from .quadrature import DATA_QUADRATURE_DEGREE, expand_integer_powers, is_polynomial
 from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
@@ -107,7 +108,7 @@ class Discretization:
         exterior = dmesh.exterior_facet_indices(macro.topology)
         contact_macro = np.intersect1d(problem.facet_tags.find(problem.contact), exterior)
         self.contact_macro_facets = contact_macro.astype(np.int32)
-        sub, sub_to_macro, _, _ = dmesh.create_submesh(macro, fdim, self.contact_macro_facets)
+        sub, sub_to_macro, _, _ = compat.create_submesh(macro, fdim, self.contact_macro_facets)
         self.contact_mesh = sub
         self.contact_mesh_to_macro = np.asarray(sub_to_macro, dtype=np.int32)
         macro_to_sub = np.full(num_entities(macro, fdim), -1, dtype=np.int32)
@@ -117,8 +118,9 @@ class Discretization:
         fine_to_sub[fine_contact] = macro_to_sub[to_macro[fine_contact]]
         if np.any(fine_to_sub[fine_contact] < 0):
             raise RuntimeError("a fine contact facet has no parent macro contact facet")
-        self.entity_maps = {sub: fine_to_sub}
-        self.macro_entity_maps = {sub: macro_to_sub}
+        # Many-to-one (2 or 4 fine facets per macro facet), built once per mesh pair.
+        self.entity_maps = compat.entity_maps(fine, {sub: fine_to_sub})
+        self.macro_entity_maps = compat.entity_maps(macro, {sub: macro_to_sub})
 
         gdim = fine.geometry.dim
         self.V = fem.functionspace(fine, ("Lagrange", 1, (gdim,)))
@@ -166,7 +168,7 @@ class Discretization:
         )
         space = fem.functionspace(self.mesh, element)
         f = fem.Function(space, name="f")
-        points = space.element.interpolation_points()
+        points = compat.interpolation_points(space.element)
         f.interpolate(fem.Expression(expand_integer_powers(expr), points))
         return f, self.m.dx(metadata={"quadrature_degree": DATA_QUADRATURE_DEGREE})
 
@@ -207,11 +209,11 @@ class Discretization:
             options: Passed to ``dolfinx.fem.form`` (``form_compiler_options``,
                 ``jit_options``).
         """
-        return fem.form(expr, entity_maps=self.entity_maps, **options)
+        return compat.form(expr, entity_maps=self.entity_maps, **options)
 
     def macro_form(self, expr: ufl.Form) -> fem.Form:
         """Compile a form on T_H that may use functions of Q."""
-        return fem.form(expr, entity_maps=self.macro_entity_maps)
+        return compat.form(expr, entity_maps=self.macro_entity_maps)
 
 
 def discretize(problem: SignoriniProblem) -> Discretization:

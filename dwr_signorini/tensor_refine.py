@@ -23,8 +23,9 @@ import basix
 import numpy as np
 import numpy.typing as npt
 import ufl
-from dolfinx import graph
 from dolfinx import mesh as dmesh
+
+from . import compat
 
 __all__ = ["refine_uniform_tensor"]
 
@@ -104,7 +105,7 @@ def _keep_on_rank(rank: int, num_cell_vertices: int) -> Callable:
     def partitioner(comm, nparts, cell_types, cells):
         num_cells = sum(np.asarray(c).size for c in cells) // num_cell_vertices
         dest = np.full(num_cells, rank, dtype=np.int32)
-        return graph.adjacencylist(dest, np.arange(num_cells + 1, dtype=np.int32))
+        return compat.cpp_adjacencylist(dest, np.arange(num_cells + 1, dtype=np.int32))
 
     return partitioner
 
@@ -145,7 +146,7 @@ def refine_uniform_tensor(
     cell_type = topology.cell_type
     if cell_type not in _BASIX_CELL:
         raise ValueError(f"refine_uniform_tensor needs quadrilaterals/hexahedra, not {cell_type}")
-    cmap = msh.geometry.cmap
+    cmap = compat.geometry_cmap(msh)
     if cmap.degree != 1:
         raise ValueError(f"refine_uniform_tensor needs degree-1 geometry, not degree {cmap.degree}")
     comm = msh.comm
@@ -205,12 +206,12 @@ def refine_uniform_tensor(
         owned = np.arange(sizes[d], dtype=np.int32)
         nodes = dmesh.entities_to_geometry(msh, d, owned).reshape(owned.size, -1)
         coords.append(x[nodes, :gdim].mean(axis=1).reshape(-1, gdim))
-    dofmap = msh.geometry.dofmap[:num_cells]
+    dofmap = compat.geometry_dofmap(msh)[:num_cells]
     coords.append(x[dofmap, :gdim].mean(axis=1).reshape(-1, gdim))
     x_block = np.ascontiguousarray(np.concatenate(coords, axis=0), dtype=x.dtype)
 
     domain = ufl.Mesh(msh.ufl_domain().ufl_coordinate_element())
-    fine = dmesh.create_mesh(
+    fine = compat.create_mesh(
         comm, cells, x_block, domain, partitioner=_keep_on_rank(rank, num_cell_vertices)
     )
 

@@ -19,6 +19,7 @@ from dolfinx import fem, mesh
 from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
+from dwr_signorini import compat
 from dwr_signorini import examples as ex
 from dwr_signorini.examples import analytic_problem
 
@@ -358,7 +359,7 @@ def _p2_solution(sol):
     dofs = fem.locate_dofs_topological(V2, msh.topology.dim - 1, facets)
     bc = fem.dirichletbc(np.zeros(msh.geometry.dim), dofs, V2)
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-    return fem_petsc.LinearProblem(a, L, bcs=[bc], petsc_options=options).solve()
+    return compat.linear_problem(a, L, bcs=[bc], petsc_options=options).solve()
 
 
 def _volume_part(u, m):

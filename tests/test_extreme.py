@@ -34,6 +34,7 @@ from dolfinx import fem, io, mesh
 from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
+from dwr_signorini import compat
 from dwr_signorini import examples as ex
 from dwr_signorini.newton import iterative_petsc_options
 
@@ -354,7 +355,7 @@ def _linear_elasticity(sol):
     for tag, t in problem.traction.items():
         L += ufl.inner(ufl.as_vector(t), v) * m.ds(tag)
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-    lp = fem_petsc.LinearProblem(a, L, bcs=disc.bcs, petsc_options=options)
+    lp = compat.linear_problem(a, L, bcs=disc.bcs, petsc_options=options)
     return lp.solve()
 
 
@@ -552,7 +553,6 @@ def _half_disc(comm, radius, h_far, h_near):
     """gmsh: half-disc {x^2 + y^2 < R^2, y < 0}, clamped on the diameter y = 0 (tag 1), the arc
     in possible contact (tag 3); mesh size h_near at the bottom point (0, -R)."""
     gmsh = pytest.importorskip("gmsh")
-    from dolfinx.io import gmshio
 
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
@@ -585,8 +585,8 @@ def _half_disc(comm, radius, h_far, h_near):
             ):
                 gmsh.option.setNumber(f"Mesh.{option}", 0)
             gmsh.model.mesh.generate(2)
-        partitioner = mesh.create_cell_partitioner(mesh.GhostMode.none)
-        msh, _, facet_tags = gmshio.model_to_mesh(
+        partitioner = compat.cell_partitioner(mesh.GhostMode.none)
+        msh, _, facet_tags = compat.gmsh_model_to_mesh(
             gmsh.model, comm, 0, gdim=2, partitioner=partitioner
         )
     finally:
@@ -998,7 +998,8 @@ _KILLED_RUN = textwrap.dedent(
     import sys
     from mpi4py import MPI
     import dwr_signorini as ds
-    from dwr_signorini import examples as ex
+    from dwr_signorini import compat
+from dwr_signorini import examples as ex
 
     problem = ex.analytic_problem(MPI.COMM_WORLD, 6, 4, ex.CellType.triangle)
     ds.solve_adaptive(problem, ex.goal_a(-0.5), max_levels=12, output_dir=sys.argv[1])

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 import ufl
 from dolfinx import fem, mesh
-from dolfinx.fem.petsc import LinearProblem
+
+from dwr_signorini import compat
+from dwr_signorini.compat import create_submesh, linear_problem
 
 
 def _elasticity_energy(comm: MPI.Comm) -> float:
@@ -26,7 +28,7 @@ def _elasticity_energy(comm: MPI.Comm) -> float:
 
     a = ufl.inner(sigma(u), ufl.sym(ufl.grad(v))) * ufl.dx
     L = ufl.inner(fem.Constant(msh, (0.0, -1.0)), v) * ufl.dx
-    problem = LinearProblem(
+    problem = linear_problem(
         a, L, bcs=[bc],
         petsc_options={"ksp_type": "preonly", "pc_type": "lu",
                        "pc_factor_mat_solver_type": "mumps"},
@@ -58,7 +60,7 @@ def test_facet_submesh_form_with_entity_maps():
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 8, 8, mesh.CellType.triangle)
     fdim = msh.topology.dim - 1
     right = mesh.locate_entities_boundary(msh, fdim, lambda x: np.isclose(x[0], 1.0))
-    sub, sub_to_parent, _, _ = mesh.create_submesh(msh, fdim, right)
+    sub, sub_to_parent, _, _ = create_submesh(msh, fdim, right)
     msh.topology.create_connectivity(fdim, msh.topology.dim)
     num_facets = msh.topology.index_map(fdim).size_local + msh.topology.index_map(fdim).num_ghosts
     parent_to_sub = np.full(num_facets, -1, dtype=np.int32)
@@ -70,7 +72,7 @@ def test_facet_submesh_form_with_entity_maps():
     ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
     mu, v = ufl.TrialFunction(Q), ufl.TestFunction(V)
     n = ufl.FacetNormal(msh)
-    form = fem.form(ufl.inner(mu, ufl.dot(v, n)) * ds(1), entity_maps={sub: parent_to_sub})
+    form = compat.form(ufl.inner(mu, ufl.dot(v, n)) * ds(1), entity_maps={sub: parent_to_sub})
     from dolfinx.fem.petsc import assemble_matrix
 
     A = assemble_matrix(form)

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import ufl
 from dolfinx import fem, mesh
-from dolfinx.fem.petsc import LinearProblem
 
+from dwr_signorini.compat import linear_problem
 from dwr_signorini.tensor_refine import refine_uniform_tensor
 
 QUAD, HEX = mesh.CellType.quadrilateral, mesh.CellType.hexahedron
@@ -292,7 +292,7 @@ def _poisson_l2_error(msh: mesh.Mesh) -> float:
     bc = fem.dirichletbc(0.0, dofs, V)
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     dx = ufl.dx(metadata={"quadrature_degree": 6})
-    problem = LinearProblem(
+    problem = linear_problem(
         ufl.inner(ufl.grad(u), ufl.grad(v)) * dx, tdim * ufl.pi**2 * u_ex * v * dx, bcs=[bc],
         petsc_options={"ksp_type": "preonly", "pc_type": "lu",
                        "pc_factor_mat_solver_type": "mumps"},

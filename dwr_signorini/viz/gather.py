@@ -26,6 +26,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
+from .. import compat
+
 __all__ = [
     "MeshSnapshot",
     "SolutionData",
@@ -134,7 +136,7 @@ def _cellwise(msh: dmesh.Mesh, expr: ufl.core.expr.Expr) -> np.ndarray:
     """A scalar UFL expression interpolated into DG0, per local cell."""
     W = fem.functionspace(msh, ("DG", 0))
     f = fem.Function(W)
-    f.interpolate(fem.Expression(expr, W.element.interpolation_points()))
+    f.interpolate(fem.Expression(expr, compat.interpolation_points(W.element)))
     return f.x.array[W.dofmap.list[: _num_local_cells(msh), 0]].copy()
 
 
