@@ -998,8 +998,7 @@ _KILLED_RUN = textwrap.dedent(
     import sys
     from mpi4py import MPI
     import dwr_signorini as ds
-    from dwr_signorini import compat
-from dwr_signorini import examples as ex
+    from dwr_signorini import examples as ex
 
     problem = ex.analytic_problem(MPI.COMM_WORLD, 6, 4, ex.CellType.triangle)
     ds.solve_adaptive(problem, ex.goal_a(-0.5), max_levels=12, output_dir=sys.argv[1])
