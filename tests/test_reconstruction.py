@@ -8,6 +8,7 @@ import pytest
 from dolfinx import fem, mesh
 
 import dwr_signorini as ds
+from dwr_signorini import compat
 from dwr_signorini import examples as ex
 from dwr_signorini.reconstruction import Reconstructor, _Transfer
 
@@ -85,7 +86,7 @@ def test_multiplier_recovery_on_the_fine_mesh_equals_point_location(kind):
     disc = _disc(kind)
     rec = Reconstructor(disc)
     lam = fem.Function(disc.Q)
-    mid = disc.contact_mesh.geometry.x[disc.contact_mesh.geometry.dofmap].mean(axis=1)
+    mid = disc.contact_mesh.geometry.x[compat.geometry_dofmap(disc.contact_mesh)].mean(axis=1)
     cells = disc.Q.dofmap.list[:, 0]
     lam.x.array[cells] = 1.0 + mid[:, 1] ** 2 + np.sin(5 * mid[:, 2]) + np.cos(3 * mid[:, 1])
     fast = rec.patch_linear_multiplier(lam)
@@ -105,7 +106,7 @@ def test_multiplier_recovery_serial_equals_parallel_3d():
     for comm in (MPI.COMM_WORLD, MPI.COMM_SELF):
         disc = ds.discretize(ex.obstacle_problem(comm, n=(1, 8, 8)))
         lam = fem.Function(disc.Q)
-        mid = disc.contact_mesh.geometry.x[disc.contact_mesh.geometry.dofmap].mean(axis=1)
+        mid = disc.contact_mesh.geometry.x[compat.geometry_dofmap(disc.contact_mesh)].mean(axis=1)
         n_loc = disc.Q.dofmap.index_map.size_local
         lam.x.array[:n_loc] = 1.0 + mid[:n_loc, 1] ** 2 + np.sin(5 * mid[:n_loc, 2])
         lam.x.scatter_forward()

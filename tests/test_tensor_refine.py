@@ -12,6 +12,7 @@ import pytest
 import ufl
 from dolfinx import fem, mesh
 
+from dwr_signorini import compat
 from dwr_signorini.compat import linear_problem
 from dwr_signorini.tensor_refine import refine_uniform_tensor
 
@@ -98,13 +99,13 @@ def _num_global(msh: mesh.Mesh, dim: int) -> int:
 
 def _cell_coords(msh: mesh.Mesh, cell: int) -> np.ndarray:
     gdim = msh.geometry.dim
-    return msh.geometry.x[msh.geometry.dofmap[cell], :gdim]
+    return msh.geometry.x[compat.geometry_dofmap(msh)[cell], :gdim]
 
 
 def _pull_back(msh: mesh.Mesh, cell: int, points: np.ndarray) -> np.ndarray:
     """Reference coordinates in ``cell`` of physical points (dolfinx's own pull-back)."""
     gdim = msh.geometry.dim
-    return msh.geometry.cmap.pull_back(np.atleast_2d(points)[:, :gdim], _cell_coords(msh, cell))
+    return compat.geometry_cmap(msh).pull_back(np.atleast_2d(points)[:, :gdim], _cell_coords(msh, cell))
 
 
 @pytest.mark.mpi
