@@ -14,7 +14,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from tests.test_units import CASES, S_E, S_L, _run  # noqa: E402
+from tests.test_units import CASES, S_E, S_L, _run
 
 
 def main() -> None:
