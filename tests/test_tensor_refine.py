@@ -105,7 +105,8 @@ def _cell_coords(msh: mesh.Mesh, cell: int) -> np.ndarray:
 def _pull_back(msh: mesh.Mesh, cell: int, points: np.ndarray) -> np.ndarray:
     """Reference coordinates in ``cell`` of physical points (dolfinx's own pull-back)."""
     gdim = msh.geometry.dim
-    return compat.geometry_cmap(msh).pull_back(np.atleast_2d(points)[:, :gdim], _cell_coords(msh, cell))
+    cmap = compat.geometry_cmap(msh)
+    return cmap.pull_back(np.atleast_2d(points)[:, :gdim], _cell_coords(msh, cell))
 
 
 @pytest.mark.mpi
