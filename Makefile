@@ -8,7 +8,7 @@ NP ?= 2
 PYTEST := python3 -m pytest -q
 DEMO_ARGS ?=
 
-.PHONY: test test-serial test-mpi test-slow demo env lint figures test-current env-current
+.PHONY: test test-serial test-mpi test-slow demo env lint figures test-current env-current compare-versions
 
 test: test-serial test-mpi
 
@@ -37,6 +37,15 @@ test-current:
 
 env-current:
 	$(MAKE) --no-print-directory env FENICSX="DWR_SIGNORINI_SUITE=$(CURRENT_SUITE) scripts/fenicsx"
+
+# Example 5.1 (Tables 1-2, levels 0-2) and 5.2 (4 levels) on dolfinx 0.9 and the current release,
+# in this invocation: J_h must agree to 1e-10, eta_p and eta to 1e-8 (relative).
+COMPARE_DIR := results/compare_versions
+compare-versions:
+	mkdir -p $(COMPARE_DIR)
+	DWR_SIGNORINI_SUITE=trixie $(FENICSX) python3 benchmarks/compare_versions.py run $(COMPARE_DIR)/trixie.json
+	DWR_SIGNORINI_SUITE=$(CURRENT_SUITE) $(FENICSX) python3 benchmarks/compare_versions.py run $(COMPARE_DIR)/$(CURRENT_SUITE).json
+	$(FENICSX) python3 benchmarks/compare_versions.py compare $(COMPARE_DIR)/trixie.json $(COMPARE_DIR)/$(CURRENT_SUITE).json
 
 lint:
 	@command -v ruff >/dev/null 2>&1 || python3 -m pip install --quiet ruff
