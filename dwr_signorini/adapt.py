@@ -55,6 +55,7 @@ class LevelRecord:
     eta: float | None
     estimate: float
     contact_term: float
+    active_set_remainder: float
     newton_iterations: int
     num_marked: int = 0
     time: dict[str, float] = field(default_factory=dict)
@@ -69,7 +70,13 @@ class LevelRecord:
 
 @dataclass
 class AdaptiveResult:
-    """The levels of a run and the last solution and estimate."""
+    """The levels of a run and the last solution and estimate.
+
+    Attributes:
+        converged: Whether the run stopped on ``tol``: |estimate| + |active-set remainder| <=
+            tol on the last level. False when it ended at ``max_levels`` or ``max_cells``
+            without that, and always without ``tol``.
+    """
 
     levels: list[LevelRecord]
     solution: Solution | None = field(default=None, repr=False)
@@ -77,6 +84,7 @@ class AdaptiveResult:
     problem: SignoriniProblem | None = field(default=None, repr=False)
     meta: dict[str, Any] = field(default_factory=dict)
     comm: MPI.Comm = field(default_factory=lambda: MPI.COMM_WORLD, repr=False)
+    converged: bool = False
 
     def destroy(self) -> None:
         """Release the last level's solution and estimate (collective; idempotent)."""
@@ -167,6 +175,7 @@ def _progress(comm: MPI.Comm, record: LevelRecord) -> None:
         print(
             f"level {record.level:2d}  cells {record.num_cells:8d}  dofs {record.num_dofs:8d}  "
             f"J_h {record.J_h: .6e}  estimate {record.estimate: .3e}  "
+            f"R_A {record.active_set_remainder: .1e}  "
             f"newton {record.newton_iterations:2d}  {record.time['total']:7.2f} s",
             flush=True,
         )
@@ -201,7 +210,10 @@ def solve_adaptive(
         strategy: ``"fixed_fraction"`` or ``"doerfler"``.
         max_levels: Number of levels (solves) at most.
         max_cells: Stop before a level whose fine mesh would exceed this many cells.
-        tol: Stop when |estimate| <= tol.
+        tol: Stop when |estimate| + |active-set remainder| <= tol (the remainder R_A of
+            Proposition 4, :attr:`~dwr_signorini.Estimate.active_set_remainder`, which is large
+            while the contact set is not resolved); ``AdaptiveResult.converged`` tells whether
+            that happened, and with ``verbose`` a line says so when it did not.
         estimator: ``"eta"`` or ``"eta_p"``: drives marking and the stopping test.
         weights: ``"patch"`` or ``"higher_order"`` (see :func:`~dwr_signorini.estimate`).
         exact: The exact J(w), if known: fills rel_error and the effectivity indices.
@@ -284,7 +296,9 @@ def solve_adaptive(
         est = estimate(sol, goal, estimator=estimator, weights=weights, petsc_options=petsc_options)
 
         value = est.value
-        stop = (tol is not None and abs(value) <= tol) or level == max_levels - 1
+        # Converged: the estimate and the active-set remainder together below tol.
+        result.converged = tol is not None and abs(value) + abs(est.active_set_remainder) <= tol
+        stop = result.converged or level == max_levels - 1
         marked = np.zeros(0, dtype=np.int32)
         t_refine = 0.0
         next_problem = None
@@ -319,6 +333,7 @@ def solve_adaptive(
             eta=est.eta,
             estimate=value,
             contact_term=est.contact_term,
+            active_set_remainder=est.active_set_remainder,
             newton_iterations=sol.newton_iterations,
             num_marked=comm.allreduce(len(marked), op=MPI.SUM),
             time={
@@ -350,4 +365,12 @@ def solve_adaptive(
         if stop:
             break
         previous, previous_rec, current = sol, est.reconstructor, next_problem
+    if verbose and tol is not None and not result.converged and comm.rank == 0:
+        last = result.levels[-1]
+        print(
+            f"not converged: |estimate| + |active-set remainder| = "
+            f"{abs(last.estimate) + abs(last.active_set_remainder):.3e} > tol = {tol:.3e} after "
+            f"{len(result.levels)} levels (max_levels = {max_levels}, max_cells = {max_cells})",
+            flush=True,
+        )
     return result

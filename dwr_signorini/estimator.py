@@ -30,7 +30,12 @@ from .goal import Goal, GoalForms, localize
 from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
 from .reconstruction import Reconstructor
-from .residuals import contact_violation, dual_residual, primal_residual
+from .residuals import (
+    active_set_remainder,
+    contact_violation,
+    dual_residual,
+    primal_residual,
+)
 from .timing import timed
 
 __all__ = [
@@ -56,6 +61,9 @@ class Estimate:
         eta_p: The primal estimator (always computed).
         eta: The primal-dual estimator, or ``None`` when only eta_p was asked for.
         contact_term: C(w_h)(xi_H) (the estimators contain it with a minus sign).
+        active_set_remainder: The remainder R_A of Proposition 4 evaluated with
+            reconstructions (:func:`~dwr_signorini.residuals.active_set_remainder`): how far
+            the contact set is from resolved. Not part of eta_p or eta, and not a bound.
         rho: rho(w_h)(A z_h - z_h).
         rho_star: rho*(w_h, z_h)(A w_h - w_h), or ``None``.
         estimator: Which estimator the indicators belong to ("eta" or "eta_p").
@@ -69,6 +77,7 @@ class Estimate:
     eta_p: float
     eta: float | None
     contact_term: float
+    active_set_remainder: float
     rho: float
     rho_star: float | None
     estimator: str
@@ -206,6 +215,7 @@ def estimate(
     want_eta = estimator == "eta"
     with timed("reconstruct"):
         rec = Reconstructor(disc)
+    w2 = None
     if weights == "patch":
         with timed("reconstruct"):
             y_plus = rec.patch_quadratic(z.y)
@@ -224,20 +234,21 @@ def estimate(
     rho_form = primal_residual(sol, w_y, w_xi, c)
     c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c)
 
-    forms = [rho_form, c_form]
+    with timed("reconstruct"):
+        if weights == "patch" or w2 is None:
+            u_plus = rec.patch_quadratic(sol.u)
+            lam_plus = rec.patch_linear_multiplier(sol.lam)
+        else:
+            u_plus = w2[0]
+            lam_plus = rec.patch_linear_multiplier(w2[1])
+    forms = [rho_form, c_form, active_set_remainder(sol, u_plus, lam_plus, xi_plus, c)]
     if want_eta:
         with timed("reconstruct"):
-            if weights == "patch":
-                u_plus = rec.patch_quadratic(sol.u)
-                lam_plus = rec.patch_linear_multiplier(sol.lam)
-            else:
-                u_plus = w2[0]
-                lam_plus = rec.patch_linear_multiplier(w2[1])
             w_u = rec.weight(u_plus, sol.u)
         w_lam = lam_plus - sol.lam
         forms.append(dual_residual(sol, goal_forms, z, w_u, w_lam, c))
     DG0 = fem.functionspace(disc.mesh, ("DG", 0))
-    ind_rho, ind_c, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
+    ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
     ind_star = rest[0] if want_eta else None
 
     def total(a: np.ndarray) -> float:
@@ -259,6 +270,7 @@ def estimate(
         eta_p=eta_p,
         eta=eta,
         contact_term=contact,
+        active_set_remainder=total(ind_a),
         rho=rho,
         rho_star=rho_star,
         estimator=estimator,

@@ -40,6 +40,18 @@ xi). Then C(w_h)(xi_H) is independent of c where the discrete and pointwise cont
 agree; where the obstacle penetrates an inactive facet pointwise (unresolved contact),
 -C(w_h)(xi_H) = (xi_H, c (u_h,n - g))_GC there, which needs the physical c to be of the right
 size.
+
+**The active-set remainder.** The identity (13) holds up to R_J and (Proposition 4, with c)
+
+    R_A = (xi, (chi - chi_h) [lambda_h + c (u_h,n - g)])_GC,
+
+chi the indicator of the exact contact set. R_A vanishes once the discrete pointwise contact set
+chi_h is the exact one (Remark 7). :func:`active_set_remainder` evaluates it with w and xi
+replaced by their reconstructions (the weights' A w_h and A z_h): a computable indicator of how
+far the contact set is from resolved. It is not a bound: it sees only the part of the contact set
+on which the reconstruction and chi_h disagree; a contact zone that neither resolves (smaller than
+a macro facet, and not seen by the reconstruction either) is not detected by it, and only the
+contact term C(w_h)(xi_H) of the estimate can see it.
 """
 
 from __future__ import annotations
@@ -53,6 +65,7 @@ from .goal import GoalForms
 
 __all__ = [
     "active_indicator",
+    "active_set_remainder",
     "contact_violation",
     "dual_residual",
     "ncp_argument",
@@ -109,3 +122,26 @@ def dual_residual(
     form -= z.xi * (1.0 - chi) * mu * m.ds_contact
     dJ = goal.directional(v, mu)
     return form if dJ is None else dJ + form
+
+
+def active_set_remainder(
+    sol: Any, u_plus: Any, lam_plus: Any, xi_plus: Any, c: Any
+) -> ufl.Form:
+    """R_A of Proposition 4 with w and xi replaced by reconstructions (module docstring).
+
+    ``(xi^+, (chi(w^+) - chi_h) [lambda_h + c (u_h,n - g)])_GC`` with
+    ``chi(w^+) = [lambda^+ + c (u^+_n - g) > 0]``.
+
+    Args:
+        sol: The :class:`~dwr_signorini.newton.Solution`.
+        u_plus: The reconstructed displacement.
+        lam_plus: The reconstructed multiplier.
+        xi_plus: The reconstructed dual multiplier.
+        c: The scale of the NCP.
+    """
+    problem, m = sol.disc.problem, sol.disc.m
+    gap = problem.gap_expr(m.x)
+    arg_h = ncp_argument(sol.u, sol.lam, gap, m.n, c)
+    chi_h = active_indicator(sol.u, sol.lam, gap, m.n, c)
+    chi_plus = active_indicator(u_plus, lam_plus, gap, m.n, c)
+    return xi_plus * (chi_plus - chi_h) * arg_h * m.ds_contact

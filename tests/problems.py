@@ -40,3 +40,31 @@ def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
         body_force=(0.0, -1.0),
         gap=lambda x: 0.02 * (x[0] - 2.0) ** 2 - 0.01,
     )
+
+
+def indented_block(comm, nx, ny, delta, s_L=1.0, s_E=1.0, radius=1.0):
+    """(0, 1) x (0, 0.5) scaled by s_L, top clamped, bottom in possible contact with a disc of
+    radius ``radius`` (paraboloid gap) touching at x = 0.5 and lowered by delta.
+
+    nx and ny are chosen so that no macro triangle has two edges of equal length: dolfinx's
+    refinement (Plaza) orders the edges of a cell by length, and a tie between equal edges is
+    broken by round-off, so with ties the two unit systems would refine differently (seen with
+    square cells: 640 of 4096 fine cells differed)."""
+    msh = mesh.create_rectangle(
+        comm, [(0.0, 0.0), (s_L, 0.5 * s_L)], [nx, ny], mesh.CellType.triangle,
+        ghost_mode=mesh.GhostMode.none,
+    )
+
+    def classify(x):
+        tags = np.full(x.shape[1], ex.NEUMANN)
+        tags[np.isclose(x[1], 0.5 * s_L)] = ex.DIRICHLET
+        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
+        return tags
+
+    def gap(x):
+        return s_L * (((x[0] / s_L - 0.5) ** 2) / (2 * radius) - delta)
+
+    return ds.SignoriniProblem(
+        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        dirichlet=(ex.DIRICHLET,), E=10.0 * s_E, nu=0.3, gap=gap,
+    )

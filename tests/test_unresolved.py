@@ -1,0 +1,56 @@
+"""Unresolved contact is seen: the estimate is of the size of the error from the first level on.
+
+A block indented by a disc (``problems.indented_block``) on a 4 x 3 macro mesh: the contact
+zone is narrower than a macro facet, so on the first levels the integrated gap of every macro
+facet is positive and no multiplier is active, J_h = 0, although the disc penetrates the body
+pointwise. The goal is the total contact force. The reference value comes from J_h alone (the
+finest of 12 adaptive levels, its uncertainty the change from the level before), not from any
+estimate; every level whose error is at least 10 times that uncertainty must have an
+effectivity in [1/3, 3], the levels without contact and the first ones with it included.
+"""
+
+from mpi4py import MPI
+
+import pytest
+
+import dwr_signorini as ds
+
+from .problems import indented_block
+
+
+def total_force(u, lam, m):
+    return lam * m.ds_contact
+
+
+def test_unresolved_contact_is_estimated_on_every_level():
+    comm = MPI.COMM_WORLD
+    with ds.solve_adaptive(indented_block(comm, 4, 3, 0.002), total_force, fraction=0.2,
+                           max_levels=12, verbose=False) as res:
+        levels = res.levels
+    J = [r.J_h for r in levels]
+    reference, uncertainty = J[-1], abs(J[-1] - J[-2])
+    assert uncertainty < 1e-4 * reference
+    assert levels[0].num_active == 0 and levels[0].J_h == 0.0  # the contact is missed
+    checked = []
+    for r in levels[:-2]:
+        error = reference - r.J_h
+        if abs(error) >= 10 * uncertainty:
+            checked.append((r.level, r.num_active, error / r.estimate))
+    assert [c[0] for c in checked][:3] == [0, 1, 2]  # the unresolved levels are checked
+    assert any(active > 0 for _, active, _ in checked[:3])  # and the first one with contact
+    assert len(checked) >= 6
+    for level, _, ieff in checked:
+        assert 1 / 3 <= ieff <= 3, (level, ieff, checked)
+
+
+@pytest.mark.parametrize("ncp_scale", [1.0])
+def test_paper_scale_misses_the_unresolved_contact(ncp_scale):
+    """With the paper's c = 1 (E = 10 here) the same first level is estimated at a fortieth of
+    its error: the reason for the physical default."""
+    comm = MPI.COMM_WORLD
+    with ds.solve(indented_block(comm, 4, 3, 0.002), ncp_scale=ncp_scale) as sol:
+        with ds.estimate(sol, total_force) as est:
+            physical_sol = ds.solve(indented_block(comm, 4, 3, 0.002))
+            with physical_sol, ds.estimate(physical_sol, total_force) as physical:
+                assert est.J_h == physical.J_h == 0.0
+                assert 0 < est.eta < physical.eta / 10
