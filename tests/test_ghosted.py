@@ -1,0 +1,56 @@
+"""A ghosted macro mesh (dolfinx's default ghost mode, also gmsh's) gives the serial results.
+
+The examples build unghosted meshes; a user's mesh is usually ghosted (``shared_facet``). One
+solve, estimate and adaptive step on a ghosted simplex mesh on all ranks must agree with the same
+on one process (J_h to 1e-10, eta_p and eta to 1e-9, the same cells and marks).
+"""
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+from dolfinx import mesh
+
+import dwr_signorini as ds
+from dwr_signorini import examples as ex
+
+
+def _ghosted_strip(comm):
+    msh = mesh.create_rectangle(
+        comm, [(0.0, 0.0), (4.0, 1.0)], [24, 6], mesh.CellType.triangle,
+        ghost_mode=mesh.GhostMode.shared_facet,
+    )
+
+    def classify(x):
+        tags = np.full(x.shape[1], ex.NEUMANN)
+        tags[np.isclose(x[1], 1.0)] = ex.DIRICHLET
+        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
+        return tags
+
+    return ds.SignoriniProblem(
+        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        dirichlet=(ex.DIRICHLET,), E=10.0, nu=0.3, body_force=(0.0, -1.0),
+        gap=lambda x: 0.02 * (x[0] - 2.0) ** 2 - 0.01,
+    )
+
+
+def _energy(u, lam, m):
+    return lam * m.ds_contact + 0.5 * u[1] ** 2 * m.dx
+
+
+@pytest.mark.mpi
+def test_ghosted_mesh_solve_estimate_and_adaptive_step_equal_serial():
+    runs = {}
+    for name, comm in (("world", MPI.COMM_WORLD), ("self", MPI.COMM_SELF)):
+        problem = _ghosted_strip(comm)
+        if name == "world" and comm.size > 1:
+            assert problem.mesh.topology.index_map(2).num_ghosts > 0  # really ghosted
+        with ds.solve_adaptive(problem, _energy, max_levels=2, verbose=False) as res:
+            runs[name] = res.levels
+    for p, s in zip(runs["world"], runs["self"], strict=True):
+        assert (p.num_cells, p.num_active, p.num_marked) == (s.num_cells, s.num_active,
+                                                             s.num_marked), p.level
+        assert p.J_h == pytest.approx(s.J_h, rel=1e-10), p.level
+        assert p.eta_p == pytest.approx(s.eta_p, rel=1e-9), p.level
+        assert p.eta == pytest.approx(s.eta, rel=1e-9), p.level
+    assert runs["self"][0].num_active > 0
