@@ -6,6 +6,7 @@ of interest J(u, lambda) estimated by the dual weighted residual method with the
 identities (13) and (15); adaptive refinement in parallel.
 """
 
+from . import obstacles
 from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
 from .estimator import Estimate, estimate
 from .newton import ConvergenceError, Solution, solve
@@ -26,6 +27,7 @@ __all__ = [
     "__version__",
     "discretize",
     "estimate",
+    "obstacles",
     "solve",
     "solve_adaptive",
 ]

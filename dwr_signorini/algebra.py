@@ -83,7 +83,10 @@ class ContactAlgebra:
 
     Attributes:
         disc, V: The discretisation and the displacement space.
-        bcs: Homogeneous Dirichlet conditions on V (applied to K, N, N^T, f).
+        bcs: Homogeneous Dirichlet conditions on V (the rows and columns of K, N, N^T; the dual
+            problem's right-hand side is zero on them).
+        prescribed_bcs: The same conditions with their prescribed values u_D: f holds the
+            lifting -K u_D on the free rows and u_D on the Dirichlet rows, g is g - N u_D.
         K, N, NT, f, M, g: The assembled pieces (PETSc Mat/Vec; M and g on the multiplier rows).
         c_n: c_n,i on the owned multiplier rows.
         ncp_scale: The validated ``ncp_scale``.
@@ -112,31 +115,42 @@ class ContactAlgebra:
         def form(expr: ufl.Form) -> fem.Form:
             return disc.form(expr, **options)
 
-        # Non-polynomial loads and gaps at DATA_QUADRATURE_DEGREE, as in the residuals.
+        # Non-polynomial loads and gaps at DATA_QUADRATURE_DEGREE, as in the residuals (and the
+        # stiffness, if E or nu is a function of x).
+        a = problem.elastic_form(u, v, m.dx)
+        if callable(problem.E) or callable(problem.nu):
+            a = with_quadrature_degrees(a)
         forms = {
-            "a": form(problem.elastic_form(u, v, m.dx)),
+            "a": form(a),
             "L": form(with_quadrature_degrees(disc.load_form(v))),
             "N": form(coupling),
             "NT": form(ufl.adjoint(coupling)),
             "M": form(mu * m.ds_contact),
-            "g": form(with_quadrature_degrees(problem.gap_expr(m.x) * mu * m.ds_contact)),
+            "g": form(with_quadrature_degrees(problem.gap_expr(m.x, m.n) * mu * m.ds_contact)),
         }
-        self.bcs = disc.bcs if V is disc.V else disc.dirichlet_bcs(V)
+        if V is disc.V:
+            self.bcs, self.prescribed_bcs = disc.bcs, disc.prescribed_bcs
+        else:
+            self.bcs = disc.dirichlet_bcs(V)
+            self.prescribed_bcs = disc.dirichlet_bcs(V, homogeneous=False)
+        lift = not problem.homogeneous_dirichlet
         with timed("assemble"):
             self.K = self._matrix(forms["a"])
             self.N = self._matrix(forms["N"])
             self.NT = self._matrix(forms["NT"])
-            self.f = self._vector(forms["L"])
-            for bc in self.bcs:
+            # f: the lifting -K u_D on the free rows, u_D on the Dirichlet rows; g: g - N u_D,
+            # so that N u - g (N without the Dirichlet columns) is the gap residual of u.
+            self.f = self._vector(forms["L"], forms["a"] if lift else None, self.prescribed_bcs)
+            for bc in self.prescribed_bcs:
                 bc.set(self.f.array_w)
             self.M = self._vector(forms["M"])
-            self.g = self._vector(forms["g"])
+            self.g = self._vector(forms["g"], forms["N"] if lift else None, self.prescribed_bcs)
         self.ncp_scale = check_ncp_scale(ncp_scale)
         if self.ncp_scale == "physical":
             fdim = disc.mesh.topology.dim - 1
             size = self.M.array.copy()
             size = size if fdim == 1 else np.sqrt(size)
-            self.c_n = problem.E / size
+            self.c_n = self._facet_modulus(form, mu) / size
         else:
             self.c_n = np.full(len(self.M.array), self.ncp_scale)
         self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
@@ -148,10 +162,35 @@ class ContactAlgebra:
         return A
 
     @staticmethod
-    def _vector(form: fem.Form) -> PETSc.Vec:
+    def _vector(
+        form: fem.Form, lifting: fem.Form | None = None, bcs: list[fem.DirichletBC] = ()
+    ) -> PETSc.Vec:
+        """Assemble ``form``; with ``lifting`` (a bilinear form), subtract ``lifting(u_D, .)``."""
         vec = fem_petsc.assemble_vector(form)
+        if lifting is not None:
+            fem_petsc.apply_lifting(vec, [lifting], bcs=[list(bcs)])
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return vec
+
+    def _facet_modulus(self, form: Any, mu: Any) -> np.ndarray | float:
+        """E on the owned macro contact facets (for c_n = E / H).
+
+        The number E, or the facet mean of E from the adjacent cells: the local modulus of a
+        material given per cell tag, or of E(x).
+        """
+        problem, m = self.disc.problem, self.disc.m
+        if isinstance(problem.E, float):
+            return problem.E
+        E, _ = problem.material(m.x)
+        vec = self._vector(form(with_quadrature_degrees(E * mu * m.ds_contact)))
+        out = vec.array / self.M.array
+        vec.destroy()
+        return out
+
+    def set_prescribed(self, u: np.ndarray) -> None:
+        """Set the prescribed Dirichlet values into the array ``u`` of a function on V."""
+        for bc in self.prescribed_bcs:
+            bc.set(u)
 
     @property
     def comm(self) -> MPI.Comm:

@@ -330,6 +330,7 @@ def _semismooth_newton(
         lam.x.array[:] = initial_guess[1].x.array
         if not all_finite(u.x.array, lam.x.array):
             raise ValueError("initial_guess contains NaN or Inf")
+    system.algebra.set_prescribed(u.x.array)  # the iterates satisfy the Dirichlet values
     q_start = disc.Q.dofmap.index_map.local_range[0]
 
     def least_index(mask: np.ndarray) -> np.ndarray:

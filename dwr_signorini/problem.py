@@ -21,12 +21,21 @@ from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
 from . import compat
+from .obstacles import Graph, Obstacle
 
 __all__ = ["MODELS", "SignoriniProblem", "lame_parameters", "stress"]
 
 MODELS = ("plane_strain", "plane_stress", "3d")
 
 VectorData = Sequence[float] | Callable[[ufl.SpatialCoordinate], Any] | None
+#: A Dirichlet condition as given: a number, a tuple with None = free, or x -> UFL vector.
+DirichletData = float | Sequence[float | None] | Callable[[ufl.SpatialCoordinate], Any]
+#: A Dirichlet condition as stored: a tuple of gdim (float | None), or x -> UFL vector.
+DirichletValue = tuple[float | None, ...] | Callable[[ufl.SpatialCoordinate], Any]
+#: E or nu: a number, x -> UFL scalar, or {cell tag: number}.
+MaterialData = float | Callable[[ufl.SpatialCoordinate], Any] | Mapping[int, float]
+#: A gap: a number, x -> UFL scalar, or an obstacle.
+GapData = float | Callable[[ufl.SpatialCoordinate], Any] | Obstacle
 
 
 def lame_parameters(E: float, nu: float, model: str = "plane_strain") -> tuple[float, float]:
@@ -94,6 +103,37 @@ def _nonzero_literal(expr: ufl.core.expr.Expr, x: ufl.SpatialCoordinate) -> ufl.
     return expr
 
 
+def _is_tag(value: Any) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _tags(value: Any, name: str) -> tuple[int, ...]:
+    """A tag or an iterable of tags as a tuple of ints (TypeError naming ``name``)."""
+    if _is_tag(value):
+        return (int(value),)
+    try:
+        tags = tuple(value)
+    except TypeError:
+        tags = (value,)
+    if any(not _is_tag(t) for t in tags):
+        raise TypeError(f"{name} must be an integer facet tag or a sequence of them, got {value!r}")
+    return tuple(int(t) for t in tags)
+
+
+def _macro_cell_measure(msh: dmesh.Mesh) -> tuple[Any, ufl.Measure]:
+    """A quadrature space of degree DATA_QUADRATURE_DEGREE on ``msh`` (for checks of data)."""
+    import basix.ufl
+
+    from .quadrature import DATA_QUADRATURE_DEGREE
+
+    element = basix.ufl.quadrature_element(msh.basix_cell(), degree=DATA_QUADRATURE_DEGREE)
+    return fem.functionspace(msh, element), DATA_QUADRATURE_DEGREE
+
+
+#: Per-mesh data of a problem: cell tags of a refined mesh and indicators of contact tags.
+_MeshData = dict[str, Any]
+
+
 class SignoriniProblem:
     """Frictionless contact of a linear-elastic body with a rigid obstacle (paper eq. 1-3).
 
@@ -102,16 +142,27 @@ class SignoriniProblem:
             runs). The displacement lives on its uniform refinement T_h, the contact force on its
             contact facets (P0, so H = 2h).
         facet_tags: Facet tags of ``mesh``.
-        contact: Tag of the possible contact boundary Gamma_C.
-        dirichlet: Tags of the clamped boundary Gamma_D (u = 0).
-        E: Young's modulus, > 0.
-        nu: Poisson's ratio, in (-1, 0.5).
+        contact: Tag, or tags, of the possible contact boundary Gamma_C.
+        dirichlet: Gamma_D: tags clamped (u = 0), or ``{tag: value}`` with ``value`` a number
+            (every component equals it, e.g. ``0.0``), a tuple of ``gdim`` numbers or ``None``
+            (``None`` = that component free: ``(0.0, None)`` is a roller / symmetry plane
+            ``u_x = 0``), or a callable ``x -> UFL vector`` (every component, from x). Where two
+            conditions prescribe the same component at a vertex, the later tag wins.
+        E: Young's modulus, > 0: a number, a callable ``x -> UFL scalar`` (checked > 0 at the
+            quadrature points), or ``{cell tag: number}`` with ``cell_tags``.
+        nu: Poisson's ratio, in (-1, 0.5): as ``E``.
         model: ``"plane_strain"`` or ``"plane_stress"`` in 2D, ``"3d"`` in 3D; ``None`` picks
             plane strain in 2D and ``"3d"`` in 3D.
         body_force: Volume load f: ``None``, a constant sequence, or a callable ``x -> UFL vector``.
         traction: Surface loads b on Gamma_N: ``{tag: sequence | callable x -> UFL vector}``.
         gap: The gap g of the linearised contact condition u_n <= g on Gamma_C (eq. 2): a finite
-            float or a callable ``x -> UFL scalar``.
+            float, a callable ``x -> UFL scalar``, an obstacle of :mod:`dwr_signorini.obstacles`
+            (the distance along the outward normal), or ``{contact tag: any of these}``.
+        cell_tags: Cell tags of ``mesh``, needed when ``E`` or ``nu`` is a dict.
+        boundary_projection: ``{facet tag: callable}``: the callable maps points (an array of
+            shape (3, n)) onto the true (curved) surface of that boundary; after each refinement
+            of T_H the vertices on those facets are moved onto it
+            (:func:`dwr_signorini.refine.refine_marked`).
 
     Raises:
         ValueError: For any inconsistent or non-physical input, naming the argument.
@@ -122,14 +173,16 @@ class SignoriniProblem:
         self,
         mesh: dmesh.Mesh,
         facet_tags: dmesh.MeshTags,
-        contact: int,
-        dirichlet: Iterable[int] = (),
-        E: float = 1.0,
-        nu: float = 0.3,
+        contact: int | Iterable[int],
+        dirichlet: Iterable[int] | Mapping[int, DirichletData] = (),
+        E: MaterialData = 1.0,
+        nu: MaterialData = 0.3,
         model: str | None = None,
         body_force: VectorData = None,
         traction: Mapping[int, VectorData] | None = None,
-        gap: float | Callable[[ufl.SpatialCoordinate], Any] = 0.0,
+        gap: GapData | Mapping[int, GapData] = 0.0,
+        cell_tags: dmesh.MeshTags | None = None,
+        boundary_projection: Mapping[int, Callable[[np.ndarray], np.ndarray]] | None = None,
     ) -> None:
         if not isinstance(mesh, dmesh.Mesh):
             raise TypeError(f"mesh must be a dolfinx.mesh.Mesh, got {type(mesh).__name__}")
@@ -175,44 +228,25 @@ class SignoriniProblem:
                 f"model={model!r} does not fit a {tdim}D mesh: use "
                 + ("'plane_strain' or 'plane_stress'" if tdim == 2 else "'3d'")
             )
-        for name, value in (("E", E), ("nu", nu)):
-            if not _is_real(value):
-                raise TypeError(f"{name} must be a real number, got {value!r}")
-        if not math.isfinite(E) or E <= 0:
-            raise ValueError(
-                f"E (Young's modulus) must be a finite number > 0, got {E!r}: pass the "
-                "stiffness of the material (any consistent units, e.g. E=210e9 in Pa)"
-            )
-        if not -1.0 < nu < 0.5:
-            raise ValueError(
-                f"nu (Poisson's ratio) must lie in the open interval (-1, 0.5), got {nu!r}"
-                + (
-                    ": nu = 0.5 is incompressible, which a displacement formulation cannot "
-                    "represent; use nu <= 0.499 (P1 elements lock as nu -> 0.5)"
-                    if nu == 0.5
-                    else ""
-                )
-            )
+        self.mesh = mesh
+        self.facet_tags = facet_tags
+        self.model = model
+        self._mesh_data: dict[int, _MeshData] = {}
+        self.cell_tags = self._check_cell_tags(cell_tags, E, nu)
+        self.E = self._check_material(E, "E")
+        self.nu = self._check_material(nu, "nu")
 
-        if not isinstance(contact, numbers.Integral) or isinstance(contact, bool):
-            raise TypeError(f"contact must be an integer facet tag, got {contact!r}")
-        if isinstance(dirichlet, numbers.Integral):
-            dirichlet = (dirichlet,)
-        dirichlet = tuple(dirichlet)
-        if any(not isinstance(t, numbers.Integral) or isinstance(t, bool) for t in dirichlet):
-            raise TypeError(
-                f"dirichlet must be a sequence of integer facet tags, got {dirichlet!r}"
-            )
-        if not dirichlet:
-            raise ValueError(
-                "dirichlet must name at least one facet tag: without a clamped boundary "
-                "Gamma_D the body can move rigidly and the problem is not well posed"
-            )
-        if contact in dirichlet:
-            raise ValueError(
-                f"tag {contact} is used both as contact and as dirichlet boundary; "
-                "a facet is either clamped or in possible contact"
-            )
+        contact_tags = _tags(contact, "contact")
+        if not contact_tags:
+            raise ValueError("contact must name at least one facet tag")
+        if len(set(contact_tags)) != len(contact_tags):
+            raise ValueError(f"contact names a tag twice: {contact_tags}")
+        self.contact_tags = contact_tags
+        self.contact: int | tuple[int, ...] = (
+            contact_tags[0] if len(contact_tags) == 1 else contact_tags
+        )
+        self.dirichlet_values = self._check_dirichlet(dirichlet)
+        self.dirichlet = tuple(self.dirichlet_values)
         if traction is not None and not isinstance(traction, Mapping):
             raise TypeError(
                 "traction must be a dict {facet tag: load}, e.g. {2: (0.0, -1.0)}, got "
@@ -220,40 +254,234 @@ class SignoriniProblem:
             )
         traction = dict(traction or {})
         for tag in traction:
-            if not isinstance(tag, numbers.Integral) or isinstance(tag, bool):
+            if not _is_tag(tag):
                 raise TypeError(f"traction keys must be integer facet tags, got {tag!r}")
-            if tag == contact or tag in dirichlet:
+            if tag in contact_tags or tag in self.dirichlet:
                 raise ValueError(
                     f"traction tag {tag} is also a contact/dirichlet tag; tractions act on Gamma_N"
                 )
-
-        if callable(gap):
-            pass  # checked below, once self.mesh is set
-        elif _is_real(gap):
-            if not math.isfinite(gap):
-                raise ValueError(f"gap must be finite, got {gap!r}")
-            gap = float(gap)
-        else:
-            raise TypeError(f"gap must be a float or a callable x -> UFL scalar, got {gap!r}")
-
-        self.mesh = mesh
-        self.facet_tags = facet_tags
-        self.contact = int(contact)
-        self.dirichlet = tuple(int(t) for t in dirichlet)
-        self.E = float(E)
-        self.nu = float(nu)
-        self.model = model
         self.body_force = self._check_vector(body_force, "body_force")
         self.traction = {
             int(k): self._check_vector(v, f"traction[{k}]") for k, v in traction.items()
         }
-        self.gap = gap
-        if callable(gap):
-            self._check_callable(gap, "gap", ())
-
+        self.gap = self._check_gap(gap)
+        self.boundary_projection = self._check_projection(boundary_projection)
         self._check_tags()
+        self.miss_gap  # noqa: B018  (collective: computed once, here)
 
     # -- validation ---------------------------------------------------------------------------
+    def _check_dirichlet(self, dirichlet: Any) -> dict[int, DirichletValue]:
+        """``{tag: tuple of gdim (float | None) | callable}`` from the argument ``dirichlet``."""
+        gdim = self.mesh.geometry.dim
+        if isinstance(dirichlet, Mapping):
+            items = list(dirichlet.items())
+            for tag, _ in items:
+                if not _is_tag(tag):
+                    raise TypeError(f"dirichlet keys must be integer facet tags, got {tag!r}")
+        else:
+            items = [(t, 0.0) for t in _tags(dirichlet, "dirichlet")]
+        if not items:
+            raise ValueError(
+                "dirichlet must name at least one facet tag: without a clamped boundary "
+                "Gamma_D the body can move rigidly and the problem is not well posed"
+            )
+        out: dict[int, DirichletValue] = {}
+        for tag, value in items:
+            tag = int(tag)
+            name = f"dirichlet[{tag}]"
+            if tag in self.contact_tags:
+                raise ValueError(
+                    f"tag {tag} is used both as contact and as dirichlet boundary; "
+                    "a facet is either prescribed or in possible contact"
+                )
+            if callable(value):
+                self._check_callable(value, name, (gdim,))
+                out[tag] = value
+                continue
+            if _is_real(value):
+                value = (value,) * gdim
+            if not isinstance(value, (tuple, list)):
+                raise TypeError(
+                    f"{name} must be a number, a tuple of {gdim} numbers or None (None = that "
+                    f"component free), or a callable x -> UFL vector, got {value!r}"
+                )
+            if len(value) != gdim:
+                raise ValueError(
+                    f"{name} must have {gdim} components (one per coordinate, None = free), "
+                    f"got {len(value)}: {value!r}"
+                )
+            for i, c in enumerate(value):
+                if c is not None and not _is_real(c):
+                    raise TypeError(f"{name}[{i}] must be a number or None, got {c!r}")
+                if c is not None and not math.isfinite(c):
+                    raise ValueError(f"{name}[{i}] must be finite, got {c!r}")
+            if all(c is None for c in value):
+                raise ValueError(f"{name} prescribes no component (all None)")
+            out[tag] = tuple(None if c is None else float(c) for c in value)
+        return out
+
+    @property
+    def homogeneous_dirichlet(self) -> bool:
+        """Whether every Dirichlet condition prescribes zero (no lifting needed)."""
+        return all(
+            not callable(v) and all(c in (None, 0.0) for c in v)
+            for v in self.dirichlet_values.values()
+        )
+
+    def _check_cell_tags(
+        self, cell_tags: dmesh.MeshTags | None, E: Any, nu: Any
+    ) -> dmesh.MeshTags | None:
+        per_tag = [name for name, v in (("E", E), ("nu", nu)) if isinstance(v, Mapping)]
+        if cell_tags is None:
+            if per_tag:
+                raise ValueError(
+                    f"{per_tag[0]} is given per cell tag, so cell_tags (the MeshTags of the "
+                    "cells of `mesh`, e.g. from ds.read_mesh) are needed"
+                )
+            return None
+        if not isinstance(cell_tags, dmesh.MeshTags):
+            raise TypeError(f"cell_tags must be dolfinx.mesh.MeshTags, got {cell_tags!r}")
+        tdim = self.mesh.topology.dim
+        if cell_tags.dim != tdim:
+            raise ValueError(
+                f"cell_tags has dimension {cell_tags.dim}, the cells of the mesh {tdim}"
+            )
+        cpp_topology = getattr(self.mesh.topology, "_cpp_object", None)
+        if cpp_topology is not None and cell_tags.topology is not cpp_topology:
+            raise ValueError("cell_tags belong to another mesh: pass the tags of `mesh`")
+        return cell_tags
+
+    def _check_material(self, value: Any, name: str) -> MaterialData:
+        """A number, callable or ``{cell tag: number}`` for E or nu, with its range checked."""
+        low, high = (0.0, math.inf) if name == "E" else (-1.0, 0.5)
+        if isinstance(value, Mapping):
+            values = {}
+            for tag, v in value.items():
+                if not _is_tag(tag):
+                    raise TypeError(f"{name} keys must be integer cell tags, got {tag!r}")
+                values[int(tag)] = self._check_material(v, f"{name}[{tag}]")
+                if callable(values[int(tag)]):
+                    raise TypeError(f"{name}[{tag}] must be a number")
+            self._check_cells_covered(values, name)
+            return values
+        if callable(value):
+            self._check_callable(value, name, ())
+            self._check_range_at_quadrature(value, name, low, high)
+            return value
+        if not _is_real(value):
+            raise TypeError(
+                f"{name} must be a real number, a callable x -> UFL scalar or a dict "
+                f"{{cell tag: number}}, got {value!r}"
+            )
+        if name.startswith("E") and (not math.isfinite(value) or value <= 0):
+            raise ValueError(
+                f"{name} (Young's modulus) must be a finite number > 0, got {value!r}: pass the "
+                "stiffness of the material (any consistent units, e.g. E=210e9 in Pa)"
+            )
+        if name.startswith("nu") and not -1.0 < value < 0.5:
+            raise ValueError(
+                f"{name} (Poisson's ratio) must lie in the open interval (-1, 0.5), got {value!r}"
+                + (
+                    ": nu = 0.5 is incompressible, which a displacement formulation cannot "
+                    "represent; use nu <= 0.499 (P1 elements lock as nu -> 0.5)"
+                    if value == 0.5
+                    else ""
+                )
+            )
+        return float(value)
+
+    def _check_cells_covered(self, values: Mapping[int, float], name: str) -> None:
+        """Every owned cell carries a tag of ``values`` (collective)."""
+        tags = self.cell_tags
+        num = self.mesh.topology.index_map(self.mesh.topology.dim).size_local
+        covered = np.zeros(num, dtype=bool)
+        keep = np.isin(tags.values, list(values)) & (tags.indices < num)
+        covered[tags.indices[keep]] = True
+        missing = self.mesh.comm.allreduce(int((~covered).sum()), op=MPI.SUM)
+        if missing:
+            present = sorted(set(self.mesh.comm.allreduce(list(map(int, np.unique(tags.values))))))
+            raise ValueError(
+                f"{name} is given for cell tags {sorted(values)}, but {missing} cells carry none "
+                f"of them (cell tags present: {present})"
+            )
+
+    def _check_range_at_quadrature(
+        self, value: Callable[..., Any], name: str, low: float, high: float
+    ) -> None:
+        """``low < value(x) < high`` at the degree-8 quadrature points of the mesh (collective)."""
+        space, _ = _macro_cell_measure(self.mesh)
+        f = fem.Function(space)
+        expr = ufl.as_ufl(value(ufl.SpatialCoordinate(self.mesh)))
+        f.interpolate(fem.Expression(expr, compat.interpolation_points(space.element)))
+        vals = f.x.array
+        comm = self.mesh.comm
+        lo = comm.allreduce(float(np.min(vals, initial=np.inf)), op=MPI.MIN)
+        hi = comm.allreduce(float(np.max(vals, initial=-np.inf)), op=MPI.MAX)
+        if not (np.isfinite(lo) and np.isfinite(hi)) or lo <= low or hi >= high:
+            what = "> 0" if name == "E" else "in (-1, 0.5)"
+            raise ValueError(
+                f"{name}(x) must be {what} at every quadrature point of the mesh, but it "
+                f"ranges over [{lo:.6g}, {hi:.6g}]"
+            )
+
+    def _check_gap(self, gap: Any) -> Any:
+        if isinstance(gap, Mapping):
+            keys = set(gap)
+            if any(not _is_tag(k) for k in keys):
+                raise TypeError(f"gap keys must be integer contact tags, got {sorted(keys)}")
+            missing = set(self.contact_tags) - keys
+            if missing:
+                raise ValueError(
+                    f"gap is given per contact tag but misses the contact tag(s) "
+                    f"{sorted(missing)}: give a gap for each of {self.contact_tags}"
+                )
+            extra = keys - set(self.contact_tags)
+            if extra:
+                raise ValueError(f"gap has tag(s) {sorted(extra)} that are not contact tags")
+            return {int(k): self._check_gap_value(v, f"gap[{k}]") for k, v in gap.items()}
+        return self._check_gap_value(gap, "gap")
+
+    def _check_gap_value(self, gap: Any, name: str) -> Any:
+        gdim = self.mesh.geometry.dim
+        if isinstance(gap, Obstacle):
+            dim = gap.dim
+            if dim is not None and dim != gdim:
+                raise ValueError(
+                    f"{name}: a {dim}D obstacle ({gap!r}) on a {gdim}D mesh: give it "
+                    f"{gdim} coordinates"
+                )
+            if isinstance(gap, Graph):
+                if not -gdim <= gap.axis < gdim:
+                    raise ValueError(f"{name}: Graph axis {gap.axis} out of range for {gdim}D")
+                self._check_callable(gap.psi, f"{name} (Graph psi)", ())
+            return gap
+        if callable(gap):
+            self._check_callable(gap, name, ())
+            return gap
+        if _is_real(gap):
+            if not math.isfinite(gap):
+                raise ValueError(f"{name} must be finite, got {gap!r}")
+            return float(gap)
+        raise TypeError(
+            f"{name} must be a float, a callable x -> UFL scalar or an obstacle "
+            f"(ds.obstacles.Plane, Sphere, Cylinder, Graph), got {gap!r}"
+        )
+
+    def _check_projection(self, projection: Any) -> dict[int, Callable[..., Any]]:
+        if projection is None:
+            return {}
+        if not isinstance(projection, Mapping):
+            raise TypeError(
+                "boundary_projection must be a dict {facet tag: callable (3, n) array -> "
+                f"points}}, got {type(projection).__name__}"
+            )
+        for tag, f in projection.items():
+            if not _is_tag(tag):
+                raise TypeError(f"boundary_projection keys must be facet tags, got {tag!r}")
+            if not callable(f):
+                raise TypeError(f"boundary_projection[{tag}] must be callable, got {f!r}")
+        return {int(k): v for k, v in projection.items()}
+
     def _check_vector(self, value: VectorData, name: str) -> VectorData:
         if value is None:
             return value
@@ -289,16 +517,17 @@ class SignoriniProblem:
             raise ValueError(f"{name} must return a UFL {what}, got shape {ufl.shape(expr)}")
 
     def _check_tags(self) -> None:
-        """Every tag used must mark at least one boundary facet somewhere (all ranks)."""
+        """Every tag used marks a boundary facet somewhere, contact tags no common facet."""
         msh, tags = self.mesh, self.facet_tags
         fdim = msh.topology.dim - 1
         msh.topology.create_connectivity(fdim, fdim + 1)
         boundary = dmesh.exterior_facet_indices(msh.topology)
         comm = msh.comm
         for name, tag in (
-            [("contact", self.contact)]
+            [("contact", t) for t in self.contact_tags]
             + [("dirichlet", t) for t in self.dirichlet]
             + [("traction", t) for t in self.traction]
+            + [("boundary_projection", t) for t in self.boundary_projection]
         ):
             facets = tags.find(tag)
             count = comm.allreduce(int(np.isin(facets, boundary).sum()), op=MPI.SUM)
@@ -308,11 +537,91 @@ class SignoriniProblem:
                     f"{name} tag {tag} marks no boundary facet of the mesh (tags present: "
                     f"{present}); pass the tag that facet_tags give that boundary"
                 )
+        if len(self.contact_tags) > 1:
+            facets = np.concatenate([np.unique(tags.find(t)) for t in self.contact_tags])
+            shared = comm.allreduce(int(len(facets) - len(np.unique(facets))), op=MPI.SUM)
+            if shared:
+                raise ValueError(
+                    f"contact tags {self.contact_tags} overlap: {shared} facets carry two of "
+                    "them; each contact facet must belong to one contact tag"
+                )
+
+    # -- data on other meshes (refinements) ---------------------------------------------------
+    def _data(self, domain_mesh: Any) -> _MeshData:
+        """The registered data of a mesh (by its C++ object or Python mesh), or ``{}``."""
+        cpp = getattr(domain_mesh, "_cpp_object", domain_mesh)
+        if cpp is getattr(self.mesh, "_cpp_object", self.mesh) and not self._mesh_data.get(
+            id(cpp)
+        ):
+            self.register_mesh(self.mesh, cell_tags=self.cell_tags)
+        return self._mesh_data.get(id(cpp), {})
+
+    def register_mesh(
+        self,
+        msh: dmesh.Mesh,
+        cell_tags: dmesh.MeshTags | None = None,
+        contact_indicators: Mapping[int, Any] | None = None,
+    ) -> None:
+        """Let the data of this problem be evaluated on ``msh`` (a refinement of T_H).
+
+        :class:`~dwr_signorini.spaces.Discretization` registers T_h with its cell tags (carried
+        from T_H through the parent cells) and, for a gap per contact tag, the indicator of each
+        contact tag (functions of Lambda_H, 1 on that tag's macro facets).
+        """
+        data = self._mesh_data.setdefault(id(msh._cpp_object), {"mesh": msh})
+        if cell_tags is not None:
+            data["cell_tags"] = cell_tags
+        if contact_indicators is not None:
+            data["contact_indicators"] = dict(contact_indicators)
+
+    def registered_cell_tags(self, msh: dmesh.Mesh) -> dmesh.MeshTags | None:
+        """The cell tags of ``msh`` if registered (``self.cell_tags`` on T_H), else ``None``."""
+        return self._data(msh).get("cell_tags", self.cell_tags if msh is self.mesh else None)
+
+    def _domain_data(self, x: Any) -> _MeshData:
+        return self._data(extract_unique_domain(x).ufl_cargo())
+
+    def material(self, x: Any) -> tuple[Any, Any]:
+        """``(E, nu)`` as UFL scalars on the mesh of ``x`` (numbers stay floats)."""
+        return self._material(self.E, "E", x), self._material(self.nu, "nu", x)
+
+    def _material(self, value: MaterialData, name: str, x: Any) -> Any:
+        if callable(value):
+            return value(x)
+        if not isinstance(value, Mapping):
+            return value
+        data = self._domain_data(x)
+        key = f"field_{name}"
+        if key not in data:
+            tags = data.get("cell_tags")
+            if tags is None:
+                raise ValueError(
+                    f"{name} is given per cell tag, but this mesh has no registered cell tags "
+                    "(build forms on the meshes of ds.discretize / ds.solve)"
+                )
+            msh = data["mesh"]
+            space = fem.functionspace(msh, ("DG", 0))
+            field = fem.Function(space, name=name)
+            num = msh.topology.index_map(msh.topology.dim).size_local
+            lookup = dict(value)
+            keep = (tags.indices < num) & np.isin(tags.values, list(lookup))
+            cells = tags.indices[keep]
+            field.x.array[space.dofmap.list[cells, 0]] = [lookup[int(t)] for t in tags.values[keep]]
+            field.x.scatter_forward()
+            data[key] = field
+        return data[key]
+
+    @property
+    def homogeneous_material(self) -> bool:
+        """Whether E and nu are numbers."""
+        return isinstance(self.E, float) and isinstance(self.nu, float)
 
     # -- material law (linear elasticity) ----------------------------------------------------
     @property
     def lame(self) -> tuple[float, float]:
         """Lame parameters (mu, lambda) of the model (plane stress uses the reduced lambda)."""
+        if not self.homogeneous_material:
+            raise ValueError("lame: E and nu vary in space; use material(x) / sigma(u)")
         return lame_parameters(self.E, self.nu, self.model)
 
     def epsilon(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
@@ -322,10 +631,14 @@ class SignoriniProblem:
     def sigma(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """Stress sigma(u) = 2 mu eps(u) + lambda tr(eps(u)) I (Hooke's law).
 
-        The Lame parameters enter as dolfinx Constants on the mesh of ``u``, so forms for
-        different materials share their compiled code (no new JIT compilation per E, nu).
+        For numbers E, nu the Lame parameters enter as dolfinx Constants on the mesh of ``u``,
+        so forms for different materials share their compiled code (no new JIT compilation per
+        E, nu); callables enter as UFL expressions of x, per-cell-tag values as DG0 functions.
         """
-        return stress(u, self.E, self.nu, self.model, constants=True)
+        if self.homogeneous_material:
+            return stress(u, self.E, self.nu, self.model, constants=True)
+        E, nu = self.material(ufl.SpatialCoordinate(extract_unique_domain(u)))
+        return stress(u, E, nu, self.model)
 
     def elastic_form(self, u: Any, v: Any, dx: ufl.Measure) -> ufl.Form:
         """a(u, v) = (sigma(u), eps(v)) (Section 2)."""
@@ -361,23 +674,101 @@ class SignoriniProblem:
         data = np.zeros(self.mesh.geometry.dim) if value is None else np.asarray(value, float)
         return fem.Constant(extract_unique_domain(x), data)
 
-    def gap_expr(self, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
-        """The gap g as UFL on the mesh of ``x`` (constants as a dolfinx Constant, see vector)."""
-        if callable(self.gap):
-            return _nonzero_literal(ufl.as_ufl(self.gap(x)), x)
-        return fem.Constant(extract_unique_domain(x), float(self.gap))
+    @property
+    def miss_gap(self) -> float:
+        """The gap where an obstacle's ray misses it (:mod:`dwr_signorini.obstacles`).
 
-    def with_mesh(self, mesh: dmesh.Mesh, facet_tags: dmesh.MeshTags) -> SignoriniProblem:
-        """The same problem on another (refined) macro mesh."""
+        Twice the diameter of the bounding box of T_H plus the largest obstacle size and the
+        largest distance from the box's center to an obstacle's reference point: larger than
+        any gap a point of the body can close. Computed (collectively) in the constructor.
+        """
+        if not hasattr(self, "_miss"):
+            x = self.mesh.geometry.x
+            comm = self.mesh.comm
+            lo, hi = np.min(x, axis=0, initial=np.inf), np.max(x, axis=0, initial=-np.inf)
+            comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+            comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+            diameter = float(np.linalg.norm(hi - lo))
+            extra = 0.0
+            gaps = self.gap.values() if isinstance(self.gap, Mapping) else [self.gap]
+            gdim = self.mesh.geometry.dim
+            for g in gaps:
+                if isinstance(g, Obstacle):
+                    p = np.zeros(3)
+                    p[:gdim] = g.reference_point[:gdim]
+                    extra = max(extra, g.size + float(np.linalg.norm(p - 0.5 * (lo + hi))))
+            self._miss = 2.0 * (diameter + extra) + 1.0e-300
+        return self._miss
+
+    def _gap_value(self, gap: Any, x: Any, n: Any) -> Any:
+        if isinstance(gap, Obstacle):
+            n = ufl.FacetNormal(extract_unique_domain(x)) if n is None else n
+            return gap.gap(x, n, self.miss_gap)
+        if callable(gap):
+            return ufl.as_ufl(gap(x))
+        return gap
+
+    def gap_expr(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
+        """The gap g as UFL on the mesh of ``x`` (constants as a dolfinx Constant, see vector).
+
+        Args:
+            x: The spatial coordinate of the mesh of the form.
+            n: The outward unit normal; obstacles need it, and ``None`` takes the
+                ``ufl.FacetNormal`` of that mesh (the same as ``m.n``), so the expression is
+                for facet integrals over Gamma_C.
+
+        A gap per contact tag is the sum of each tag's gap times the indicator of its macro
+        facets (a function of Lambda_H, registered by the discretisation), so it needs the
+        entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
+        """
+        if isinstance(self.gap, Mapping):
+            values = {t: self._gap_value(g, x, n) for t, g in self.gap.items()}
+            distinct = {id(g) for g in self.gap.values()}
+            if len(distinct) == 1:
+                return self._as_expr(next(iter(values.values())), x)
+            indicators = self._domain_data(x).get("contact_indicators")
+            if indicators is None:
+                raise ValueError(
+                    "gap is given per contact tag: its expression needs the contact-tag "
+                    "indicators of a discretisation (use the measures of ds.discretize)"
+                )
+            total = sum(indicators[t] * ufl.as_ufl(values[t]) for t in self.contact_tags)
+            return total
+        return self._as_expr(self._gap_value(self.gap, x, n), x)
+
+    @staticmethod
+    def _as_expr(value: Any, x: Any) -> Any:
+        if _is_real(value):
+            return fem.Constant(extract_unique_domain(x), float(value))
+        return _nonzero_literal(ufl.as_ufl(value), x)
+
+    def with_mesh(
+        self,
+        mesh: dmesh.Mesh,
+        facet_tags: dmesh.MeshTags,
+        cell_tags: dmesh.MeshTags | None = None,
+    ) -> SignoriniProblem:
+        """The same problem on another (refined) macro mesh.
+
+        Args:
+            mesh: The new macro mesh.
+            facet_tags: Its facet tags.
+            cell_tags: Its cell tags; by default those registered for ``mesh`` (T_h of a
+                discretisation of this problem, see :meth:`register_mesh`).
+        """
+        if cell_tags is None:
+            cell_tags = self._data(mesh).get("cell_tags")
         return SignoriniProblem(
             mesh,
             facet_tags,
-            self.contact,
-            self.dirichlet,
+            self.contact_tags if len(self.contact_tags) > 1 else self.contact_tags[0],
+            self.dirichlet_values,
             self.E,
             self.nu,
             self.model,
             self.body_force,
             self.traction,
             self.gap,
+            cell_tags=cell_tags,
+            boundary_projection=self.boundary_projection or None,
         )

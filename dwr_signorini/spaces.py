@@ -85,7 +85,9 @@ class Discretization:
         Q: DG0 on Sigma_H (the multiplier space Lambda_H).
         entity_maps: For forms on T_h that use Q: fine facet -> Sigma_H cell.
         macro_entity_maps: For forms on T_H that use Q: macro facet -> Sigma_H cell.
-        bcs: Homogeneous Dirichlet conditions on V.
+        bcs: Homogeneous Dirichlet conditions on V (the dual problem, corrections).
+        prescribed_bcs: The Dirichlet conditions with their prescribed values on V.
+        cell_tags: Cell tags of T_h (those of the parent macro cells), or None.
         m: The :class:`Measures` on T_h.
     """
 
@@ -106,7 +108,7 @@ class Discretization:
 
         # Sigma_H: the macro contact facets (exterior facets only).
         exterior = dmesh.exterior_facet_indices(macro.topology)
-        contact_macro = np.intersect1d(problem.facet_tags.find(problem.contact), exterior)
+        contact_macro = np.intersect1d(_find(problem.facet_tags, problem.contact_tags), exterior)
         self.contact_macro_facets = contact_macro.astype(np.int32)
         sub, sub_to_macro, _, _ = compat.create_submesh(macro, fdim, self.contact_macro_facets)
         self.contact_mesh = sub
@@ -114,7 +116,7 @@ class Discretization:
         macro_to_sub = np.full(num_entities(macro, fdim), -1, dtype=np.int32)
         macro_to_sub[sub_to_macro] = np.arange(len(sub_to_macro), dtype=np.int32)
         fine_to_sub = np.full(len(to_macro), -1, dtype=np.int32)
-        fine_contact = self.facet_tags.find(problem.contact)
+        fine_contact = _find(self.facet_tags, problem.contact_tags)
         fine_to_sub[fine_contact] = macro_to_sub[to_macro[fine_contact]]
         if np.any(fine_to_sub[fine_contact] < 0):
             raise RuntimeError("a fine contact facet has no parent macro contact facet")
@@ -126,10 +128,12 @@ class Discretization:
         self.V = fem.functionspace(fine, ("Lagrange", 1, (gdim,)))
         self.Q = fem.functionspace(sub, ("DG", 0))
 
-        self._dirichlet_facets = np.concatenate(
-            [self.facet_tags.find(t) for t in problem.dirichlet] or [np.zeros(0, np.int32)]
-        ).astype(np.int32)
+        self._dirichlet_facets = {
+            t: self.facet_tags.find(t).astype(np.int32) for t in problem.dirichlet
+        }
         self.bcs = self.dirichlet_bcs(self.V)
+        self.prescribed_bcs = self.dirichlet_bcs(self.V, homogeneous=False)
+        self._register_data()
 
         dx = ufl.Measure("dx", domain=fine)
         ds = ufl.Measure("ds", domain=fine, subdomain_data=self.facet_tags)
@@ -137,12 +141,42 @@ class Discretization:
         self.m = Measures(
             x=ufl.SpatialCoordinate(fine),
             dx=dx,
-            ds_contact=ds(problem.contact),
+            ds_contact=ds(problem.contact),  # a tag, or a tuple of tags
             ds=ds,
             n=ufl.FacetNormal(fine),
             mesh=fine,
             problem=problem,
         )
+
+    def _register_data(self) -> None:
+        """Cell tags of T_h (from the parents) and contact-tag indicators for the problem."""
+        problem = self.problem
+        fine_tags = None
+        macro_tags = problem.cell_tags
+        if macro_tags is not None:
+            tdim = self.mesh.topology.dim
+            tag_of = np.full(num_entities(self.macro_mesh, tdim), -1, dtype=np.int32)
+            tag_of[macro_tags.indices] = macro_tags.values
+            values = tag_of[self.parent_cell]
+            keep = values >= 0
+            cells = np.flatnonzero(keep).astype(np.int32)
+            fine_tags = dmesh.meshtags(self.mesh, tdim, cells, values[keep])
+        self.cell_tags = fine_tags
+        indicators = None
+        if isinstance(problem.gap, dict) and len(problem.contact_tags) > 1:
+            fdim = self.macro_mesh.topology.dim - 1
+            tag_of = np.full(num_entities(self.macro_mesh, fdim), -1, dtype=np.int64)
+            tag_of[problem.facet_tags.indices] = problem.facet_tags.values
+            sub_tag = tag_of[self.contact_mesh_to_macro]
+            cell_dof = self.Q.dofmap.list[: len(sub_tag), 0]
+            indicators = {}
+            for t in problem.contact_tags:
+                chi = fem.Function(self.Q, name=f"contact_{t}")
+                chi.x.array[cell_dof] = (sub_tag == t).astype(float)
+                chi.x.scatter_forward()
+                indicators[t] = chi
+        problem.register_mesh(self.mesh, cell_tags=fine_tags, contact_indicators=indicators)
+        problem.register_mesh(self.macro_mesh, problem.cell_tags, contact_indicators=indicators)
 
     def load_form(self, v: Any) -> ufl.Form:
         """<l, v> on T_h (Section 2), for test functions or weights ``v`` of any degree.
@@ -172,12 +206,46 @@ class Discretization:
         f.interpolate(fem.Expression(expand_integer_powers(expr), points))
         return f, self.m.dx(metadata={"quadrature_degree": DATA_QUADRATURE_DEGREE})
 
-    def dirichlet_bcs(self, V: fem.FunctionSpace) -> list[fem.DirichletBC]:
-        """Homogeneous Dirichlet conditions on Gamma_D for a vector space V on T_h."""
+    def dirichlet_bcs(
+        self, V: fem.FunctionSpace, homogeneous: bool = True
+    ) -> list[fem.DirichletBC]:
+        """The Dirichlet conditions on Gamma_D for a vector space V on T_h.
+
+        Args:
+            V: The displacement space (P1, or P2 for the higher-order solves).
+            homogeneous: Zero values on the same dofs (the dual problem and every correction
+                use these), or the prescribed values (the primal problem's lifting).
+
+        Returns:
+            One condition per tag on V for all components, or per prescribed component on
+            ``V.sub(i)`` (``None`` components stay free), in the order of ``dirichlet``.
+        """
         fdim = self.mesh.topology.dim - 1
-        dofs = fem.locate_dofs_topological(V, fdim, self._dirichlet_facets)
-        zero = np.zeros(self.mesh.geometry.dim, dtype=self.mesh.geometry.x.dtype)
-        return [fem.dirichletbc(zero, dofs, V)]
+        gdim = self.mesh.geometry.dim
+        dtype = self.mesh.geometry.x.dtype
+        bcs = []
+        for tag, value in self.problem.dirichlet_values.items():
+            facets = self._dirichlet_facets[tag]
+            if callable(value) or all(c is not None for c in value):
+                dofs = fem.locate_dofs_topological(V, fdim, facets)
+                if homogeneous or not callable(value):
+                    data = np.zeros(gdim, dtype=dtype)
+                    if not homogeneous:
+                        data[:] = value
+                    bcs.append(fem.dirichletbc(data, dofs, V))
+                else:
+                    u_D = fem.Function(V, name=f"u_D_{tag}")
+                    expr = ufl.as_vector(value(ufl.SpatialCoordinate(self.mesh)))
+                    points = compat.interpolation_points(V.element)
+                    u_D.interpolate(fem.Expression(expand_integer_powers(expr), points))
+                    bcs.append(fem.dirichletbc(u_D, dofs))
+                continue
+            for i, c in enumerate(value):
+                if c is not None:
+                    dofs = fem.locate_dofs_topological(V.sub(i), fdim, facets)
+                    data = dtype.type(0.0 if homogeneous else c)
+                    bcs.append(fem.dirichletbc(data, dofs, V.sub(i)))
+        return bcs
 
     # -- sizes, as in the paper's tables -----------------------------------------------------
     @property
@@ -214,6 +282,11 @@ class Discretization:
     def macro_form(self, expr: ufl.Form) -> fem.Form:
         """Compile a form on T_H that may use functions of Q."""
         return compat.form(expr, entity_maps=self.macro_entity_maps)
+
+
+def _find(tags: dmesh.MeshTags, values: tuple[int, ...]) -> np.ndarray:
+    """The (sorted, unique) entities carrying any of ``values``."""
+    return np.unique(np.concatenate([tags.find(t) for t in values])).astype(np.int32)
 
 
 def discretize(problem: SignoriniProblem) -> Discretization:

@@ -1,0 +1,268 @@
+r"""Rigid obstacles and the gap they give along the outward normal of the body (eq. 2).
+
+The linearised contact condition of the paper is ``u_n <= g`` on Gamma_C, with ``g`` the
+distance from a boundary point ``x`` to the obstacle, measured along the outward unit normal
+``n`` of the body at ``x``: ``g(x) = t*`` for the smallest ``t*`` with ``x + t* n`` on the
+obstacle's surface (the ray's entry point). ``g`` is negative where ``x`` already lies inside
+the obstacle (the entry point of the line through ``x`` lies behind it).
+
+Each obstacle gives that gap as a UFL expression of ``x`` and ``n`` (:meth:`Obstacle.gap`), to
+be integrated at the quadrature points of Gamma_C. :class:`Plane`, :class:`Sphere` and
+:class:`Cylinder` are exact for their shape (no paraboloid approximation). :class:`Graph` uses the
+paper's formula of Section 2.
+
+**Rays that miss.** Where the ray ``x + t n`` (t >= 0) does not meet the obstacle (it points
+away or passes beside it), the point cannot come into contact. The gap there is the finite value
+``miss`` (an argument of :meth:`Obstacle.gap`; :class:`~dwr_signorini.SignoriniProblem` passes
+the diameter of the body's bounding box plus the obstacle's :attr:`Obstacle.size`, plus the
+distance between the two), so that assemblies stay finite and the NCP keeps such points
+inactive. Gaps that would exceed ``miss`` (grazing rays) are cut at ``miss``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import ufl
+
+__all__ = ["Cylinder", "Graph", "Obstacle", "Plane", "Sphere"]
+
+Expr = Any
+
+
+def _unit(vector: Sequence[float], name: str) -> np.ndarray:
+    arr = np.asarray(vector, dtype=float)
+    if arr.ndim != 1 or arr.size not in (2, 3) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be a finite vector of 2 or 3 components, got {vector!r}")
+    length = float(np.linalg.norm(arr))
+    if length == 0.0:
+        raise ValueError(f"{name} must not be the zero vector")
+    return arr / length
+
+
+def _point(point: Sequence[float], name: str) -> np.ndarray:
+    arr = np.asarray(point, dtype=float)
+    if arr.ndim != 1 or arr.size not in (2, 3) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be a finite point of 2 or 3 coordinates, got {point!r}")
+    return arr
+
+
+def _positive(value: float, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    if not (0.0 < value < np.inf):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return float(value)
+
+
+def _dot(a: Sequence[Expr], b: Sequence[Expr]) -> Expr:
+    return sum(ai * bi for ai, bi in zip(a, b, strict=True))
+
+
+def _components(v: Expr, dim: int) -> list[Expr]:
+    return [v[i] for i in range(dim)]
+
+
+def _ray_quadric(A: Expr, B: Expr, C: Expr, miss: float) -> Expr:
+    """Entry parameter t of the ray into {A t^2 + 2 B t + C <= 0}, or ``miss``.
+
+    The roots are ``t1 <= t2``; the ray meets the (convex) solid iff the discriminant
+    ``B^2 - A C`` is >= 0 and ``t2 >= 0``. ``t1 = C / (-B + sqrt(B^2 - A C))`` (no cancellation,
+    and right for A -> 0: a ray parallel to a cylinder's axis); ``-B + sqrt(...) = A t2``.
+    """
+    disc = B * B - A * C
+    root = ufl.sqrt(ufl.max_value(disc, 0.0))
+    denominator = -B + root
+    safe = ufl.conditional(ufl.gt(denominator, 0.0), denominator, 1.0)
+    t1 = ufl.max_value(ufl.min_value(C / safe, miss), -miss)
+    hit = ufl.And(ufl.ge(disc, 0.0), ufl.gt(denominator, 0.0))
+    return ufl.conditional(hit, t1, miss)
+
+
+class Obstacle:
+    """A rigid obstacle: the gap along the body's outward normal (see the module docstring).
+
+    Attributes:
+        dim: The space dimension the obstacle is defined in (2 or 3).
+    """
+
+    dim: int
+
+    @property
+    def size(self) -> float:
+        """A length of the obstacle (a radius; 0 for unbounded ones), for the ``miss`` value."""
+        return 0.0
+
+    @property
+    def reference_point(self) -> np.ndarray:
+        """A point of the obstacle, for the ``miss`` value."""
+        raise NotImplementedError
+
+    def gap(self, x: Expr, n: Expr, miss: float) -> Expr:
+        """The distance along ``n`` from ``x`` to the obstacle's surface, as UFL.
+
+        Args:
+            x: The boundary point (``ufl.SpatialCoordinate``, or any UFL vector).
+            n: The body's outward unit normal at ``x`` (``ufl.FacetNormal``, or a UFL vector).
+            miss: The finite value where the ray misses the obstacle.
+        """
+        raise NotImplementedError
+
+
+class Plane(Obstacle):
+    """The rigid half-space ``{y : (y - point) . normal >= 0}`` (the body on the other side).
+
+    Gap: ``t = (point - x) . normal / (n . normal)`` where ``n . normal > 0``, else ``miss``
+    (a boundary facing away from the plane cannot touch it).
+
+    Args:
+        point: A point of the plane.
+        normal: The direction into the obstacle (normalised here).
+    """
+
+    def __init__(self, point: Sequence[float], normal: Sequence[float]) -> None:
+        self.point = _point(point, "Plane point")
+        self.normal = _unit(normal, "Plane normal")
+        if self.point.size != self.normal.size:
+            raise ValueError("Plane point and normal must have the same number of components")
+        self.dim = self.point.size
+
+    @property
+    def reference_point(self) -> np.ndarray:  # noqa: D102
+        return self.point
+
+    def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        nu = [float(c) for c in self.normal]
+        n_dot = _dot(_components(n, self.dim), nu)
+        xs = _components(x, self.dim)
+        dist = _dot([float(p) - xi for p, xi in zip(self.point, xs, strict=True)], nu)
+        safe = ufl.conditional(ufl.gt(n_dot, 0.0), n_dot, 1.0)
+        t = ufl.max_value(ufl.min_value(dist / safe, miss), -miss)
+        return ufl.conditional(ufl.gt(n_dot, 0.0), t, miss)
+
+    def __repr__(self) -> str:
+        return f"Plane(point={self.point.tolist()}, normal={self.normal.tolist()})"
+
+
+class Sphere(Obstacle):
+    """A rigid disc (2D, ``center`` of 2 coordinates) or ball (3D).
+
+    Gap: the entry point of the ray into the ball, exactly (the smaller root of
+    ``|x + t n - center|^2 = radius^2``); negative for a point inside the ball.
+
+    Args:
+        center: The center, 2 or 3 coordinates.
+        radius: The radius, > 0.
+    """
+
+    def __init__(self, center: Sequence[float], radius: float) -> None:
+        self.center = _point(center, "Sphere center")
+        self.radius = _positive(radius, "Sphere radius")
+        self.dim = self.center.size
+
+    @property
+    def size(self) -> float:  # noqa: D102
+        return self.radius
+
+    @property
+    def reference_point(self) -> np.ndarray:  # noqa: D102
+        return self.center
+
+    def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        d = [xi - float(c) for xi, c in zip(_components(x, self.dim), self.center, strict=True)]
+        nn = _components(n, self.dim)
+        return _ray_quadric(_dot(nn, nn), _dot(nn, d), _dot(d, d) - self.radius**2, miss)
+
+    def __repr__(self) -> str:
+        return f"Sphere(center={self.center.tolist()}, radius={self.radius})"
+
+
+class Cylinder(Obstacle):
+    """A rigid infinite circular cylinder in 3D: points at distance <= radius from the axis.
+
+    Gap: the entry point of the ray, exactly (the quadric of the components normal to the axis;
+    a ray parallel to the axis misses unless it starts inside).
+
+    Args:
+        point: A point of the axis (3 coordinates).
+        axis: The axis direction (normalised here).
+        radius: The radius, > 0.
+    """
+
+    def __init__(self, point: Sequence[float], axis: Sequence[float], radius: float) -> None:
+        self.point = _point(point, "Cylinder point")
+        self.axis = _unit(axis, "Cylinder axis")
+        if self.point.size != 3 or self.axis.size != 3:
+            raise ValueError("Cylinder is a 3D obstacle: point and axis need 3 components")
+        self.radius = _positive(radius, "Cylinder radius")
+        self.dim = 3
+
+    @property
+    def size(self) -> float:  # noqa: D102
+        return self.radius
+
+    @property
+    def reference_point(self) -> np.ndarray:  # noqa: D102
+        return self.point
+
+    def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        a = [float(c) for c in self.axis]
+        d = [xi - float(p) for xi, p in zip(_components(x, 3), self.point, strict=True)]
+        nn = _components(n, 3)
+        d_a, n_a = _dot(d, a), _dot(nn, a)
+        d_perp = [di - d_a * ai for di, ai in zip(d, a, strict=True)]
+        n_perp = [ni - n_a * ai for ni, ai in zip(nn, a, strict=True)]
+        A = _dot(n_perp, n_perp)
+        return _ray_quadric(A, _dot(n_perp, d_perp), _dot(d_perp, d_perp) - self.radius**2, miss)
+
+    def __repr__(self) -> str:
+        return (
+            f"Cylinder(point={self.point.tolist()}, axis={self.axis.tolist()}, "
+            f"radius={self.radius})"
+        )
+
+
+class Graph(Obstacle):
+    r"""The obstacle above a graph: ``{y : y_axis >= psi(y)}``, the body below it.
+
+    The gap is the paper's formula of Section 2: for a contact boundary that is itself a graph
+    ``x_axis = phi(x')``, ``g = (psi - phi) (1 + |grad phi|^2)^(-1/2)``. At a boundary point,
+    ``phi(x') = x_axis`` and ``(1 + |grad phi|^2)^(-1/2) = n_axis`` (the normal of the graph), so
+    ``g = (psi(x) - x_axis) n_axis`` where ``n_axis > 0``, and ``miss`` where the boundary does not
+    face the obstacle (``n_axis <= 0``). This is the first-order (in the slopes) approximation
+    of the distance along n that the paper uses, exact for a flat psi and phi parallel to it.
+
+    Args:
+        psi: ``x -> UFL scalar``, the height of the obstacle's surface; it is called with the
+            full spatial coordinate and must not depend on ``x[axis]``.
+        axis: The vertical direction (default the last coordinate).
+        dim: The space dimension (2 or 3), checked against the mesh.
+    """
+
+    def __init__(
+        self, psi: Callable[[Any], Expr], axis: int = -1, dim: int | None = None
+    ) -> None:
+        if not callable(psi):
+            raise TypeError(f"Graph psi must be a callable x -> UFL scalar, got {psi!r}")
+        if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
+            raise TypeError(f"Graph axis must be an integer, got {axis!r}")
+        self.psi = psi
+        self.axis = int(axis)
+        self.dim = dim  # type: ignore[assignment]
+
+    @property
+    def reference_point(self) -> np.ndarray:  # noqa: D102
+        return np.zeros(self.dim or 3)
+
+    def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        dim = ufl.shape(x)[0]
+        axis = self.axis % dim
+        n_axis = n[axis]
+        g = (ufl.as_ufl(self.psi(x)) - x[axis]) * n_axis
+        g = ufl.max_value(ufl.min_value(g, miss), -miss)
+        return ufl.conditional(ufl.gt(n_axis, 0.0), g, miss)
+
+    def __repr__(self) -> str:
+        return f"Graph(psi={self.psi!r}, axis={self.axis})"
