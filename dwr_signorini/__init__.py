@@ -9,6 +9,7 @@ identities (13) and (15); adaptive refinement in parallel.
 from . import obstacles
 from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
 from .estimator import Estimate, estimate
+from .mesh_io import read_mesh
 from .newton import ConvergenceError, Solution, solve
 from .problem import SignoriniProblem
 from .spaces import Discretization, Measures, discretize
@@ -28,6 +29,7 @@ __all__ = [
     "discretize",
     "estimate",
     "obstacles",
+    "read_mesh",
     "solve",
     "solve_adaptive",
 ]

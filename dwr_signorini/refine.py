@@ -4,10 +4,23 @@ Simplices are refined by ``dolfinx.mesh.refine`` with children kept on their par
 (``partitioner=None``); quadrilaterals and hexahedra, which dolfinx cannot refine, uniformly by
 :mod:`dwr_signorini.tensor_refine`. The parent cell of each fine cell comes from the refinement,
 the parent facet of each fine facet from the geometry (:func:`fine_to_macro_facets`), and facet
-tags are carried through it (:func:`facet_tags_on_fine`).
+tags are carried through it (:func:`facet_tags_on_fine`); cell tags (materials) go from parent to
+child (:func:`cell_tags_on_fine`).
+
+Curved boundaries (``boundary_projection`` of the problem): after each refinement of the macro
+mesh T_H (:func:`refine_marked`) the vertices on the projected facet tags are moved onto the true
+surface (:func:`project_boundary`; the old vertices already lie on it, so only the new ones
+move). The fine mesh T_h of a discretisation stays the exact uniform refinement of its T_H, so the
+patch reconstructions stay exact and parent facets still come from the refinement. A move that
+would invert (or flatten) a cell is refused with an error naming the tag, and the mesh is left
+unchanged.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
+
+from mpi4py import MPI
 
 import numpy as np
 import numpy.typing as npt
@@ -18,9 +31,11 @@ from . import compat
 from .problem import SignoriniProblem
 
 __all__ = [
+    "cell_tags_on_fine",
     "facet_tags_on_fine",
     "fine_to_macro_facets",
     "num_entities",
+    "project_boundary",
     "refine_marked",
     "refine_uniform",
     "refine_with_tags",
@@ -146,6 +161,104 @@ def facet_tags_on_fine(
     return dmesh.meshtags(fine, fdim, fine_facets[keep].astype(np.int32), values[keep])
 
 
+def cell_tags_on_fine(
+    macro_tags: dmesh.MeshTags | None,
+    fine: dmesh.Mesh,
+    parent_cell: npt.NDArray[np.int32],
+    num_macro: int,
+) -> dmesh.MeshTags | None:
+    """Cell tags of a refinement: each local fine cell takes its parent's tag (None stays None).
+
+    Args:
+        macro_tags: Cell tags of the coarse mesh, or None.
+        fine: The refined mesh.
+        parent_cell: The coarse cell of each local fine cell.
+        num_macro: Local (owned and ghost) cells of the coarse mesh.
+    """
+    if macro_tags is None:
+        return None
+    tag_of = np.full(num_macro, -1, dtype=np.int32)
+    tag_of[macro_tags.indices] = macro_tags.values
+    values = tag_of[parent_cell]
+    cells = np.flatnonzero(values >= 0).astype(np.int32)
+    return dmesh.meshtags(fine, fine.topology.dim, cells, values[cells])
+
+
+def _corner_jacobians(msh: dmesh.Mesh) -> npt.NDArray[np.float64]:
+    """The Jacobian determinant at every corner of every local cell (simplices: one per cell).
+
+    For quadrilaterals/hexahedra (vertices in lexicographic order) the derivative of the
+    (multi)linear map at a corner along axis k is the difference of the two vertices of the
+    edge along k, so these are the exact corner Jacobians, whose signs decide inversion.
+    """
+    tdim = msh.topology.dim
+    dofmap = compat.geometry_dofmap(msh)
+    x = msh.geometry.x[dofmap][..., :tdim]  # (cells, nodes, tdim)
+    if msh.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
+        return np.linalg.det(x[:, 1:] - x[:, :1])[:, None]
+    dets = []
+    for corner in range(2**tdim):
+        cols = []
+        for k in range(tdim):
+            low, high = corner & ~(1 << k), corner | (1 << k)
+            cols.append(x[:, high] - x[:, low])
+        dets.append(np.linalg.det(np.stack(cols, axis=-1)))
+    return np.stack(dets, axis=1)
+
+
+def project_boundary(
+    msh: dmesh.Mesh,
+    facet_tags: dmesh.MeshTags,
+    projection: dict[int, Callable[[np.ndarray], np.ndarray]],
+) -> None:
+    """Move the vertices on the tagged facets onto their surfaces, in place (collective).
+
+    Every rank moves its copies of the vertices with the same callable, so shared vertices
+    stay shared. Checked afterwards: no corner Jacobian of a local cell changes sign or drops
+    below 1e-10 of its old size.
+
+    Args:
+        msh: A mesh with affine (degree 1) geometry.
+        facet_tags: Its facet tags.
+        projection: ``{facet tag: f}`` with ``f(x)`` for an array of shape (3, n) returning the
+            points on the true surface, shape (3, n) or (gdim, n).
+
+    Raises:
+        RuntimeError: If a move would invert or flatten a cell (the mesh is then unchanged):
+            the macro mesh is too coarse near that curved boundary for its refinement.
+        ValueError: If a projection returns an array of the wrong shape or non-finite values.
+    """
+    fdim = msh.topology.dim - 1
+    gdim = msh.geometry.dim
+    x = msh.geometry.x
+    before = _corner_jacobians(msh)
+    saved = x.copy()
+    for tag, f in projection.items():
+        facets = facet_tags.find(tag).astype(np.int32)
+        nodes = np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False))
+        if nodes.size:
+            new = np.asarray(f(x[nodes].T.copy()), dtype=float)
+            if new.ndim != 2 or new.shape[1] != nodes.size or new.shape[0] not in (gdim, 3):
+                raise ValueError(
+                    f"boundary_projection[{tag}] must return an array of shape (3, n) or "
+                    f"({gdim}, n) for points of shape (3, n), got {new.shape}"
+                )
+            if not np.all(np.isfinite(new)):
+                raise ValueError(f"boundary_projection[{tag}] returned NaN or Inf")
+            x[nodes, :gdim] = new[:gdim].T
+        after = _corner_jacobians(msh)
+        bad = (np.sign(after) != np.sign(before)) | (np.abs(after) < 1e-10 * np.abs(before))
+        count = msh.comm.allreduce(int(bad.any(axis=1).sum()), op=MPI.SUM)
+        if count:
+            x[:] = saved
+            raise RuntimeError(
+                f"boundary_projection[{tag}]: moving the new vertices onto the surface would "
+                f"invert or flatten {count} cell(s) of the refined macro mesh, so no vertex was "
+                "moved. Start from a finer mesh near that boundary (its facets must be small "
+                "against the radius of curvature) or refine less there"
+            )
+
+
 def refine_marked(
     problem: SignoriniProblem, cells: npt.NDArray[np.int32] | None
 ) -> tuple[SignoriniProblem, npt.NDArray[np.int32]]:
@@ -155,6 +268,9 @@ def refine_marked(
         problem: The problem on the current macro mesh T_H.
         cells: Local indices of marked macro cells (simplices), or ``None`` for a uniform
             refinement (any cell type).
+
+    Cell tags go from parent to child; with ``problem.boundary_projection`` the vertices on
+    those facet tags are moved onto their surfaces (:func:`project_boundary`).
 
     Returns:
         The problem on the refined macro mesh, and the parent of each new macro cell.
@@ -168,7 +284,10 @@ def refine_marked(
         edges = np.unique(dmesh.compute_incident_entities(macro.topology, cells, tdim, 1))
         edges = edges.astype(np.int32)
     fine, parent_cell, _, tags = refine_with_tags(problem, edges)
-    return problem.with_mesh(fine, tags), parent_cell
+    cell_tags = cell_tags_on_fine(problem.cell_tags, fine, parent_cell, num_entities(macro, tdim))
+    if problem.boundary_projection:
+        project_boundary(fine, tags, problem.boundary_projection)
+    return problem.with_mesh(fine, tags, cell_tags), parent_cell
 
 
 def refine_with_tags(

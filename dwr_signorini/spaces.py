@@ -28,6 +28,7 @@ from . import compat
 from .problem import SignoriniProblem
 from .quadrature import DATA_QUADRATURE_DEGREE, expand_integer_powers, is_polynomial
 from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
+    cell_tags_on_fine,
     fine_to_macro_facets,
     num_entities,
     refine_marked,
@@ -151,16 +152,10 @@ class Discretization:
     def _register_data(self) -> None:
         """Cell tags of T_h (from the parents) and contact-tag indicators for the problem."""
         problem = self.problem
-        fine_tags = None
-        macro_tags = problem.cell_tags
-        if macro_tags is not None:
-            tdim = self.mesh.topology.dim
-            tag_of = np.full(num_entities(self.macro_mesh, tdim), -1, dtype=np.int32)
-            tag_of[macro_tags.indices] = macro_tags.values
-            values = tag_of[self.parent_cell]
-            keep = values >= 0
-            cells = np.flatnonzero(keep).astype(np.int32)
-            fine_tags = dmesh.meshtags(self.mesh, tdim, cells, values[keep])
+        tdim = self.mesh.topology.dim
+        fine_tags = cell_tags_on_fine(
+            problem.cell_tags, self.mesh, self.parent_cell, num_entities(self.macro_mesh, tdim)
+        )
         self.cell_tags = fine_tags
         indicators = None
         if isinstance(problem.gap, dict) and len(problem.contact_tags) > 1:

@@ -33,7 +33,7 @@ def transfer_solution(
     lambda_0 on each new macro contact facet is the facet mean of the old vertex-averaged linear
     recovery i_2H^(1) lambda_H. u_0 is, with ``macro_parent``, the old i_2h^(2) u_h (the fine
     nodal values read as macro P2 values, Section 4) evaluated at the new fine nodes, and
-    otherwise u_h interpolated.
+    otherwise u_h interpolated; its Dirichlet dofs hold the prescribed values.
 
     Args:
         old: The solution on the previous level.
@@ -57,6 +57,7 @@ def transfer_solution(
     data = fem.create_interpolation_data(disc.V, old.u.function_space, cells, padding=1e-10)
     u0.interpolate_nonmatching(old.u, cells, data)
     u0.x.scatter_forward()
+    _prescribe(u0, disc)
 
     lam_rec_old = rec.patch_linear_multiplier(old.lam)
     P1 = fem.functionspace(disc.mesh, ("Lagrange", 1))
@@ -77,6 +78,12 @@ def transfer_solution(
     return u0, lam0
 
 
+def _prescribe(u0: fem.Function, disc: Discretization) -> None:
+    """Set the prescribed Dirichlet values of the new level into the warm start."""
+    for bc in disc.prescribed_bcs:
+        bc.set(u0.x.array)
+
+
 def _transfer_by_parents(
     old: Solution, disc: Discretization, rec: Reconstructor, macro_parent: npt.NDArray[np.int32]
 ) -> tuple[fem.Function, fem.Function]:
@@ -94,6 +101,7 @@ def _transfer_by_parents(
     bs = disc.V.dofmap.index_map_bs
     u0.x.array.reshape(-1, bs)[nodes] = rec.macro_quadratic(old.u).eval(x, cells)
     u0.x.scatter_forward()
+    _prescribe(u0, disc)
 
     macro = disc.macro_mesh
     tdim = macro.topology.dim
