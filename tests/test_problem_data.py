@@ -384,3 +384,127 @@ def test_callable_modulus_uniaxial_strain():
         lo, hi = lam_range(sol)
         assert hi - lo <= 1e-12 * hi
         assert lo == pytest.approx((D - G0) * M0 / np.log(2.0), rel=2e-4)
+
+
+# -- gmsh meshes, read_mesh and curved boundaries -----------------------------------------------
+
+MESHES = __import__("pathlib").Path(__file__).resolve().parents[1] / "meshes"
+
+
+def mesh_script(name):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"meshes_{name}", MESHES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def from_model(build, **kwargs):
+    gmsh = pytest.importorskip("gmsh")
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        if COMM.rank == 0:
+            gmsh.model.add("test")
+            build(gmsh.model, **kwargs)
+        return ds.read_mesh(gmsh.model, COMM)
+    finally:
+        gmsh.finalize()
+
+
+def measure(msh, tags, tag, dim):
+    m = ufl.Measure("dx" if dim == msh.topology.dim else "ds", domain=msh, subdomain_data=tags)
+    one = fem.Constant(msh, 1.0)
+    return COMM.allreduce(fem.assemble_scalar(fem.form(one * m(tag))), op=MPI.SUM)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize(
+    ("script", "builder", "kwargs", "sizes"),
+    [
+        ("paper_examples", "analytic_2d", {"h": 0.5}, {"dx": 6.0, 1: 2.0, 2: 6.0, 3: 2.0}),
+        ("paper_examples", "bar_2d", {"h": 0.025}, {"dx": 0.01, 1: 0.05, 3: 0.05}),
+        ("paper_examples", "obstacle_3d", {"h": 0.25}, {"dx": 0.25, 1: 1.0, 3: 0.25}),
+        ("hertz_2d", "build", {"h": 0.2, "h_contact": 0.05},
+         {"dx": (np.pi / 4, 5e-3), 1: (np.pi / 2, 2e-3), 2: 1.0, 3: 1.0}),
+        ("hertz_3d", "build", {"h": 0.4, "h_contact": 0.2},
+         {"dx": (np.pi / 6, 5e-2), 2: (np.pi / 4, 5e-2), 3: (np.pi / 4, 5e-2)}),
+        ("curved_3d", "build", {"h": 0.3}, {"dx": (np.pi / 4, 5e-2), 2: 1.0, 3: 1.0}),
+    ],
+)
+def test_gmsh_meshes_read_with_tags(script, builder, kwargs, sizes):
+    """Every mesh script builds named groups that read_mesh returns as tags: the measures of
+    the body and of its tagged faces against the exact ones (polygonal ones within h^2)."""
+    module = mesh_script(script)
+    msh, cell_tags, facet_tags = from_model(getattr(module, builder), **kwargs)
+    assert msh.topology.index_map(msh.topology.dim).num_ghosts == 0
+    for key, exact in sizes.items():
+        exact, rel = exact if isinstance(exact, tuple) else (exact, 1e-12)
+        if key == "dx":
+            value = measure(msh, cell_tags, 1, msh.topology.dim)
+        else:
+            value = measure(msh, facet_tags, key, msh.topology.dim - 1)
+        assert value == pytest.approx(exact, rel=rel)
+
+
+def test_read_mesh_from_file(tmp_path):
+    gmsh = pytest.importorskip("gmsh")
+    path = COMM.bcast(str(tmp_path / "hertz_2d.msh") if COMM.rank == 0 else None, root=0)
+    if COMM.rank == 0:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        mesh_script("hertz_2d").build(gmsh.model, h=0.3, h_contact=0.1)
+        gmsh.write(path)
+        gmsh.finalize()
+    msh, _, facets = ds.read_mesh(path, COMM)
+    assert msh.geometry.dim == 2 and sorted(set(facets.values)) == [1, 2, 3]
+    with pytest.raises(FileNotFoundError, match="no mesh file"):
+        ds.read_mesh(str(tmp_path / "missing.msh"), COMM)
+
+
+def hertz_2d_problem(projection, h=0.2, h_contact=0.05):
+    module = mesh_script("hertz_2d")
+    msh, cells, facets = from_model(module.build, h=h, h_contact=h_contact)
+    return module, ds.SignoriniProblem(
+        msh, facets, contact=module.CONTACT,
+        dirichlet={module.TOP: (None, -0.002), module.SYMMETRY: (0.0, None)},
+        E=1.0, nu=0.3, gap=ob.Plane((0.0, 0.0), (0.0, -1.0)), cell_tags=cells,
+        boundary_projection=module.projections() if projection else None,
+    )
+
+
+@pytest.mark.mpi
+def test_boundary_projection_puts_new_vertices_on_the_circle():
+    """After refine_marked the contact vertices of T_H lie on the circle (without projection
+    the new ones stay on the chords), T_h is the uniform refinement of that T_H, and the
+    area converges to the disc's pi/4 at the rate of the projected mesh."""
+    from dwr_signorini.refine import refine_marked
+
+    areas = {}
+    for projection in (False, True):
+        module, problem = hertz_2d_problem(projection)
+        for _ in range(2):
+            problem, _ = refine_marked(problem, None)
+        msh = problem.mesh
+        nodes = np.unique(dmesh.entities_to_geometry(
+            msh, 1, problem.facet_tags.find(module.CONTACT), False))
+        r = np.linalg.norm(msh.geometry.x[nodes] - [0.0, 1.0, 0.0], axis=1)
+        err = COMM.allreduce(float(np.max(np.abs(r - 1.0), initial=0.0)), op=MPI.MAX)
+        assert (err < 1e-14) if projection else (err > 1e-4)
+        areas[projection] = measure(msh, problem.cell_tags, 1, 2)
+        disc = ds.discretize(problem)
+        assert disc.num_cells == 4 * disc.num_macro_cells
+    assert abs(areas[True] - np.pi / 4) < abs(areas[False] - np.pi / 4) / 10
+
+
+def test_boundary_projection_refuses_to_invert_cells(square):
+    from dwr_signorini.refine import refine_marked
+
+    msh, tags = square
+    problem = ds.SignoriniProblem(
+        msh, tags, contact=1, dirichlet=(2,),
+        boundary_projection={1: lambda x: x + np.array([[0.0], [0.8], [0.0]])},
+    )
+    with pytest.raises(RuntimeError, match=r"boundary_projection\[1\].*invert"):
+        refine_marked(problem, None)
