@@ -97,6 +97,10 @@ parser.add_argument("--cell-type", choices=("quadrilateral", "triangle"),
 parser.add_argument("--estimator", choices=("eta", "eta_p"), default="eta",
                     help="estimator that drives marking (adaptive runs)")
 parser.add_argument("--weights", choices=("patch", "higher_order"), default="patch")
+parser.add_argument("--ncp-scale", default="1.0",
+                    help="c of the NCP function: a number (the paper's 1.0, which its Tables 1-2 "
+                         "use) or 'physical' (E / H per macro contact facet, the package's "
+                         "default)")
 parser.add_argument("--fraction", type=float, default=0.2, help="marking fraction")
 parser.add_argument("--sweep", type=int, default=7,
                     help="number of midpoints m in [-3, 0] for Figure 4 (0: no sweep)")
@@ -109,6 +113,7 @@ if args.levels < 1:
     parser.error(f"--levels must be at least 1, got {args.levels}")
 cell_type = CellType[args.cell_type]
 refinements = ("adaptive", "uniform") if args.refinement == "both" else (args.refinement,)
+ncp_scale = args.ncp_scale if args.ncp_scale == "physical" else float(args.ncp_scale)
 if "adaptive" in refinements and cell_type != CellType.triangle:
     parser.error("adaptive refinement needs simplices: add --cell-type triangle")
 out = args.output
@@ -167,6 +172,7 @@ for goal_key in args.goals:
             ex.analytic_problem(comm, cell_type=cell_type), goal, refinement=refinement,
             fraction=args.fraction, max_levels=args.levels, estimator=args.estimator,
             weights=args.weights, exact=exact, output_dir=out / f"{goal_key}_{refinement}",
+            ncp_scale=ncp_scale,
         )
 # -
 
@@ -215,7 +221,7 @@ sweep_rows = []
 if args.sweep > 0:
     L = args.sweep_level
     tic = time.perf_counter()
-    sol = ds.solve(ex.analytic_problem(comm, 12 * 2**L, 8 * 2**L, cell_type))
+    sol = ds.solve(ex.analytic_problem(comm, 12 * 2**L, 8 * 2**L, cell_type), ncp_scale=ncp_scale)
     print0(f"\nFigure 4 sweep on level {L}: {sol.disc.num_cells} cells "
            f"(solve {time.perf_counter() - tic:.2f} s)")
     print0(f"{'m':>7} {'J(u)':>14} {'J(u_h)':>14} {'Ieff(eta_p)':>11} {'Ieff(eta)':>9}")
