@@ -64,3 +64,46 @@ figures:
 	cp results/analytic_2d/effectivity.png docs/img/analytic_effectivity.png
 	cp results/analytic_2d/sweep.png docs/img/analytic_sweep.png
 	cp results/obstacle_3d/solution.png docs/img/obstacle_solution.png
+
+# Optional peer codes for benchmarks/peers.py (env/peer-packages.txt: GetFEM), never a dependency
+# of the package. `make peer-env` runs apt-get through $(FENICSX), so the packages go where every
+# other command runs: into the cached Debian root (inside it, with the same unshare + chroot), or
+# onto a Debian host of the suite. The root's package list, hence its hash key, is unchanged: the
+# environment of `make test` and CI is still built from env/apt-packages.txt alone, and a root
+# rebuilt from a changed list lacks the peer until `make peer-env` runs again. Only new packages
+# are added: if apt would upgrade or remove an installed package, nothing is installed; afterwards
+# the BLAS/LAPACK alternatives must be the ones they were. Ends with `peers.py --check`.
+PEER_PACKAGES := env/peer-packages.txt
+define PEER_ENV_SH
+pkgs=$$(sed -e 's/#.*//' "$$1" | tr -s '[:space:]' ' ')
+command -v apt-get >/dev/null 2>&1 || { echo "peer-env: no apt-get in this environment: install$$pkgs by other means" >&2; exit 2; }
+[ "$$(id -u)" = 0 ] || { echo "peer-env: apt-get install needs root" >&2; exit 2; }
+missing=""
+for p in $$pkgs; do
+    dpkg-query -W -f='$${Status}' "$$p" 2>/dev/null | grep -q ' installed$$' || missing="$$missing $$p"
+done
+if [ -z "$$missing" ]; then
+    echo "peer-env: already installed:$$pkgs"
+else
+    blas() { for a in /etc/alternatives/libblas* /etc/alternatives/liblapack*; do
+        [ -e "$$a" ] && echo "$$a -> $$(readlink -f "$$a")"; done; true; }
+    before=$$(blas)
+    echo "peer-env: apt-get install$$missing"
+    apt-get update -qq
+    changes=$$(apt-get install -s --no-install-recommends $$missing | grep -E '^(Inst [^ ]+ \[|Remv )' || true)
+    if [ -n "$$changes" ]; then
+        echo "peer-env: not installing: apt would change packages already in the environment:" >&2
+        echo "$$changes" >&2; exit 1
+    fi
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null
+    apt-get clean
+    if [ -f /.dwr-signorini-complete ]; then rm -f /var/lib/apt/lists/*_Packages; fi
+    [ "$$(blas)" = "$$before" ] || { echo "peer-env: the BLAS/LAPACK alternatives changed:" >&2; blas >&2; exit 1; }
+fi
+python3 benchmarks/peers.py --check
+endef
+export PEER_ENV_SH
+
+.PHONY: peer-env
+peer-env:
+	$(FENICSX) sh -ec "$$PEER_ENV_SH" peer-env $(PEER_PACKAGES)
