@@ -310,6 +310,8 @@ def solve_adaptive(
             with timed("refine"):
                 if refinement == "adaptive":
                     next_problem, macro_parent = refine_marked(current, marked)
+                elif current.boundary_projection:  # refine again, projecting the new vertices
+                    next_problem, macro_parent = refine_marked(current, None)
                 else:  # T_h, the uniform refinement of T_H, is the next macro mesh
                     next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
                     macro_parent = disc.parent_cell

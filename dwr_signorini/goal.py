@@ -78,10 +78,10 @@ class GoalForms:
                     "(m.dx, m.ds_contact, m.ds(tag)) of the current mesh"
                 )
             if lam in ufl.algorithms.extract_coefficients(itg.integrand()):
-                contact = disc.problem.contact
+                contact = disc.problem.contact_tags
                 ids = itg.subdomain_id()
                 ids = ids if isinstance(ids, tuple) else (ids,)
-                if itg.integral_type() != "exterior_facet" or any(i != contact for i in ids):
+                if itg.integral_type() != "exterior_facet" or any(i not in contact for i in ids):
                     raise ValueError(
                         "goal integrates lam outside Gamma_C: lambda lives on the contact "
                         "boundary only, use it in integrals over m.ds_contact"

@@ -14,6 +14,7 @@ should gather with :func:`snapshot_mesh` and draw later.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -94,26 +95,36 @@ def _outward_normals(msh: dmesh.Mesh, facets: npt.NDArray[np.int32]) -> np.ndarr
     return n
 
 
-def _gap_at(problem: Any, msh: dmesh.Mesh, points: np.ndarray) -> np.ndarray:
-    """The problem's gap g evaluated pointwise (UFL evaluation; a few hundred points)."""
-    expr = problem.gap_expr(ufl.SpatialCoordinate(msh))
-    gdim = msh.geometry.dim
-    try:
-        return np.full(len(points), float(expr))
-    except Exception:  # not a constant: evaluate point by point
-        pass
-    return np.array([float(expr(tuple(p[:gdim]))) for p in points])
+def _gap_at(
+    problem: Any, gdim: int, tags: np.ndarray, x: np.ndarray, n: np.ndarray
+) -> np.ndarray:
+    """The problem's gap g at the vertices ``x`` (facets, vertices, 3) of contact facets.
+
+    By UFL evaluation (a few hundred points), with the facets' tags ``tags`` and outward normals
+    ``n`` (facets, 3): an obstacle's gap depends on the normal, a gap per contact tag on the
+    facet's tag.
+    """
+    out = np.empty(x.shape[:2])
+    for f in range(x.shape[0]):
+        spec = problem.gap[int(tags[f])] if isinstance(problem.gap, Mapping) else problem.gap
+        normal = ufl.as_vector([float(c) for c in n[f, :gdim]])
+        for k in range(x.shape[1]):
+            point = ufl.as_vector([float(c) for c in x[f, k, :gdim]])
+            out[f, k] = float(problem._gap_value(spec, point, normal))
+    return out
 
 
 def _contact_obstacle(sol: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Local fine contact facets: vertex coordinates, outer normals, gap at the vertices."""
     disc = sol.disc
     msh = disc.mesh
-    facets = disc.facet_tags.find(disc.problem.contact)
+    tags = disc.facet_tags
+    facets = np.concatenate([tags.find(t) for t in disc.problem.contact_tags])
     facets = np.intersect1d(facets, _exterior_facets(msh)).astype(np.int32)
+    facet_tag = tags.values[np.searchsorted(tags.indices, facets)]
     x = _cell_vertices(msh, msh.topology.dim - 1, facets)
     n = _outward_normals(msh, facets)
-    g = _gap_at(disc.problem, msh, x.reshape(-1, 3)).reshape(x.shape[:2])
+    g = _gap_at(disc.problem, msh.geometry.dim, facet_tag, x, n)
     return x, n, g
 
 
