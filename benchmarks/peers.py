@@ -11,8 +11,10 @@ builds from the macro mesh T_H it is given; GetFEM gets T_h's vertices and cells
   (``add_Dirichlet_condition_with_simplification``), the body force of example 5.1 as a P2 field
   (``add_source_term_brick``), and frictionless contact with a rigid obstacle through the integral
   contact brick (``add_integral_contact_with_rigid_obstacle_brick``, option 1: the non-symmetric
-  Alart-Curnier augmented Lagrangian, r = E / h) with a multiplier in continuous P1 on the fine
-  contact facets, solved by GetFEM's Newton method (``Model.solve``, MUMPS).
+  Alart-Curnier augmented Lagrangian, r = E / h) with a multiplier in continuous P1 on the macro
+  contact vertices (every second fine one, H = 2h: GetFEM asks for an inf-sup condition, which the
+  equal-order multiplier on all fine contact vertices, ``--multiplier fine``, violates), solved
+  by GetFEM's Newton method (``Model.solve``, sequential MUMPS).
 
 The obstacle. GetFEM's rigid-obstacle bricks take the obstacle as a signed distance d: the gap is
 d and the normal -grad d / |grad d|, so a curved gap g(y) would tilt the normal, while example 5.1
