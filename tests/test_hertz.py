@@ -1,0 +1,148 @@
+"""Hertz contact from the gmsh meshes of ``meshes/``, against Hertz's formulas.
+
+2D: the quarter disc of ``meshes/hertz_2d.py`` (radius R = 1, symmetry plane x = 0, the top
+pressed down by a prescribed displacement) on a rigid flat, plane strain. With the force per unit
+length P (twice the force of the half model), Hertz's line contact has the half-width
+a = sqrt(4 P R / (pi E*)) and the peak pressure p0 = 2 P / (pi a), E* = E / (1 - nu^2), and the
+pressure p0 sqrt(1 - (x/a)^2).
+
+3D: the quarter hemisphere of ``meshes/hertz_3d.py`` (symmetry planes x = 0 and y = 0) on a rigid
+flat: with the total force P (four times the quarter's), a = (3 P R / (4 E*))^(1/3) and
+p0 = 3 P / (2 pi a^2).
+
+The contact is measured as a user would: the half-width as the integral of the active indicator
+(lambda_H > 0) over Gamma_C (the half model holds one half), the radius as sqrt(4 A / pi) from
+the active area A of the quarter, the peak pressure as max lambda_H. The geometry keeps Hertz's
+assumptions: a/R about 0.08 (2D) and 0.1 (3D), the body more than 10 a across.
+
+Curved boundaries (issue 21, part 3): with ``boundary_projection`` the new vertices of T_H on the
+arc are moved onto the circle after each refinement and the computed pressure converges to
+Hertz's profile; without it refinement converges to the polygon of the initial mesh and the
+error stalls (grows, at the polygon's vertices the pressure peaks).
+"""
+
+import importlib.util
+import itertools
+import math
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+
+import dwr_signorini as ds
+from dwr_signorini import obstacles as ob
+from dwr_signorini.refine import refine_marked
+
+COMM = MPI.COMM_WORLD
+MESHES = Path(__file__).resolve().parents[1] / "meshes"
+E, NU = 1.0, 0.3
+E_STAR = E / (1 - NU**2)
+
+
+def mesh_script(name):
+    spec = importlib.util.spec_from_file_location(f"meshes_{name}_hertz", MESHES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def from_model(build, **kwargs):
+    gmsh = pytest.importorskip("gmsh")
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        if COMM.rank == 0:
+            gmsh.model.add("hertz")
+            build(gmsh.model, **kwargs)
+        return ds.read_mesh(gmsh.model, COMM)
+    finally:
+        gmsh.finalize()
+
+
+def integrate(sol, form):
+    return COMM.allreduce(fem.assemble_scalar(sol.disc.form(form)), op=MPI.SUM)
+
+
+def peak(sol):
+    lam = sol.lam.x.array[: sol.system.n_lam]
+    return COMM.allreduce(float(np.max(lam, initial=0.0)), op=MPI.MAX)
+
+
+def hertz_2d_problem(projection, h_contact, delta=0.01):
+    module = mesh_script("hertz_2d")
+    msh, cells, facets = from_model(module.build, h=0.2, h_contact=h_contact, refine_radius=0.1)
+    return ds.SignoriniProblem(
+        msh, facets, contact=module.CONTACT,
+        dirichlet={module.TOP: (None, -delta), module.SYMMETRY: (0.0, None)},
+        E=E, nu=NU, gap=ob.Plane((0.0, 0.0), (0.0, -1.0)), cell_tags=cells,
+        boundary_projection=module.projections() if projection else None,
+    )
+
+
+def measure_2d(sol):
+    """(P, a_h, p_h, a, p0, e_L2): computed force per length, half-width, peak; Hertz's a and p0
+    for that force; the relative L2(Gamma_C) distance of lambda_H to Hertz's profile."""
+    m = sol.disc.m
+    P = 2.0 * integrate(sol, sol.lam * m.ds_contact)
+    a_h = integrate(sol, ufl.conditional(ufl.gt(sol.lam, 0.0), 1.0, 0.0) * m.ds_contact)
+    a = math.sqrt(4 * P * 1.0 / (math.pi * E_STAR))
+    p0 = 2 * P / (math.pi * a)
+    profile = p0 * ufl.sqrt(ufl.max_value(1.0 - (m.x[0] / a) ** 2, 0.0))
+    e_l2 = math.sqrt(integrate(sol, (sol.lam - profile) ** 2 * m.ds_contact)
+                     / integrate(sol, profile**2 * m.ds_contact))
+    return P, a_h, peak(sol), a, p0, e_l2
+
+
+def run_2d(projection, levels, h_contact=0.02):
+    """Uniform refinements of the macro mesh (with or without projection onto the circle)."""
+    problem = hertz_2d_problem(projection, h_contact)
+    rows = []
+    for level in range(levels):
+        with ds.solve(problem) as sol:
+            rows.append(measure_2d(sol))
+        if level < levels - 1:
+            problem, _ = refine_marked(problem, None)
+    return rows
+
+
+_CACHE = {}
+
+
+def cached_2d(projection, levels):
+    key = (projection, levels, COMM.size)
+    if key not in _CACHE:
+        _CACHE[key] = run_2d(projection, levels)
+    return _CACHE[key]
+
+
+@pytest.mark.mpi
+def test_hertz_2d_half_width_and_peak():
+    """Five levels (macro contact facets 0.02 ... 0.00125 near the contact, a = 0.076): at the
+    finest, the half-width within 3 % and the peak pressure within 10 % of Hertz's, the
+    pressure within 5 % of Hertz's profile in L2; the force converges."""
+    rows = cached_2d(True, 5)
+    _, a_h, p_h, a, p0, e_l2 = rows[-1]
+    assert a / 1.0 <= 0.1
+    assert a_h == pytest.approx(a, rel=0.03)
+    assert p_h == pytest.approx(p0, rel=0.10)
+    assert e_l2 < 0.05
+    assert rows[-1][0] == pytest.approx(rows[-2][0], rel=2e-3)
+
+
+@pytest.mark.mpi
+def test_hertz_2d_projection_converges_polygon_stalls():
+    """The table of issue 21, part 3: the L2 distance of the computed pressure to Hertz's
+    profile decreases level over level with boundary_projection; without it (the chords of the
+    initial mesh, 0.02 long) it stalls and grows, and the peak pressure overshoots at the
+    polygon's vertices. At level 3 the projected error is 3 times smaller."""
+    with_projection = [r[5] for r in cached_2d(True, 5)]
+    without = [r[5] for r in cached_2d(False, 4)]
+    assert all(b < a for a, b in itertools.pairwise(with_projection)), with_projection
+    assert without[-1] > 0.8 * min(without[1:])  # no convergence after level 1
+    assert with_projection[3] < without[3] / 2.5, (with_projection, without)
+    peaks = cached_2d(False, 4)[-1]
+    assert peaks[2] > 1.1 * peaks[4]  # the polygon's vertex peak, > 10 % above Hertz's p0
