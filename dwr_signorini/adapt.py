@@ -25,10 +25,10 @@ from .algebra import check_ncp_scale
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
-from .marking import STRATEGIES, mark
+from .marking import STRATEGIES, mark, mark_for_growth
 from .newton import METHODS, Solution, solve
 from .problem import SignoriniProblem
-from .refine import refine_marked
+from .refine import RULES, refine_marked
 from .spaces import discretize
 from .timing import timed
 from .transfer import transfer_solution
@@ -128,6 +128,8 @@ def _validate(
     method: str,
     exact: Any,
     callback: Any,
+    refinement_rule: Any = "edges",
+    growth: Any = None,
 ) -> None:
     if not isinstance(problem, SignoriniProblem):
         raise TypeError(f"problem must be a SignoriniProblem, got {type(problem).__name__}")
@@ -157,6 +159,12 @@ def _validate(
         raise ValueError(f"weights must be one of {WEIGHTS}, got {weights!r}")
     if exact is not None and (not isinstance(exact, (int, float)) or not math.isfinite(exact)):
         raise ValueError(f"exact must be a finite number (the exact J) or None, got {exact!r}")
+    if refinement_rule not in RULES:
+        raise ValueError(f"refinement_rule must be one of {RULES}, got {refinement_rule!r}")
+    if growth is not None and (
+        isinstance(growth, bool) or not isinstance(growth, (int, float)) or not 1.0 < growth < 1e3
+    ):
+        raise ValueError(f"growth must be a number in (1, 1000) or None, got {growth!r}")
     if callback is not None and not callable(callback):
         raise TypeError(f"callback must be callable or None, got {callback!r}")
     simplex = problem.mesh.topology.cell_type in (
@@ -199,6 +207,8 @@ def solve_adaptive(
     method: str = "block",
     verbose: bool = True,
     ncp_scale: str | float = "physical",
+    refinement_rule: str = "edges",
+    growth: float | None = None,
 ) -> AdaptiveResult:
     """Goal-oriented adaptive (or uniform) refinement for Signorini's problem.
 
@@ -226,6 +236,13 @@ def solve_adaptive(
         ncp_scale: c of the NCP function, for the Newton method and the estimator (see
             :func:`~dwr_signorini.solve`): ``"physical"`` (E / H per macro contact facet) or a
             number (1.0 reproduces the paper's Tables 1-2).
+        refinement_rule: ``"edges"`` (all edges of the marked macro cells) or
+            ``"longest_edge"`` (each marked cell bisected through its longest edge, with the
+            closure conformity needs: less spreading, above all in 3D); see
+            :func:`~dwr_signorini.refine.marked_edges`.
+        growth: Instead of a fixed ``fraction``, the wanted ratio of macro cells from one level
+            to the next (> 1): the fraction of each level follows from it
+            (:func:`~dwr_signorini.marking.mark_for_growth`).
 
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level.
@@ -244,6 +261,8 @@ def solve_adaptive(
         method,
         exact,
         callback,
+        refinement_rule,
+        growth,
     )
     comm = problem.mesh.comm
     meta = {
@@ -254,6 +273,8 @@ def solve_adaptive(
         "weights": weights,
         "method": method,
         "ncp_scale": check_ncp_scale(ncp_scale),
+        "refinement_rule": refinement_rule,
+        "growth": growth,
         "exact": exact,
         "num_processes": comm.size,
     }
@@ -304,12 +325,19 @@ def solve_adaptive(
         next_problem = None
         if not stop:
             tic = time.perf_counter()
-            if refinement == "adaptive":
+            if refinement == "adaptive" and growth is not None:
+                with timed("mark"):
+                    marked, next_problem, macro_parent, _ = mark_for_growth(
+                        disc, current, est.indicators.x.array, strategy, growth, refinement_rule
+                    )
+            elif refinement == "adaptive":
                 with timed("mark"):
                     marked = mark(disc, est.indicators.x.array, strategy, fraction)
             with timed("refine"):
-                if refinement == "adaptive":
-                    next_problem, macro_parent = refine_marked(current, marked)
+                if refinement == "adaptive" and growth is not None:
+                    pass  # refined while marking
+                elif refinement == "adaptive":
+                    next_problem, macro_parent = refine_marked(current, marked, refinement_rule)
                 elif current.boundary_projection:  # refine again, projecting the new vertices
                     next_problem, macro_parent = refine_marked(current, None)
                 else:  # T_h, the uniform refinement of T_H, is the next macro mesh

@@ -31,9 +31,11 @@ from . import compat
 from .problem import SignoriniProblem
 
 __all__ = [
+    "RULES",
     "cell_tags_on_fine",
     "facet_tags_on_fine",
     "fine_to_macro_facets",
+    "marked_edges",
     "num_entities",
     "project_boundary",
     "refine_marked",
@@ -259,15 +261,51 @@ def project_boundary(
             )
 
 
+#: Which edges of the marked cells are refined (``rule`` of :func:`refine_marked`).
+RULES = ("edges", "longest_edge")
+
+
+def marked_edges(
+    msh: dmesh.Mesh, cells: npt.NDArray[np.int32], rule: str = "edges"
+) -> npt.NDArray[np.int32]:
+    """The edges to refine for the marked cells: all their edges, or each one's longest.
+
+    ``"edges"`` refines every edge of a marked cell (a marked triangle splits into 4, a
+    tetrahedron into 8, and the closure spreads). ``"longest_edge"`` bisects each marked cell
+    through its longest edge only; Plaza's refinement then adds what conformity needs, so the
+    mesh grows by less for the same marks. Ties between edges of equal length are broken by
+    the edges' local order.
+    """
+    if rule not in RULES:
+        raise ValueError(f"rule must be one of {RULES}, got {rule!r}")
+    tdim = msh.topology.dim
+    msh.topology.create_entities(1)
+    msh.topology.create_connectivity(tdim, 1)
+    if rule == "edges":
+        edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
+        return np.unique(edges).astype(np.int32)
+    c2e = msh.topology.connectivity(tdim, 1)
+    per_cell = c2e.links(0).size if c2e.num_nodes else 0
+    if len(cells) == 0 or per_cell == 0:
+        return np.zeros(0, dtype=np.int32)
+    edges = c2e.array.reshape(-1, per_cell)[cells]
+    nodes = dmesh.entities_to_geometry(msh, 1, edges.ravel().astype(np.int32), False)
+    x = msh.geometry.x
+    length = np.linalg.norm(x[nodes[:, 0]] - x[nodes[:, 1]], axis=1).reshape(edges.shape)
+    longest = edges[np.arange(len(cells)), np.argmax(length, axis=1)]
+    return np.unique(longest).astype(np.int32)
+
+
 def refine_marked(
-    problem: SignoriniProblem, cells: npt.NDArray[np.int32] | None
+    problem: SignoriniProblem, cells: npt.NDArray[np.int32] | None, rule: str = "edges"
 ) -> tuple[SignoriniProblem, npt.NDArray[np.int32]]:
-    """Refine the macro mesh at the marked cells (all their edges) and carry the facet tags.
+    """Refine the macro mesh at the marked cells and carry the facet tags.
 
     Args:
         problem: The problem on the current macro mesh T_H.
         cells: Local indices of marked macro cells (simplices), or ``None`` for a uniform
             refinement (any cell type).
+        rule: Which edges of the marked cells are refined (:func:`marked_edges`).
 
     Cell tags go from parent to child; with ``problem.boundary_projection`` the vertices on
     those facet tags are moved onto their surfaces (:func:`project_boundary`).
@@ -277,12 +315,7 @@ def refine_marked(
     """
     macro = problem.mesh
     tdim = macro.topology.dim
-    edges = None
-    if cells is not None:
-        macro.topology.create_entities(1)
-        macro.topology.create_connectivity(tdim, 1)
-        edges = np.unique(dmesh.compute_incident_entities(macro.topology, cells, tdim, 1))
-        edges = edges.astype(np.int32)
+    edges = None if cells is None else marked_edges(macro, cells, rule)
     fine, parent_cell, _, tags = refine_with_tags(problem, edges)
     cell_tags = cell_tags_on_fine(problem.cell_tags, fine, parent_cell, num_entities(macro, tdim))
     if problem.boundary_projection:
