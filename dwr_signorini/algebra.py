@@ -37,7 +37,13 @@ from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
 from .timing import timed
 
-__all__ = ["NCP_SCALES", "ContactAlgebra", "check_ncp_scale", "distributed_norm"]
+__all__ = [
+    "NCP_SCALES",
+    "ContactAlgebra",
+    "check_ncp_scale",
+    "destroy_attributes",
+    "distributed_norm",
+]
 
 #: The named choices of ``ncp_scale`` (besides a positive number).
 NCP_SCALES = ("physical",)
@@ -61,6 +67,15 @@ def check_ncp_scale(ncp_scale: Any) -> str | float:
         f"ncp_scale must be 'physical' (c = E / H on each macro contact facet) or a finite "
         f"number c > 0 (e.g. 1.0, the paper's choice), got {ncp_scale!r}"
     )
+
+
+def destroy_attributes(owner: object, names: tuple[str, ...]) -> None:
+    """Destroy the PETSc objects in ``owner``'s attributes ``names`` once (collective)."""
+    for name in names:
+        obj = getattr(owner, name, None)
+        if obj is not None:
+            obj.destroy()
+            setattr(owner, name, None)
 
 
 def distributed_norm(comm: MPI.Comm, local: np.ndarray) -> float:
@@ -199,11 +214,7 @@ class ContactAlgebra:
 
     def destroy(self) -> None:
         """Destroy the PETSc objects (collective: call on all ranks at the same point)."""
-        for name in self._petsc_objects:
-            obj = getattr(self, name, None)
-            if obj is not None:
-                obj.destroy()
-                setattr(self, name, None)
+        destroy_attributes(self, self._petsc_objects)
 
     # -- the algebraic NCP (eq. 19-21) ---------------------------------------------------------
     def gap_residual(self, u: PETSc.Vec) -> np.ndarray:

@@ -27,7 +27,7 @@ from petsc4py import PETSc
 import numpy as np
 from dolfinx import fem
 
-from ..algebra import ContactAlgebra
+from ..algebra import ContactAlgebra, destroy_attributes
 from ..spaces import Discretization
 from .options import OptionsScope, default_petsc_options, unique_prefix
 
@@ -94,6 +94,14 @@ class NewtonLinearSystem:
         self.x = PETSc.Vec().createMPI((n, None), comm=disc.comm)
         self.active = np.zeros(self.algebra.n_lam, dtype=bool)
         self.solved = False
+        try:
+            self._setup()
+        except Exception:
+            self.destroy()
+            raise
+
+    def _setup(self) -> None:
+        """Set up the linear solver (the subclasses'); on failure everything is destroyed."""
 
     # The algebra's pieces, for the callers that read them off the system.
     @property
@@ -184,10 +192,6 @@ class NewtonLinearSystem:
 
     def destroy(self) -> None:
         """Destroy the PETSc objects and remove the options (collective; idempotent)."""
-        for name in self._petsc_objects:
-            obj = getattr(self, name, None)
-            if obj is not None:
-                obj.destroy()
-                setattr(self, name, None)
+        destroy_attributes(self, self._petsc_objects)
         self.algebra.destroy()
         self._scope.destroy()

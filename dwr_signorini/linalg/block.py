@@ -11,14 +11,10 @@ factored by MUMPS's LDL^T; the dual problem A^T z = r uses the same factors.
 
 from __future__ import annotations
 
-from typing import Any
-
 from petsc4py import PETSc
 
 import numpy as np
-from dolfinx import fem
 
-from ..spaces import Discretization
 from ..timing import timed
 from .base import NewtonLinearSystem
 from .mumps import mumps_failure, null_pivots
@@ -62,32 +58,18 @@ class NewtonSystem(NewtonLinearSystem):
         "_near_nullspace",
     )
 
-    def __init__(
-        self,
-        disc: Discretization,
-        petsc_options: dict[str, Any] | None = None,
-        V: fem.FunctionSpace | None = None,
-        **kwargs: Any,
-    ) -> None:
-        super().__init__(disc, petsc_options, V, **kwargs)
-        self.A: PETSc.Mat | None = None
-        try:
-            pc_type = self.ksp.getPC().getType()
-            if pc_type in MULTIGRID:
-                raise ValueError(
-                    f"pc_type {pc_type!r}: algebraic multigrid suits the stiffness matrix K, not "
-                    "the block Newton matrix with its zero multiplier block; use method='schur' "
-                    "with these options (iterative_petsc_options()), or "
-                    "fieldsplit_petsc_options() on the block matrix"
-                )
-            self.direct = pc_type in ("lu", "cholesky")
-            self._setup()
-        except Exception:
-            self.destroy()
-            raise
-
     def _setup(self) -> None:
-        """The block pattern A0 of the Newton matrices, and the field split if it is the PC."""
+        """Check the PC; the block pattern A0 of the Newton matrices; the field split if any."""
+        self.A: PETSc.Mat | None = None
+        pc_type = self.ksp.getPC().getType()
+        if pc_type in MULTIGRID:
+            raise ValueError(
+                f"pc_type {pc_type!r}: algebraic multigrid suits the stiffness matrix K, not "
+                "the block Newton matrix with its zero multiplier block; use method='schur' "
+                "with these options (iterative_petsc_options()), or "
+                "fieldsplit_petsc_options() on the block matrix"
+            )
+        self.direct = pc_type in ("lu", "cholesky")
         comm, alg = self.disc.comm, self.algebra
         with timed("assemble"):
             D = PETSc.Mat().createAIJ(((self.n_lam, None), (self.n_lam, None)), nnz=1, comm=comm)

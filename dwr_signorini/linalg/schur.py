@@ -37,10 +37,8 @@ from petsc4py import PETSc
 import numpy as np
 import scipy.linalg
 import scipy.sparse
-from dolfinx import fem
 
-from ..algebra import ContactAlgebra
-from ..spaces import Discretization
+from ..algebra import ContactAlgebra, destroy_attributes
 from ..timing import timed
 from .base import NewtonLinearSystem
 from .block import LinearSolveError
@@ -350,11 +348,7 @@ class KrylovSchurComplement:
 
     def destroy(self) -> None:
         """Destroy the PETSc objects and remove the options (collective)."""
-        for name in ("ksp", "S", "P", "S_hat", "_y"):
-            obj = getattr(self, name, None)
-            if obj is not None:
-                obj.destroy()
-                setattr(self, name, None)
+        destroy_attributes(self, ("ksp", "S", "P", "S_hat", "_y"))
         self._scope.destroy()
 
 
@@ -386,20 +380,6 @@ class SchurNewtonSystem(NewtonLinearSystem):
         "_lam_vec",
         "_near_nullspace",
     )
-
-    def __init__(
-        self,
-        disc: Discretization,
-        petsc_options: dict[str, Any] | None = None,
-        V: fem.FunctionSpace | None = None,
-        **kwargs: Any,
-    ) -> None:
-        super().__init__(disc, petsc_options, V, **kwargs)
-        try:
-            self._setup()
-        except Exception:
-            self.destroy()
-            raise
 
     @property
     def n_lam_global(self) -> int:
