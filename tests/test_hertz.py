@@ -15,6 +15,9 @@ The contact is measured as a user would: the half-width as the integral of the a
 the active area A of the quarter, the peak pressure as max lambda_H. The geometry keeps Hertz's
 assumptions: a/R about 0.08 (2D) and 0.1 (3D), the body more than 10 a across.
 
+The 2D tests take about 11 s together (serial), the default 3D test about 10 s; the 3D test at
+the 3 % tolerance of the radius needs a finer mesh (about 45 s) and is marked ``slow``.
+
 Curved boundaries (issue 21, part 3): with ``boundary_projection`` the new vertices of T_H on the
 arc are moved onto the circle after each refinement and the computed pressure converges to
 Hertz's profile; without it refinement converges to the polygon of the initial mesh and the
@@ -146,3 +149,50 @@ def test_hertz_2d_projection_converges_polygon_stalls():
     assert with_projection[3] < without[3] / 2.5, (with_projection, without)
     peaks = cached_2d(False, 4)[-1]
     assert peaks[2] > 1.1 * peaks[4]  # the polygon's vertex peak, > 10 % above Hertz's p0
+
+
+def hertz_3d(h_contact, delta=0.01):
+    """(a_h, p_h, a, p0) of the quarter hemisphere with symmetry planes, one solve."""
+    module = mesh_script("hertz_3d")
+    msh, cells, facets = from_model(module.build, h=0.3, h_contact=h_contact,
+                                    refine_radius=0.11)
+    problem = ds.SignoriniProblem(
+        msh, facets, contact=module.CONTACT,
+        dirichlet={module.TOP: (None, None, -delta), module.SYMMETRY_X: (0.0, None, None),
+                   module.SYMMETRY_Y: (None, 0.0, None)},
+        E=E, nu=NU, gap=ob.Plane((0.0, 0.0, 0.0), (0.0, 0.0, -1.0)), cell_tags=cells,
+        boundary_projection=module.projections(),
+    )
+    with ds.solve(problem) as sol:
+        m = sol.disc.m
+        P = 4.0 * integrate(sol, sol.lam * m.ds_contact)
+        area = 4.0 * integrate(sol, ufl.conditional(ufl.gt(sol.lam, 0.0), 1.0, 0.0)
+                               * m.ds_contact)
+        # no net tangential force on the quarter beyond what the symmetry planes take
+        assert abs(integrate(sol, sol.lam * m.n[0] * m.ds_contact)) < 0.05 * P / 4
+        p_h = peak(sol)
+    a = (3 * P * 1.0 / (4 * E_STAR)) ** (1 / 3)
+    return math.sqrt(area / math.pi), p_h, a, 3 * P / (2 * math.pi * a**2)
+
+
+@pytest.mark.mpi
+def test_hertz_3d_quarter_ball():
+    """The quarter hemisphere (symmetry conditions u_x = 0 on x = 0, u_y = 0 on y = 0), macro
+    facets of about 0.01 near the contact (a = 0.10): the contact radius within 5 % and the
+    peak pressure within 10 % of Hertz's (measured: -2.9 % and +2.3 %). The active area misses
+    the ring of facets only partly in contact, so the radius comes out low by up to a facet;
+    the slow variant below halves that."""
+    a_h, p_h, a, p0 = hertz_3d(0.01)
+    assert a <= 0.11
+    assert a_h == pytest.approx(a, rel=0.05)
+    assert p_h == pytest.approx(p0, rel=0.10)
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_hertz_3d_quarter_ball_fine():
+    """As above with facets of 0.007 near the contact: radius within 3 %, peak within 10 %
+    (measured: -1.7 % and +2.6 %; about 45 s serial)."""
+    a_h, p_h, a, p0 = hertz_3d(0.007)
+    assert a_h == pytest.approx(a, rel=0.03)
+    assert p_h == pytest.approx(p0, rel=0.10)
