@@ -239,7 +239,7 @@ for name, goal in GOALS.items():
 
     results[name] = ds.solve_adaptive(
         hertz_problem(), goal, refinement="adaptive", fraction=args.fraction,
-        max_levels=levels, output_dir=out / name, callback=on_level, verbose=False,
+        max_levels=levels, output_dir=out / f"{name}_adaptive", callback=on_level, verbose=False,
     )
 if comm.rank == 0:
     out.mkdir(parents=True, exist_ok=True)
@@ -248,6 +248,7 @@ if comm.rank == 0:
         "dim": dim, "args": {k: str(v) for k, v in vars(args).items()},
         "num_processes": comm.size, "E": E, "nu": NU, "R": R, "delta": DELTA,
         "patch_radius": C_PATCH, "levels": table,
+        "runs": {name: res.rows() for name, res in results.items()},
     })
 # -
 

@@ -48,6 +48,7 @@ SMALL_ARGS = {
     "bar_2d": ["--levels", "2"],
     "analytic_2d": ["--levels", "2", "--sweep", "2", "--sweep-level", "0"],
     "obstacle_3d": ["--levels", "2", "--max-cells", "20000"],
+    "hertz": ["--levels", "2"],
 }
 
 
@@ -274,6 +275,68 @@ def test_obstacle_iterative_solver(runs, tmp_path):
     _run("obstacle_3d", out, 2, ("--solver", "iterative", "--refinement", "uniform", "--no-plots"))
     _compare_rows(_csv(out / "uniform" / "uniform.csv"), _csv(serial / "uniform" / "uniform.csv"),
                   1e-7, "obstacle uniform, iterative on 2 processes vs direct serial")
+
+
+# --------------------------------------------------------------------------------------------------
+# Hertz contact from the gmsh meshes of meshes/
+# --------------------------------------------------------------------------------------------------
+
+HERTZ_RUNS = ["force_adaptive", "patch_adaptive"]
+
+
+def _check_hertz_table(out: Path, dim: int, levels: int) -> list[dict]:
+    table = _csv(out / "hertz.csv")
+    assert [(r["goal"], r["level"]) for r in table] == [
+        (g, lev) for g in ("force", "patch") for lev in range(levels)]
+    for r in table:
+        # Hertz's a and p0 are those of the computed force, the errors are relative to them
+        P = r["P"]
+        if dim == 2:
+            a = math.sqrt(4 * P / (math.pi * (1.0 / (1 - 0.3**2))))
+            p0 = 2 * P / (math.pi * a)
+        else:
+            a = (3 * P / (4 / (1 - 0.3**2))) ** (1 / 3)
+            p0 = 3 * P / (2 * math.pi * a**2)
+        assert _close(r["a_hertz"], a, 1e-12) and _close(r["p0_hertz"], p0, 1e-12)
+        assert _close(r["err_a"], r["a_h"] / a - 1, 1e-9)
+        tol = 0.1 if dim == 2 else 0.15  # 3D level 0 (facets 0.02): -7.6 % and +9.0 %
+        assert abs(r["err_a"]) < tol and abs(r["err_p0"]) < tol
+    for r in (r for r in table if r["goal"] == "force"):  # J_h is the force of the model
+        assert _close(r["P"], (2 if dim == 2 else 4) * r["J_h"], 1e-10)
+    return table
+
+
+def test_hertz_serial(runs):
+    out = runs("hertz", 1)
+    _check_files(out, ["errors_dofs.png", "errors_time.png", "estimate_time.png",
+                       "pressure_profile.png"], HERTZ_RUNS)
+    assert "goal force" in (out / "stdout.txt").read_text()
+    _check_hertz_table(out, 2, 2)
+    from .test_hertz import hertz_2d_problem
+
+    def force(u, lam, m):
+        return lam * m.ds_contact
+
+    res = ds.solve_adaptive(hertz_2d_problem(True, 0.01), force, max_levels=1, verbose=False)
+    rows = _csv(out / "force_adaptive" / "adaptive.csv")
+    _compare_rows(rows[:1], res.levels, 1e-10, "hertz force level 0")
+    res.destroy()
+
+
+def test_hertz_parallel(runs):
+    serial, parallel = runs("hertz", 1), runs("hertz", 2)
+    _check_files(parallel, ["errors_dofs.png", "pressure_profile.png"], HERTZ_RUNS)
+    for run in HERTZ_RUNS:
+        _compare_rows(_csv(parallel / run / "adaptive.csv"), _csv(serial / run / "adaptive.csv"),
+                      1e-9, f"hertz {run} 2 processes vs serial")
+
+
+def test_hertz_3d_quarter(tmp_path):
+    """The quarter hemisphere with symmetry conditions, one level per goal."""
+    out = tmp_path / "hertz_3d"
+    _run("hertz", out, 1, ("--dim", "3", "--levels", "1"))
+    _check_files(out, ["errors_dofs.png", "pressure_profile.png"], HERTZ_RUNS)
+    _check_hertz_table(out, 3, 1)
 
 
 # --------------------------------------------------------------------------------------------------
