@@ -38,6 +38,13 @@
 # $|\eta| / |J_h|$ (there is no closed form of $P(\delta)$ for a finite body), against DoFs and
 # against run time, beside the errors of $a$ and $p_0$ against Hertz.
 #
+# What to expect: in 2D the half-width settles within 1.5 % of Hertz's and the peak within
+# 1.6 % (the half-width moves by up to one macro facet from level to level: a facet only partly
+# in contact is inactive). In 3D the radius improves from -7.6 % to -2 % after one adaptive
+# level, but the peak $\max \lambda_H$ overshoots Hertz's $p_0$ by 30-60 % on the locally
+# refined meshes (the pressure oscillates from facet to facet where facet sizes change; uniform
+# meshes give +2-9 %, see `tests/test_hertz.py`): read the 3D peak of adaptive levels with care.
+#
 # ```
 # python3 demos/hertz.py --dim 2            # or: mpirun -n 2 python3 demos/hertz.py --dim 3
 # ```
@@ -85,7 +92,7 @@ parser = argparse.ArgumentParser(
 )
 parser.add_argument("--dim", type=int, choices=(2, 3), default=2)
 parser.add_argument("--levels", type=int, default=None,
-                    help="adaptive levels per goal (default 7 in 2D, 3 in 3D)")
+                    help="adaptive levels per goal (default 7 in 2D, 2 in 3D)")
 parser.add_argument("--fraction", type=float, default=0.2, help="marking fraction")
 parser.add_argument("--h-contact", type=float, default=None,
                     help="mesh size at the contact (default 0.01 in 2D, 0.02 in 3D)")
@@ -93,7 +100,7 @@ parser.add_argument("--output", type=Path, default=None, help="default results/h
 parser.add_argument("--no-plots", action="store_true")
 args = parser.parse_args([] if "ipykernel" in sys.modules else None)
 dim = args.dim
-levels = args.levels if args.levels is not None else (7 if dim == 2 else 3)
+levels = args.levels if args.levels is not None else (7 if dim == 2 else 2)
 if levels < 1:
     parser.error(f"--levels must be at least 1, got {levels}")
 h_contact = args.h_contact or (0.01 if dim == 2 else 0.02)
