@@ -196,3 +196,24 @@ def test_hertz_3d_quarter_ball_fine():
     a_h, p_h, a, p0 = hertz_3d(0.007)
     assert a_h == pytest.approx(a, rel=0.03)
     assert p_h == pytest.approx(p0, rel=0.10)
+
+
+if __name__ == "__main__":
+    # The table of issue 21, part 3 (README, "Results beside the paper"):
+    # scripts/fenicsx python3 tests/test_hertz.py
+    def print0(*args):
+        if COMM.rank == 0:
+            print(*args, flush=True)
+
+    print0("2D quarter disc, uniform refinements from macro facets of 0.02 at the contact")
+    print0(f"{'projection':>10} {'L':>2} {'a_h':>8} {'a Hertz':>8} {'err a':>7} {'p_h':>9} "
+           f"{'p0 Hertz':>9} {'err p0':>7} {'L2 prof':>7}")
+    for projection in (True, False):
+        for level, (_, a_h, p_h, a, p0, e_l2) in enumerate(run_2d(projection, 5)):
+            print0(f"{projection!s:>10} {level:2d} {a_h:8.5f} {a:8.5f} {a_h / a - 1:+7.2%} "
+                   f"{p_h:9.3e} {p0:9.3e} {p_h / p0 - 1:+7.2%} {e_l2:7.4f}")
+    print0("3D quarter hemisphere, one solve")
+    for h_contact in (0.01, 0.007):
+        a_h, p_h, a, p0 = hertz_3d(h_contact)
+        print0(f"h_contact {h_contact}: a_h {a_h:.5f} a {a:.5f} ({a_h / a - 1:+.2%}), "
+               f"p_h {p_h:.4e} p0 {p0:.4e} ({p_h / p0 - 1:+.2%})")
