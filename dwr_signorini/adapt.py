@@ -153,8 +153,8 @@ def _validate(
         raise ValueError(f"tol must be a positive number or None, got {tol!r}")
     if estimator not in ESTIMATORS:
         raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method is not None and method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS} or None, got {method!r}")
     if weights not in WEIGHTS:
         raise ValueError(f"weights must be one of {WEIGHTS}, got {weights!r}")
     if exact is not None and (not isinstance(exact, (int, float)) or not math.isfinite(exact)):
@@ -204,7 +204,7 @@ def solve_adaptive(
     output_dir: str | Path | None = None,
     callback: Callable[[LevelRecord, Solution, Estimate], None] | None = None,
     petsc_options: dict[str, Any] | None = None,
-    method: str = "block",
+    method: str | None = None,
     verbose: bool = True,
     ncp_scale: str | float = "physical",
     refinement_rule: str = "edges",
@@ -230,8 +230,8 @@ def solve_adaptive(
         output_dir: Where to write the table (CSV, JSON, after every level) and fields (XDMF).
         callback: Called as ``callback(record, solution, estimate)`` after every level.
         petsc_options: Linear solver options.
-        method: Linear algebra of the Newton steps, ``"block"`` or ``"schur"`` (see
-            :func:`~dwr_signorini.solve`).
+        method: Linear algebra of the Newton steps, ``"block"``, ``"schur"`` or ``None`` (the
+            default: chosen per level, see :func:`~dwr_signorini.solve`).
         verbose: Print a progress line per level on rank 0.
         ncp_scale: c of the NCP function, for the Newton method and the estimator (see
             :func:`~dwr_signorini.solve`): ``"physical"`` (E / H per macro contact facet) or a

@@ -46,6 +46,7 @@ from .linalg import (
     NewtonLinearSystem,
     NewtonSystem,
     SchurNewtonSystem,
+    choose_method,
     default_petsc_options,
     fieldsplit_petsc_options,
     iterative_petsc_options,
@@ -118,6 +119,8 @@ class Solution:
             :func:`solve`: reading it needs no communication).
         ncp_scale: The c of the NCP function (20) the solution was computed with; the
             estimator uses the same (:attr:`system`'s ``c_n``).
+        method: The linear solver of the Newton steps that was used (``"block"``,
+            ``"schur"``).
     """
 
     u: fem.Function
@@ -129,6 +132,7 @@ class Solution:
     system: NewtonLinearSystem = field(repr=False)
     num_active: int = 0
     ncp_scale: str | float = "physical"
+    method: str = "block"
 
     def destroy(self) -> None:
         """Release the Newton system's PETSc objects and options (collective; idempotent)."""
@@ -158,7 +162,7 @@ def solve(
     max_iterations: int = 50,
     rtol: float = 1e-8,
     ncp_scale: str | float = "physical",
-    method: str = "block",
+    method: str | None = None,
     petsc_options_prefix: str | None = None,
     form_compiler_options: dict[str, Any] | None = None,
     jit_options: dict[str, Any] | None = None,
@@ -215,7 +219,10 @@ def solve(
             factored once, S dense, at most :data:`SCHUR_MAX_MULTIPLIERS` multipliers) or a
             Krylov solver (:func:`iterative_petsc_options`: CG + GAMG on K, CG on S_AA, for
             large 3D meshes). All give the same iterates up to the solvers' tolerances, and
-            the dual problem is solved the same way.
+            the dual problem is solved the same way. ``None`` (the default): ``"block"`` when
+            ``petsc_options`` are given (they are for the block matrix), otherwise the rule of
+            :func:`~dwr_signorini.linalg.choose_method` (the dense Schur path for large 3D
+            problems with few multipliers). :attr:`Solution.method` tells which was used.
         petsc_options_prefix: Base options prefix of this solve (default: a new unique
             ``dwr_signorini_<n>_``); inner solvers use sub-prefixes
             (:mod:`dwr_signorini.linalg.options`), so e.g. ``-<prefix>ksp_view`` on the
@@ -255,8 +262,8 @@ def solve(
     for name, value in (("rtol", rtol),):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < np.inf:
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method is not None and method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS} or None, got {method!r}")
     for name, value in (
         ("form_compiler_options", form_compiler_options),
         ("jit_options", jit_options),
@@ -280,6 +287,12 @@ def solve(
                 "initial_guess must be functions on this discretisation's V and Q "
                 "(transfer them with dwr_signorini.adapt.transfer_solution)"
             )
+    if method is None:
+        method = (
+            "block"
+            if petsc_options is not None
+            else choose_method(disc.mesh.topology.dim, disc.num_dofs, disc.num_contact_elements)
+        )
     try:
         system = SYSTEMS[method](
             disc,
@@ -512,5 +525,6 @@ def _semismooth_newton(
         disc=disc,
         system=system,
         ncp_scale=system.algebra.ncp_scale,
+        method="schur" if isinstance(system, SchurNewtonSystem) else "block",
         num_active=comm.allreduce(int(system.active.sum()), op=MPI.SUM),
     )

@@ -25,6 +25,7 @@ from dwr_signorini.newton import (
     KrylovSchurComplement,
     NewtonSystem,
     SchurNewtonSystem,
+    choose_method,
     fieldsplit_petsc_options,
     iterative_petsc_options,
 )
@@ -172,7 +173,7 @@ def test_schur_path_bad_input(monkeypatch):
     """Unknown method; no solve with K; too many multipliers for the dense S (not for CG);
     multigrid options on the block path."""
     problem = strip_problem(MPI.COMM_WORLD, 8, 2)
-    with pytest.raises(ValueError, match=r"method must be one of \('block', 'schur'\)"):
+    with pytest.raises(ValueError, match=r"method must be one of \('block', 'schur'\) or None"):
         ds.solve(problem, method="Schur")
     with pytest.raises(ValueError, match=r"method='schur'.*pc_type 'lu'.*'sor'"):
         ds.solve(problem, method="schur", petsc_options={"ksp_type": "preonly", "pc_type": "sor"})
@@ -278,3 +279,31 @@ def test_symmetric_newton_matrix_solves_the_newton_step_and_its_transpose():
     assert residual.norm() <= 1e-10 * r.norm()
     for obj in (A, sign, diagonal, b, residual, r, z):
         obj.destroy()
+
+
+def test_choose_method_rule():
+    """The dense Schur path for 3D problems of at least 100k DoFs with at most 1000 multipliers,
+    the block path otherwise."""
+    assert choose_method(3, 216_000, 512) == "schur"
+    assert choose_method(3, 265_000, 1510) == "block"
+    assert choose_method(3, 50_000, 100) == "block"
+    assert choose_method(2, 789_000, 128) == "block"
+
+
+@pytest.mark.mpi
+def test_method_none_follows_the_rule_and_the_options(monkeypatch):
+    """method=None picks by choose_method (here made to pick the Schur path for a small 3D
+    problem), the block path whenever petsc_options are given, and an explicit method wins;
+    the chosen path gives the block path's solution."""
+    import dwr_signorini.linalg as linalg
+
+    monkeypatch.setattr(linalg, "AUTO_SCHUR_MIN_DOFS", 0)
+    disc = discretize(ex.obstacle_problem(MPI.COMM_WORLD, (1, 4, 4)))
+    with ds.solve(disc) as auto, ds.solve(disc, method="block") as block:
+        assert auto.method == "schur" and isinstance(auto.system, SchurNewtonSystem)
+        assert block.method == "block" and type(block.system) is NewtonSystem
+        n_u = block.system.n_u
+        diff = _relative_difference(disc.comm, block.u.x.array[:n_u], auto.u.x.array[:n_u])
+        assert diff < 1e-10
+    with ds.solve(disc, petsc_options={"mat_mumps_icntl_14": 50}) as given:
+        assert given.method == "block"
