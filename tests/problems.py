@@ -1,6 +1,12 @@
 """Test problems shared by several test files."""
 
+import importlib.util
+from pathlib import Path
+
+from mpi4py import MPI
+
 import numpy as np
+import pytest
 from dolfinx import mesh
 
 import dwr_signorini as ds
@@ -68,3 +74,29 @@ def indented_block(comm, nx, ny, delta, s_L=1.0, s_E=1.0, radius=1.0):
         msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
         dirichlet=(ex.DIRICHLET,), E=10.0 * s_E, nu=0.3, gap=gap,
     )
+
+
+#: The gmsh scripts of the project.
+MESHES = Path(__file__).resolve().parents[1] / "meshes"
+
+
+def mesh_script(name):
+    """The module ``meshes/<name>.py`` (its ``build``, tags and ``projections``)."""
+    spec = importlib.util.spec_from_file_location(f"meshes_{name}", MESHES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def from_model(build, **kwargs):
+    """``(mesh, cell_tags, facet_tags)`` read from the gmsh model that ``build`` makes."""
+    gmsh = pytest.importorskip("gmsh")
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        if MPI.COMM_WORLD.rank == 0:
+            gmsh.model.add("test")
+            build(gmsh.model, **kwargs)
+        return ds.read_mesh(gmsh.model, MPI.COMM_WORLD)
+    finally:
+        gmsh.finalize()

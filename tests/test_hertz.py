@@ -24,10 +24,8 @@ Hertz's profile; without it refinement converges to the polygon of the initial m
 error stalls (grows, at the polygon's vertices the pressure peaks).
 """
 
-import importlib.util
 import itertools
 import math
-from pathlib import Path
 
 from mpi4py import MPI
 
@@ -40,30 +38,13 @@ import dwr_signorini as ds
 from dwr_signorini import obstacles as ob
 from dwr_signorini.refine import refine_marked
 
+from .problems import from_model, mesh_script
+
 COMM = MPI.COMM_WORLD
-MESHES = Path(__file__).resolve().parents[1] / "meshes"
 E, NU = 1.0, 0.3
 E_STAR = E / (1 - NU**2)
 
 
-def mesh_script(name):
-    spec = importlib.util.spec_from_file_location(f"meshes_{name}_hertz", MESHES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def from_model(build, **kwargs):
-    gmsh = pytest.importorskip("gmsh")
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        if COMM.rank == 0:
-            gmsh.model.add("hertz")
-            build(gmsh.model, **kwargs)
-        return ds.read_mesh(gmsh.model, COMM)
-    finally:
-        gmsh.finalize()
 
 
 def integrate(sol, form):

@@ -17,6 +17,8 @@ from dolfinx import mesh as dmesh
 import dwr_signorini as ds
 from dwr_signorini import obstacles as ob
 
+from .problems import from_model, mesh_script
+
 COMM = MPI.COMM_WORLD
 
 
@@ -388,29 +390,8 @@ def test_callable_modulus_uniaxial_strain():
 
 # -- gmsh meshes, read_mesh and curved boundaries -----------------------------------------------
 
-MESHES = __import__("pathlib").Path(__file__).resolve().parents[1] / "meshes"
 
 
-def mesh_script(name):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(f"meshes_{name}", MESHES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def from_model(build, **kwargs):
-    gmsh = pytest.importorskip("gmsh")
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        if COMM.rank == 0:
-            gmsh.model.add("test")
-            build(gmsh.model, **kwargs)
-        return ds.read_mesh(gmsh.model, COMM)
-    finally:
-        gmsh.finalize()
 
 
 def measure(msh, tags, tag, dim):
