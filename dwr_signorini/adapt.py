@@ -25,6 +25,7 @@ from .algebra import check_ncp_scale
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
+from .lifetime import Releasable
 from .marking import STRATEGIES, mark, mark_for_growth
 from .newton import METHODS, Solution, solve
 from .problem import SignoriniProblem
@@ -69,7 +70,7 @@ class LevelRecord:
 
 
 @dataclass
-class AdaptiveResult:
+class AdaptiveResult(Releasable):
     """The levels of a run and the last solution and estimate.
 
     Attributes:
@@ -93,11 +94,6 @@ class AdaptiveResult:
         if self.estimate is not None:
             self.estimate.destroy()
 
-    def __enter__(self) -> AdaptiveResult:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.destroy()
 
     def rows(self) -> list[dict[str, Any]]:
         """The table as a list of dicts."""

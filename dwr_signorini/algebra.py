@@ -33,6 +33,7 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from .lifetime import destroy_attributes
 from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
 from .timing import timed
@@ -41,7 +42,6 @@ __all__ = [
     "NCP_SCALES",
     "ContactAlgebra",
     "check_ncp_scale",
-    "destroy_attributes",
     "distributed_norm",
 ]
 
@@ -67,15 +67,6 @@ def check_ncp_scale(ncp_scale: Any) -> str | float:
         f"ncp_scale must be 'physical' (c = E / H on each macro contact facet) or a finite "
         f"number c > 0 (e.g. 1.0, the paper's choice), got {ncp_scale!r}"
     )
-
-
-def destroy_attributes(owner: object, names: tuple[str, ...]) -> None:
-    """Destroy the PETSc objects in ``owner``'s attributes ``names`` once (collective)."""
-    for name in names:
-        obj = getattr(owner, name, None)
-        if obj is not None:
-            obj.destroy()
-            setattr(owner, name, None)
 
 
 def distributed_norm(comm: MPI.Comm, local: np.ndarray) -> float:

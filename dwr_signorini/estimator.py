@@ -27,6 +27,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
+from .lifetime import Releasable
 from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
 from .reconstruction import Reconstructor
@@ -53,7 +54,7 @@ WEIGHTS = ("patch", "higher_order")
 
 
 @dataclass
-class Estimate:
+class Estimate(Releasable):
     """The estimated error in J and its parts.
 
     Attributes:
@@ -93,11 +94,6 @@ class Estimate:
         if self.reconstructor is not None:
             self.reconstructor.destroy()
 
-    def __enter__(self) -> Estimate:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.destroy()
 
     @property
     def value(self) -> float:

@@ -34,6 +34,7 @@ import numpy as np
 from dolfinx import fem
 
 from .algebra import check_ncp_scale, distributed_norm
+from .lifetime import Releasable
 from .linalg import (
     LOOSE_RTOL,
     METHODS,
@@ -99,7 +100,7 @@ class ConvergenceError(RuntimeError):
 
 
 @dataclass
-class Solution:
+class Solution(Releasable):
     """The discrete solution w_h = (u_h, lambda_H) and what the dual problem needs.
 
     Owns the Newton system (its factorisations serve the dual problem): release it with
@@ -138,11 +139,6 @@ class Solution:
         """Release the Newton system's PETSc objects and options (collective; idempotent)."""
         self.system.destroy()
 
-    def __enter__(self) -> Solution:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.destroy()
 
 
 def _global_key(comm: MPI.Comm, active: np.ndarray) -> tuple[bytes, ...]:

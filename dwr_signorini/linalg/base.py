@@ -27,7 +27,8 @@ from petsc4py import PETSc
 import numpy as np
 from dolfinx import fem
 
-from ..algebra import ContactAlgebra, destroy_attributes
+from ..algebra import ContactAlgebra
+from ..lifetime import destroy_attributes
 from ..spaces import Discretization
 from .options import OptionsScope, default_petsc_options, unique_prefix
 

@@ -38,7 +38,8 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse
 
-from ..algebra import ContactAlgebra, destroy_attributes
+from ..algebra import ContactAlgebra
+from ..lifetime import destroy_attributes
 from ..timing import timed
 from .base import NewtonLinearSystem
 from .block import LinearSolveError
