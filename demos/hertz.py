@@ -41,9 +41,13 @@
 # What to expect: in 2D the half-width settles within 1.5 % of Hertz's and the peak within
 # 1.6 % (the half-width moves by up to one macro facet from level to level: a facet only partly
 # in contact is inactive). In 3D the radius improves from -7.6 % to -2 % after one adaptive
-# level, but the peak $\max \lambda_H$ overshoots Hertz's $p_0$ by 30-60 % on the locally
-# refined meshes (the pressure oscillates from facet to facet where facet sizes change; uniform
-# meshes give +2-9 %, see `tests/test_hertz.py`): read the 3D peak of adaptive levels with care.
+# level and the mean pressure on the central patch (column `err p_B`, the mean of
+# $\lambda_H$ on $B$ against Hertz's mean there) stays within about 1 %, but the peak
+# $\max \lambda_H$ overshoots Hertz's $p_0$ by 30-60 % on the locally refined meshes: the
+# macro-facet multiplier oscillates from facet to facet on locally refined curved faces while
+# its means converge (uniform gmsh meshes give +2-6 %, see `tests/test_hertz.py`). Read the 3D
+# pressure through its means (the force, the patch goal), not through its maximum.
+# `--refinement-rule longest_edge` bisects only the longest edge of each marked cell.
 #
 # ```
 # python3 demos/hertz.py --dim 2            # or: mpirun -n 2 python3 demos/hertz.py --dim 3
@@ -94,6 +98,8 @@ parser.add_argument("--dim", type=int, choices=(2, 3), default=2)
 parser.add_argument("--levels", type=int, default=None,
                     help="adaptive levels per goal (default 7 in 2D, 2 in 3D)")
 parser.add_argument("--fraction", type=float, default=0.2, help="marking fraction")
+parser.add_argument("--refinement-rule", choices=ds.refine.RULES, default="edges",
+                    help="which edges of the marked cells are bisected")
 parser.add_argument("--h-contact", type=float, default=None,
                     help="mesh size at the contact (default 0.01 in 2D, 0.02 in 3D)")
 parser.add_argument("--output", type=Path, default=None, help="default results/hertz_<dim>d")
@@ -149,6 +155,14 @@ def hertz_problem() -> ds.SignoriniProblem:
     return ds.SignoriniProblem(msh, facet_tags, contact=script.CONTACT, dirichlet=dirichlet,
                                E=E, nu=NU, gap=flat, cell_tags=cell_tags,
                                boundary_projection=script.projections(R))
+
+
+def hertz_patch_mean(a: float, p0: float) -> float:
+    """Hertz's mean pressure on the central patch B (r < C_PATCH, defined below)."""
+    s = min(C_PATCH / a, 1.0)
+    if dim == 2:  # (1/c) int_0^c p0 sqrt(1 - x^2/a^2) dx
+        return p0 * (math.asin(s) + s * math.sqrt(1 - s**2)) / (2 * s)
+    return p0 * 2 / (3 * s**2) * (1 - (1 - s**2) ** 1.5)  # (1/(pi c^2)) int_B p dA
 
 
 def hertz(P: float) -> tuple[float, float]:
@@ -208,11 +222,15 @@ def measure(sol: ds.Solution) -> dict[str, float]:
     lam = sol.lam.x.array[: sol.system.n_lam]
     p_h = comm.allreduce(float(np.max(lam, initial=0.0)), op=MPI.MAX)
     a, p0 = hertz(P)
+    inside = ufl.conditional(ufl.lt(radius_of(m.x), C_PATCH), 1.0, 0.0)
+    mean_h = integrate(inside * sol.lam * m.ds_contact) / integrate(inside * m.ds_contact)
+    mean = hertz_patch_mean(a, p0)
     profile = p0 * ufl.sqrt(ufl.max_value(1.0 - radius_of(m.x) ** 2 / a**2, 0.0))
     e_l2 = math.sqrt(integrate((sol.lam - profile) ** 2 * m.ds_contact)
                      / integrate(profile**2 * m.ds_contact))
     return {"P": P, "a_h": a_h, "a_hertz": a, "err_a": a_h / a - 1, "p_h": p_h,
-            "p0_hertz": p0, "err_p0": p_h / p0 - 1, "err_profile": e_l2}
+            "p0_hertz": p0, "err_p0": p_h / p0 - 1, "patch_mean": mean_h,
+            "patch_mean_hertz": mean, "err_patch_mean": mean_h / mean - 1, "err_profile": e_l2}
 
 
 # -
@@ -229,7 +247,7 @@ for name, goal in GOALS.items():
     print0(f"\n--- goal {name} ---")
     print0(f"{'L':>2} {'cells':>8} {'DoFs':>8} {'J_h':>12} {'|eta|/J':>9} {'a_h':>8} "
            f"{'a Hertz':>8} {'err a':>7} {'p_h':>9} {'p0 Hertz':>9} {'err p0':>7} "
-           f"{'L2 prof':>7} {'time':>6}")
+           f"{'err p_B':>7} {'L2 prof':>7} {'time':>6}")
     tic = time.perf_counter()
 
     def on_level(record, sol, est, name=name, tic=tic):
@@ -242,11 +260,13 @@ for name, goal in GOALS.items():
                f"{record.J_h:12.5e} {abs(record.estimate / record.J_h):9.2e} "
                f"{row['a_h']:8.5f} {row['a_hertz']:8.5f} {row['err_a']:+7.2%} "
                f"{row['p_h']:9.3e} {row['p0_hertz']:9.3e} {row['err_p0']:+7.2%} "
-               f"{row['err_profile']:7.4f} {row['time_cumulative']:6.1f}")
+               f"{row['err_patch_mean']:+7.2%} {row['err_profile']:7.4f} "
+               f"{row['time_cumulative']:6.1f}")
 
     results[name] = ds.solve_adaptive(
         hertz_problem(), goal, refinement="adaptive", fraction=args.fraction,
-        max_levels=levels, output_dir=out / f"{name}_adaptive", callback=on_level, verbose=False,
+        refinement_rule=args.refinement_rule, max_levels=levels,
+        output_dir=out / f"{name}_adaptive", callback=on_level, verbose=False,
     )
 if comm.rank == 0:
     out.mkdir(parents=True, exist_ok=True)
@@ -285,6 +305,8 @@ if not args.no_plots:
                           label=f"{name}: |a_h/a - 1|")
                 ax.loglog(xs, [max(abs(r["err_p0"]), 1e-5) for r in rows], "^:",
                           color=f"C{i}", label=f"{name}: |p_h/p0 - 1|")
+                ax.loglog(xs, [max(abs(r["err_patch_mean"]), 1e-5) for r in rows], "d-",
+                          color=f"C{i}", label=f"{name}: |p_B/p_B,Hertz - 1| (patch mean)")
                 ax.loglog(xs, [r["err_profile"] for r in rows], "v-.", color=f"C{i}",
                           label=f"{name}: L2 distance to Hertz profile")
             ax.set_xlabel(label)
