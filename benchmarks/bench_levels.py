@@ -1,13 +1,19 @@
 """Price every phase of a level against one factorisation + solve of the stiffness matrix K.
 
-For example 5.1 (2D) and 5.3 (3D), over uniform and adaptive levels, this prints and writes a
-table of DoFs, Newton iterations and seconds per phase (assembly, factorisations, Newton solves,
-dual solve, reconstructions, indicators, marking, refinement, output), next to the time of one
-MUMPS factorisation + solve of K alone on the same mesh (``ref``, in memory the process has not
-used before, like the level's own factorisation; ``ref_warm``, the same repeated), the ratios
-total/ref and total/ref_warm, and the peak memory. It first prints how long filling memory takes
-the first time and again: where the first time is costly (a sandbox), ``ref`` and ``ref_warm``
-differ. Run it with 1 and with 2 ranks; ``--summary`` then prints the speed-ups::
+For example 5.1 (``2d``), example 5.3 (``3d``) and the 3D indentation of
+``reference_3d.py`` (``indent``: a block pressed by a sphere, goal the contact force), over
+uniform and adaptive levels, this prints and writes a table of DoFs, Newton iterations and
+seconds per phase (assembly, factorisations, Newton solves, dual solve, reconstructions,
+indicators, marking, refinement, output), next to the time of one MUMPS factorisation + solve of
+K alone on the same mesh (``ref``, in memory the process has not used before, like the level's
+own factorisation; ``ref_warm``, the same repeated), the ratios total/ref and total/ref_warm, and
+the peak memory. ``--methods`` takes ``block``, ``schur`` (the dense Schur complement),
+``auto`` (``method=None``: the package's choice, :func:`dwr_signorini.linalg.choose_method`) and
+``krylov`` (``method="schur"`` with ``iterative_petsc_options()``, whose ``ref`` is one CG + GAMG
+solve of K with the same options and the rigid body modes, set-up included). It first prints
+how long filling memory takes the first time and again: where the first time is costly (a
+sandbox), ``ref`` and ``ref_warm`` differ. Run it with 1 and with 2 ranks; ``--summary`` then
+prints the speed-ups::
 
     scripts/fenicsx python3 benchmarks/bench_levels.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/bench_levels.py
@@ -23,18 +29,50 @@ import time
 from pathlib import Path
 
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import numpy as np
 from dolfinx import mesh
 from mumps_ordering import factor_times
+from reference_3d import indentation_problem, total_force
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.newton import default_petsc_options
+from dwr_signorini.linalg.nullspace import rigid_body_modes
+from dwr_signorini.linalg.options import OptionsScope
+from dwr_signorini.newton import default_petsc_options, iterative_petsc_options
 from dwr_signorini.timing import PHASES, snapshot
 
 COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "higher-order solve",
            "reconstruct", "indicators", "mark", "refine", "discretize", "transfer", "output")
+
+
+def krylov_reference_times(sol: ds.Solution) -> tuple[float, float]:
+    """Seconds of one CG + GAMG solve of K (set-up included), twice: the ``ref`` of ``krylov``."""
+    K, f = sol.system.K, sol.system.f
+    nullspace = rigid_body_modes(sol.system.V, sol.system.n_u)
+    K.setNearNullSpace(nullspace)
+    comm = K.getComm().tompi4py()
+    x = f.duplicate()
+    seconds = []
+    for _ in range(2):
+        ksp = PETSc.KSP().create(K.getComm())
+        scope = OptionsScope("dwr_signorini_krylov_ref_", options=iterative_petsc_options())
+        scope.apply(ksp)
+        comm.Barrier()
+        tic = time.perf_counter()
+        ksp.setOperators(K)
+        ksp.setUp()
+        x.set(0.0)
+        ksp.solve(f, x)
+        seconds.append(comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))
+        if ksp.getConvergedReason() <= 0:
+            raise RuntimeError(f"the reference CG solve of K failed ({ksp.getConvergedReason()})")
+        ksp.destroy()
+        scope.destroy()
+    x.destroy()
+    nullspace.destroy()
+    return seconds[0], seconds[1]
 
 
 def reference_times(sol: ds.Solution) -> tuple[float, float]:
@@ -71,11 +109,24 @@ def problem_3d(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
     return ex.obstacle_problem(comm, (2 * n, 8 * n, 8 * n)), ex.goal_obstacle()
 
 
+def problem_indent(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
+    return indentation_problem(comm, n), total_force
+
+
+PROBLEMS = {"2d": problem_2d, "3d": problem_3d, "indent": problem_indent}
+METHOD_ARGUMENTS = {
+    "block": {"method": "block"},
+    "schur": {"method": "schur"},
+    "auto": {"method": None},
+    "krylov": {"method": "schur", "petsc_options": iterative_petsc_options()},
+}
+
+
 def run(
-    example: str, refinement: str, levels: int, start: int, comm: MPI.Comm, method: str
+    example: str, refinement: str, levels: int, start: int, comm: MPI.Comm, method: str,
+    growth: float | None = None,
 ) -> list[dict]:
-    make = problem_2d if example == "2d" else problem_3d
-    problem, goal = make(comm, start)
+    problem, goal = PROBLEMS[example](comm, start)
     rows: list[dict] = []
     last = [snapshot(), time.perf_counter()]
 
@@ -83,11 +134,13 @@ def run(
         now = snapshot()
         wall = time.perf_counter() - last[1]
         phases = {k: comm.allreduce(now[k] - last[0][k], op=MPI.MAX) for k in PHASES}
-        ref, ref_warm = reference_times(sol)
+        measure = krylov_reference_times if method == "krylov" else reference_times
+        ref, ref_warm = measure(sol)
         peak = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX)
         total = comm.allreduce(wall, op=MPI.MAX)
         row = {
             "example": example, "refinement": refinement, "method": method, "ranks": comm.size,
+            "used": sol.method,
             "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
             "newton": record.newton_iterations, **{k: phases[k] for k in COLUMNS},
             "total": total, "ref": ref, "ratio": total / ref, "ref_warm": ref_warm,
@@ -102,14 +155,15 @@ def run(
             print(" ".join(f"{_fmt(row[k])}" for k in HEADER), flush=True)
         last[0], last[1] = snapshot(), time.perf_counter()
 
+    adaptive = {"growth": growth} if growth and refinement == "adaptive" else {"fraction": 0.2}
     ds.solve_adaptive(
-        problem, goal, refinement=refinement, max_levels=levels, fraction=0.2,
-        callback=callback, verbose=False, method=method,
-    )
+        problem, goal, refinement=refinement, max_levels=levels, callback=callback,
+        verbose=False, **adaptive, **METHOD_ARGUMENTS[method],
+    ).destroy()
     return rows
 
 
-HEADER = ("example", "refinement", "method", "level", "cells", "dofs", "newton", "assemble",
+HEADER = ("example", "refinement", "method", "used", "level", "cells", "dofs", "newton", "assemble",
           "factorize", "newton solve", "dual solve", "reconstruct", "indicators", "mark", "refine",
           "total", "ref", "ratio", "ref_warm", "ratio_warm", "dual/primal", "est/primal",
           "peak_MiB")
@@ -187,8 +241,13 @@ def main() -> None:
     parser.add_argument("--adaptive-levels-3d", type=int, default=4)
     parser.add_argument("--start-2d", type=int, default=4, help="macro mesh 3n x 2n")
     parser.add_argument("--start-3d", type=int, default=1, help="macro mesh 2n x 8n x 8n")
+    parser.add_argument("--levels-indent", type=int, default=2)
+    parser.add_argument("--adaptive-levels-indent", type=int, default=4)
+    parser.add_argument("--start-indent", type=int, default=8, help="macro mesh n x n x n/2")
+    parser.add_argument("--growth", type=float, default=None,
+                        help="growth= of the adaptive runs (default: fraction 0.2)")
     parser.add_argument("--methods", default="block",
-                        help="Newton linear algebra: block, schur or both (block,schur)")
+                        help="Newton linear algebra, comma-separated: block, schur, auto, krylov")
     parser.add_argument("--output", type=Path, default=Path("benchmarks/results"))
     parser.add_argument("--summary", action="store_true")
     args = parser.parse_args()
@@ -204,14 +263,11 @@ def main() -> None:
     rows: list[dict] = []
     for example in args.examples.split(","):
         for refinement in args.refinements.split(","):
-            if example == "2d":
-                levels = args.levels_2d if refinement == "uniform" else args.adaptive_levels_2d
-                start = args.start_2d
-            else:
-                levels = args.levels_3d if refinement == "uniform" else args.adaptive_levels_3d
-                start = args.start_3d
+            uniform = refinement == "uniform"
+            levels = getattr(args, ("" if uniform else "adaptive_") + f"levels_{example}")
+            start = getattr(args, f"start_{example}")
             for method in args.methods.split(","):
-                rows += run(example, refinement, levels, start, comm, method)
+                rows += run(example, refinement, levels, start, comm, method, args.growth)
     if comm.rank == 0:
         path = args.output / f"bench_levels_np{comm.size}.csv"
         with open(path, "w", newline="") as fh:

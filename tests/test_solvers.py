@@ -307,3 +307,75 @@ def test_method_none_follows_the_rule_and_the_options(monkeypatch):
         assert diff < 1e-10
     with ds.solve(disc, petsc_options={"mat_mumps_icntl_14": 50}) as given:
         assert given.method == "block"
+
+
+def _kkt_matrix(n: int = 6000, m: int = 3000):
+    """A nonsingular symmetric indefinite [[D, B^T], [B, 0]], D = 0 on the first m rows.
+
+    The zero diagonal entries are stored, as in the Newton matrix.
+
+    B has full row rank (an entry on the "diagonal" k and three random columns per row), D > 0
+    elsewhere, so the matrix is nonsingular; its zero diagonal makes MUMPS delay pivots beyond
+    the analysis' estimate when the pivot threshold is high and no extra workspace is allowed.
+    """
+    from petsc4py import PETSc
+
+    rng = np.random.default_rng(1)
+    cols = rng.integers(0, n, size=(m, 3))
+    d, b = 1 + rng.random(n), 1 + rng.random((m, 4))  # the same values on every rank
+    A = PETSc.Mat().createAIJ([n + m, n + m], nnz=12, comm=MPI.COMM_WORLD)
+    A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    lo, hi = A.getOwnershipRange()
+    for i in range(lo, min(hi, n)):  # explicit zeros on the first m, as the Newton matrix has
+        A.setValue(i, i, d[i] if i >= m else 0.0, addv=True)
+    for k in range(m):
+        for j, v in zip((k, *cols[k]), b[k], strict=True):
+            for row, col in ((n + k, j), (j, n + k)):
+                if lo <= row < hi:
+                    A.setValue(row, col, v, addv=True)
+    A.assemble()
+    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    return A
+
+
+@pytest.mark.mpi
+def test_mumps_workspace_retry():
+    """``linalg.mumps.set_up``: a factorisation that runs out of workspace (INFOG(1) = -9) is
+    repeated with more (ICNTL(14)), and the solve is then exact; a plain set-up of the same
+    matrix fails, and the user's option is back in the database afterwards."""
+    from petsc4py import PETSc
+
+    from dwr_signorini.linalg.mumps import mumps_failure, set_up
+    from dwr_signorini.linalg.options import OptionsScope
+
+    A = _kkt_matrix()
+    options = {"ksp_type": "preonly", "pc_type": "cholesky", "pc_factor_mat_solver_type": "mumps",
+               "mat_mumps_icntl_14": 0, "mat_mumps_cntl_1": 0.5}
+    x_exact, b = A.createVecs()
+    x_exact.setRandom()
+    A.mult(x_exact, b)
+    for retry in (False, True):
+        scope = OptionsScope("dwr_signorini_test_workspace_", options=options)
+        ksp = PETSc.KSP().create(MPI.COMM_WORLD)
+        scope.apply(ksp)
+        if retry:
+            set_up(ksp, A)
+        else:
+            ksp.setOperators(A)
+            ksp.setUp()
+        x = b.duplicate()
+        ksp.solve(b, x)
+        if retry:
+            assert ksp.getConvergedReason() > 0
+            assert ksp.getPC().getFactorMatrix().getMumpsIcntl(14) >= 100
+            x.axpy(-1.0, x_exact)
+            assert x.norm() < 1e-6 * x_exact.norm()
+        else:
+            assert ksp.getConvergedReason() < 0
+            assert "workspace was too small" in mumps_failure(ksp)
+        assert PETSc.Options().getInt("dwr_signorini_test_workspace_mat_mumps_icntl_14") == 0
+        for obj in (ksp, x):
+            obj.destroy()
+        scope.destroy()
+    for obj in (A, x_exact, b):
+        obj.destroy()

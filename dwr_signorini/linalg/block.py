@@ -17,7 +17,7 @@ import numpy as np
 
 from ..timing import timed
 from .base import NewtonLinearSystem
-from .mumps import mumps_failure, null_pivots
+from .mumps import mumps_failure, null_pivots, set_up
 from .nullspace import rigid_body_modes
 
 __all__ = ["LinearSolveError", "NewtonSystem"]
@@ -141,8 +141,7 @@ class NewtonSystem(NewtonLinearSystem):
             b[: self.n_u] = self.f.array
             b[self.n_u :] = np.where(active, self.g.array, 0.0)
         with timed("factorize"):
-            self.ksp.setOperators(self.A)
-            self.ksp.setUp()
+            set_up(self.ksp, self.A)
         count = null_pivots(self.ksp)
         if count > 0:
             raise np.linalg.LinAlgError(

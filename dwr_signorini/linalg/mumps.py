@@ -20,6 +20,7 @@ __all__ = [
     "mumps_failure",
     "mumps_inverse_entries",
     "null_pivots",
+    "set_up",
 ]
 
 logger = logging.getLogger(__name__)
@@ -82,8 +83,9 @@ def mumps_failure(ksp: PETSc.KSP) -> str | None:
     if code in _MUMPS_SMALL_WORKSPACE:
         return (
             f"MUMPS's workspace was too small (INFOG(1) = {code}, INFOG(2) = {detail}), e.g. "
-            "after delayed pivots: raise it with petsc_options {'mat_mumps_icntl_14': 100} "
-            "(percent of extra workspace; MUMPS's default is 20 to 35)"
+            f"after delayed pivots, also with ICNTL(14) = {factor.getMumpsIcntl(14)} percent "
+            "extra (set_up doubles it up to WORKSPACE_RETRIES times): raise it further with "
+            "petsc_options {'mat_mumps_icntl_14': ...}"
         )
     if code == -19:
         return (
@@ -93,6 +95,51 @@ def mumps_failure(ksp: PETSc.KSP) -> str | None:
     if code in (-6, -10):  # structurally or numerically singular
         return None
     return f"MUMPS failed with INFOG(1) = {code}, INFOG(2) = {detail}"
+
+
+#: Most factorisations :func:`set_up` tries when MUMPS's workspace was too small.
+WORKSPACE_RETRIES = 3
+
+
+def set_up(ksp: PETSc.KSP, A: PETSc.Mat) -> None:
+    """``ksp.setOperators(A)`` and ``ksp.setUp()``, with more workspace where MUMPS ran short.
+
+    MUMPS sizes its workspace at the analysis, and pivoting in the numerical factorisation can
+    need more than that estimate (INFOG(1) = -8, -9, ...: delayed pivots, as on locally bisected
+    3D meshes). Then the factorisation is repeated from the analysis with ICNTL(14), the
+    percentage of extra workspace, doubled (at least 100), up to :data:`WORKSPACE_RETRIES`
+    times, each with a logged warning. The raised value is put in the options database under
+    the solver's prefix for that set-up only (options win over values set on the factor), and
+    the previous value is restored after it. Any other failure is left to the caller's checks
+    (:func:`mumps_failure`).
+    """
+    ksp.setOperators(A)
+    ksp.setUp()
+    for _ in range(WORKSPACE_RETRIES):
+        try:
+            factor = mumps_factor(ksp)
+        except RuntimeError:
+            return  # not set up: the caller's solve reports it
+        if factor is None or factor.getMumpsInfog(1) not in _MUMPS_SMALL_WORKSPACE:
+            return
+        extra = max(100, 2 * factor.getMumpsIcntl(14))
+        logger.warning(
+            "MUMPS's workspace was too small (INFOG(1) = %d, solver prefix %r): factorising "
+            "again with ICNTL(14) = %d", factor.getMumpsInfog(1), ksp.getOptionsPrefix(), extra,
+        )
+        db = PETSc.Options()
+        name = (ksp.getOptionsPrefix() or "") + "mat_mumps_icntl_14"
+        previous = db.getString(name) if db.hasName(name) else None
+        db[name] = extra
+        try:
+            ksp.getPC().reset()
+            ksp.setOperators(A)
+            ksp.setUp()
+        finally:
+            if previous is None:
+                db.delValue(name)
+            else:
+                db[name] = previous
 
 
 def null_pivots(ksp: PETSc.KSP) -> int:

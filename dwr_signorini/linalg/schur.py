@@ -49,6 +49,7 @@ from .mumps import (
     mumps_failure,
     mumps_inverse_entries,
     null_pivots,
+    set_up,
 )
 from .nullspace import rigid_body_modes
 from .options import LOOSE_RTOL, SCHUR_KRYLOV_OPTIONS, OptionsScope
@@ -411,10 +412,9 @@ class SchurNewtonSystem(NewtonLinearSystem):
             self._near_nullspace = rigid_body_modes(self.V, self.n_u)
             self.K.setNearNullSpace(self._near_nullspace)
         with timed("factorize"):
-            self.ksp.setOperators(self.K)
             error: Exception | None = None
             try:
-                self.ksp.setUp()
+                set_up(self.ksp, self.K)
                 solve_with(self.ksp, self.f, self._u_f)
             except (PETSc.Error, LinearSolveError) as err:
                 error = err
