@@ -7,16 +7,29 @@ Each Newton step solves
 
 through the symmetric matrix A_s of the same equations (:meth:`NewtonSystem.newton_matrix`),
 factored by MUMPS's LDL^T; the dual problem A^T z = r uses the same factors.
+
+Factor reuse: a step whose active set differs from that of the factors in r multipliers is
+solved with those factors and a rank-2r correction (:class:`~.lowrank.WoodburyUpdate`), when its
+2r + 2 solves take less than :data:`REUSE_FRACTION` of the last factorisation's time (both
+measured, the maximum over ranks). A step of iterative refinement corrects it and estimates its
+error (:data:`REUSE_RTOL`); a refused or inaccurate update falls back to factoring the new
+matrix, so that the null-pivot check applies.
+The last semi-smooth Newton steps often change a few contact facets: those steps, and the dual
+problem after them, then cost a few solves instead of a factorisation.
 """
 
 from __future__ import annotations
 
+import time
+
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
 
 from ..timing import timed
 from .base import NewtonLinearSystem
+from .lowrank import WoodburyUpdate
 from .mumps import mumps_failure, null_pivots, set_up
 from .nullspace import rigid_body_modes
 
@@ -24,6 +37,13 @@ __all__ = ["LinearSolveError", "NewtonSystem"]
 
 #: Multigrid preconditioners: for K (``method="schur"``), not for the block Newton matrix.
 MULTIGRID = ("gamg", "hypre", "ml", "mg")
+
+#: A step reuses the factors if its 2r + 2 solves take less than this part of a factorisation.
+REUSE_FRACTION = 0.7
+
+#: Largest relative error (estimated by a step of iterative refinement, per block, max norms)
+#: of a step solved by reusing the factors.
+REUSE_RTOL = 1e-9
 
 
 class LinearSolveError(RuntimeError):
@@ -43,6 +63,8 @@ class NewtonSystem(NewtonLinearSystem):
         A: Symmetric form of the Newton matrix of the last step (:meth:`newton_matrix`; None
             before the first step).
         direct: Whether the solver is a factorisation.
+        factorizations: Factorisations so far; ``reused``: steps solved with the factors of
+            an earlier step (module docstring).
 
     Raises:
         ValueError: A multigrid preconditioner, which does not suit the block matrix.
@@ -50,8 +72,10 @@ class NewtonSystem(NewtonLinearSystem):
 
     _petsc_objects = (
         *NewtonLinearSystem._petsc_objects,
+        "_update",
         "A0",
         "A",
+        "_A_factored",
         "b",
         "is_u",
         "is_lam",
@@ -70,6 +94,12 @@ class NewtonSystem(NewtonLinearSystem):
                 "fieldsplit_petsc_options() on the block matrix"
             )
         self.direct = pc_type in ("lu", "cholesky")
+        self._reuse = self.direct and self.ksp.getType() == "preonly"
+        self._A_factored: PETSc.Mat | None = None  # the matrix whose factors the KSP holds
+        self._factored_active: np.ndarray | None = None
+        self._update: WoodburyUpdate | None = None
+        self._t_factor = self._t_solve = 0.0
+        self.factorizations = self.reused = 0
         comm, alg = self.disc.comm, self.algebra
         with timed("assemble"):
             D = PETSc.Mat().createAIJ(((self.n_lam, None), (self.n_lam, None)), nnz=1, comm=comm)
@@ -140,15 +170,18 @@ class NewtonSystem(NewtonLinearSystem):
             b = self.b.array_w
             b[: self.n_u] = self.f.array
             b[self.n_u :] = np.where(active, self.g.array, 0.0)
-        with timed("factorize"):
-            set_up(self.ksp, self.A)
-        count = null_pivots(self.ksp)
-        if count > 0:
-            raise np.linalg.LinAlgError(
-                f"MUMPS found {count} null pivots: the Newton matrix is singular"
-            )
+        if self._update is not None:
+            self._update.destroy()
+            self._update = None
+        if self._solve_by_update(active):
+            self.reused += 1
+            self.solved = True
+            return
+        self._factor()
         with timed("newton solve"):
+            tic = time.perf_counter()
             self.ksp.solve(self.b, self.x)
+            self._t_solve = time.perf_counter() - tic
         reason = self.ksp.getConvergedReason()
         if reason < 0:
             cause = mumps_failure(self.ksp)
@@ -157,6 +190,100 @@ class NewtonSystem(NewtonLinearSystem):
                 + (f": {cause}" if cause else "")
             )
         self.solved = True
+
+    def _factor(self) -> None:
+        """Factor the Newton matrix of this step (a copy of it is the KSP's operator)."""
+        if self._A_factored is None:
+            self._A_factored = self.A.copy()
+        else:
+            self.A.copy(self._A_factored, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self._factored_active = None
+        with timed("factorize"):
+            tic = time.perf_counter()
+            set_up(self.ksp, self._A_factored)
+            self._t_factor = time.perf_counter() - tic
+        self.factorizations += 1
+        count = null_pivots(self.ksp)
+        if count > 0:
+            raise np.linalg.LinAlgError(
+                f"MUMPS found {count} null pivots: the Newton matrix is singular"
+            )
+        self._factored_active = self.active.copy()
+
+    def _changed_rows(self, active: np.ndarray) -> np.ndarray:
+        """Global rows of the multipliers whose activity differs from the factors' (all ranks)."""
+        first = self.A.getOwnershipRange()[0] + self.n_u
+        local = first + np.flatnonzero(active != self._factored_active)
+        return np.sort(np.concatenate(self.disc.comm.allgather(local))).astype(np.int64)
+
+    def _solve_by_update(self, active: np.ndarray) -> bool:
+        """Solve the step with the factors of an earlier one, if that pays (module docstring).
+
+        Returns:
+            Whether :attr:`x` holds the step.
+        """
+        if not self._reuse or self._factored_active is None:
+            return False
+        comm = self.disc.comm
+        rows = self._changed_rows(active)
+        t_factor = comm.allreduce(self._t_factor, op=MPI.MAX)
+        t_solve = comm.allreduce(self._t_solve, op=MPI.MAX)
+        if len(rows) == 0:  # the factored matrix itself
+            with timed("newton solve"):
+                self.ksp.solve(self.b, self.x)
+            return self.ksp.getConvergedReason() > 0
+        if (2 * len(rows) + 2) * t_solve > REUSE_FRACTION * t_factor:
+            return False
+        with timed("newton solve"):
+            try:
+                update = WoodburyUpdate(self.ksp, self._A_factored, self.A, rows)
+            except np.linalg.LinAlgError:
+                return False
+            try:
+                update.solve(self.b, self.x)
+                accurate = self._refine(update)
+            except np.linalg.LinAlgError:
+                accurate = False
+        if not accurate:
+            update.destroy()
+            return False
+        self._update = update
+        return True
+
+    def _refine(self, update: WoodburyUpdate) -> bool:
+        """One step of iterative refinement of :attr:`x`; whether the step was accurate.
+
+        The correction d of A_s d = b - A_s x measures the error of x: it must be below
+        :data:`REUSE_RTOL` of x in each block (displacements, multipliers; max norms).
+        """
+        residual, correction = self.b.duplicate(), self.x.duplicate()
+        self.A.mult(self.x, residual)
+        residual.aypx(-1.0, self.b)
+        update.solve(residual, correction)
+        self.x.axpy(1.0, correction)
+        comm, n_u = self.disc.comm, self.n_u
+        accurate = True
+        for part in (slice(0, n_u), slice(n_u, None)):
+            size = comm.allreduce(float(np.max(np.abs(self.x.array_r[part]), initial=0.0)),
+                                  op=MPI.MAX)
+            error = comm.allreduce(
+                float(np.max(np.abs(correction.array_r[part]), initial=0.0)), op=MPI.MAX)
+            accurate &= error <= REUSE_RTOL * size
+        for vec in (residual, correction):
+            vec.destroy()
+        return accurate
+
+    def _solve_symmetric(self, rhs: PETSc.Vec, w: PETSc.Vec) -> int:
+        """A_s w = rhs for the last step's A_s: its factors, or the old ones and the update.
+
+        Returns:
+            The KSP's converged reason (> 0: solved).
+        """
+        if self._update is not None:
+            self._update.solve(rhs, w)
+        else:
+            self.ksp.solve(rhs, w)
+        return self.ksp.getConvergedReason()
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
         """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem).
@@ -173,8 +300,7 @@ class NewtonSystem(NewtonLinearSystem):
             RuntimeError: No Newton step was solved, or the solve failed.
         """
         self.check_solved()
-        self.ksp.solve(rhs, z)
-        reason = self.ksp.getConvergedReason()
+        reason = self._solve_symmetric(rhs, z)
         if reason < 0:
             raise RuntimeError(f"the dual solve failed (KSP reason {reason})")
         w_u = self.N.createVecRight()
