@@ -13,11 +13,11 @@ solves A_new x = b with the factors of A_old:
     x = y - Z (S^-1 + U^T Z)^-1 U^T y,   y = A_old^-1 b,   Z = A_old^-1 U,
     S^-1 = [[0, I], [I, D_CC]],
 
-that is 2r solves with the old factors once (Z), and one solve and a dense 2r x 2r solve per
-right-hand side. The capacitance matrix S^-1 + U^T Z is equilibrated (its entries range from
-those of S^-1 to those of the inverse on the multiplier rows); singular or ill-conditioned after
-that (a singular A_new, e.g. linearly dependent active constraints), it is refused, so that the
-caller factors A_new and its checks apply.
+that is one solve of 2r right-hand sides with the old factors once (Z), and one solve and a
+dense 2r x 2r solve per right-hand side. The capacitance matrix S^-1 + U^T Z is equilibrated
+(its entries range from those of S^-1 to those of the inverse on the multiplier rows); singular
+or ill-conditioned after that (a singular A_new, e.g. linearly dependent active constraints),
+it is refused, so that the caller factors A_new and its checks apply.
 """
 
 from __future__ import annotations
@@ -35,8 +35,11 @@ MAX_CAPACITANCE_CONDITION = 1e14
 class WoodburyUpdate:
     """Solves with A_new = A_old + U S U^T through the factors of A_old (module docstring).
 
+    U and Z = A_old^-1 U are dense blocks of 2r columns (the owned rows of each rank); Z comes
+    from one multi-right-hand-side solve with the factors (``MatMatSolve``).
+
     Args:
-        ksp: The solver holding the factors of ``A_old`` (its operator).
+        ksp: The solver holding the factors of ``A_old`` (its operator; a factorisation).
         A_old: The factored matrix.
         A_new: The matrix to solve with (same layout and pattern).
         rows: Global indices of the changed rows, the same on every rank.
@@ -49,41 +52,47 @@ class WoodburyUpdate:
         self, ksp: PETSc.KSP, A_old: PETSc.Mat, A_new: PETSc.Mat, rows: np.ndarray
     ) -> None:
         self.ksp = ksp
+        self.comm = A_new.getComm().tompi4py()
         r = len(rows)
         D = A_new.copy()
         D.axpy(-1.0, A_old, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         lo, hi = D.getOwnershipRange()
-        self.U: list[PETSc.Vec] = []
-        for row in rows:  # E_C
-            e = D.createVecRight()
+        n_local, n = hi - lo, D.getSize()[0]
+        blocks = []
+        for _ in range(2):
+            block = PETSc.Mat().createDense(((n_local, n), (None, 2 * r)), comm=D.getComm())
+            block.setUp()
+            block.assemble()
+            blocks.append(block)
+        U, Z = blocks
+        mine = (rows >= lo) & (rows < hi)
+        e, column = D.createVecRight(), D.createVecLeft()
+        u = U.getDenseArray()
+        u[rows[mine] - lo, np.flatnonzero(mine)] = 1.0  # E_C
+        for j, row in enumerate(rows):  # D E_C
+            e.set(0.0)
             if lo <= row < hi:
                 e.setValue(int(row), 1.0)
             e.assemble()
-            self.U.append(e)
-        for e in self.U[:r]:  # D E_C
-            column = D.createVecLeft()
             D.mult(e, column)
-            self.U.append(column)
-        D.destroy()
-        self.Z = []
-        for u in self.U:
-            z = u.duplicate()
-            ksp.solve(u, z)
-            if ksp.getConvergedReason() < 0:
-                z.destroy()
-                self.destroy()
-                raise np.linalg.LinAlgError("a solve with the old factors failed")
-            self.Z.append(z)
-        # D_CC[a, b] = e_a . (D e_b); the capacitance S^-1 + U^T Z
-        D_CC = np.array([[self.U[a].dot(self.U[r + b]) for b in range(r)] for a in range(r)])
+            u[:, r + j] = column.array_r
+        for obj in (D, e, column):
+            obj.destroy()
+        U.assemble()
+        ksp.getPC().getFactorMatrix().matSolve(U, Z)
+        self.U, self.Z = U.getDenseArray().copy(), Z.getDenseArray().copy()
+        U.destroy()
+        Z.destroy()
+        # S^-1 + U^T Z, with D_CC[a, b] = e_a . (D e_b)
+        UtU = self.comm.allreduce(self.U.T @ self.U)
+        UtZ = self.comm.allreduce(self.U.T @ self.Z)
+        D_CC = UtU[:r, r:]
         S_inv = np.block([[np.zeros((r, r)), np.eye(r)], [np.eye(r), D_CC]])
-        UtZ = np.array([[u.dot(z) for z in self.Z] for u in self.U])
         capacitance = S_inv + UtZ  # symmetric; its entries span many orders of magnitude
         self.scale = 1.0 / np.sqrt(np.max(np.abs(capacitance), axis=1))
         self.capacitance = self.scale[:, None] * capacitance * self.scale[None, :]
         condition = np.linalg.cond(self.capacitance)
         if not np.isfinite(condition) or condition > MAX_CAPACITANCE_CONDITION:
-            self.destroy()
             raise np.linalg.LinAlgError(
                 f"the capacitance matrix of the low-rank update has condition {condition:.1e}"
             )
@@ -93,18 +102,10 @@ class WoodburyUpdate:
         self.ksp.solve(b, x)
         if self.ksp.getConvergedReason() < 0:
             raise np.linalg.LinAlgError("a solve with the old factors failed")
-        t = np.array([u.dot(x) for u in self.U])
+        t = self.comm.allreduce(self.U.T @ x.array_r)
         s = self.scale * np.linalg.solve(self.capacitance, self.scale * t)
-        for coefficient, z in zip(s, self.Z, strict=True):
-            x.axpy(-coefficient, z)
-
-    @property
-    def solves_per_update(self) -> int:
-        """Solves with the old factors that building the update took (2r)."""
-        return len(self.U)
+        x.array_w[:] -= self.Z @ s
 
     def destroy(self) -> None:
-        """Destroy the vectors (collective)."""
-        for vec in [*getattr(self, "U", []), *getattr(self, "Z", [])]:
-            vec.destroy()
-        self.U, self.Z = [], []
+        """Release the blocks (numpy arrays: nothing collective)."""
+        self.U = self.Z = np.zeros((0, 0))
