@@ -246,30 +246,32 @@ class NewtonSystem(NewtonLinearSystem):
                 return False
             try:
                 update.solve(self.b, self.x)
-                accurate = self._refine(update)
+                accurate = self._refine(update, self.b, self.x)
             except np.linalg.LinAlgError:
                 accurate = False
+            # the inactive rows M_I lam_I = 0 hold exactly, as in a direct solve
+            self.x.array_w[self.n_u :][~active] = 0.0
         if not accurate:
             update.destroy()
             return False
         self._update = update
         return True
 
-    def _refine(self, update: WoodburyUpdate) -> bool:
-        """One step of iterative refinement of :attr:`x`; whether the step was accurate.
+    def _refine(self, update: WoodburyUpdate, rhs: PETSc.Vec, x: PETSc.Vec) -> bool:
+        """One step of iterative refinement of A_s x = rhs; whether x was accurate.
 
-        The correction d of A_s d = b - A_s x measures the error of x: it must be below
+        The correction d of A_s d = rhs - A_s x measures the error of x: it must be below
         :data:`REUSE_RTOL` of x in each block (displacements, multipliers; max norms).
         """
-        residual, correction = self.b.duplicate(), self.x.duplicate()
-        self.A.mult(self.x, residual)
-        residual.aypx(-1.0, self.b)
+        residual, correction = rhs.duplicate(), x.duplicate()
+        self.A.mult(x, residual)
+        residual.aypx(-1.0, rhs)
         update.solve(residual, correction)
-        self.x.axpy(1.0, correction)
+        x.axpy(1.0, correction)
         comm, n_u = self.disc.comm, self.n_u
         accurate = True
         for part in (slice(0, n_u), slice(n_u, None)):
-            size = comm.allreduce(float(np.max(np.abs(self.x.array_r[part]), initial=0.0)),
+            size = comm.allreduce(float(np.max(np.abs(x.array_r[part]), initial=0.0)),
                                   op=MPI.MAX)
             error = comm.allreduce(
                 float(np.max(np.abs(correction.array_r[part]), initial=0.0)), op=MPI.MAX)
@@ -286,6 +288,7 @@ class NewtonSystem(NewtonLinearSystem):
         """
         if self._update is not None:
             self._update.solve(rhs, w)
+            self._refine(self._update, rhs, w)
         else:
             self.ksp.solve(rhs, w)
         return self.ksp.getConvergedReason()
