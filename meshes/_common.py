@@ -44,6 +44,22 @@ def add_groups(
             model.addPhysicalGroup(dim, members[tag], tag, name=name)
 
 
+def add_body_groups(
+    model: Any,
+    body: list[tuple[int, int]],
+    groups: Mapping[int, tuple[str, Callable[[np.ndarray], bool]]],
+    body_tag: int = 1,
+) -> None:
+    """Physical groups of a body: its boundary in ``groups``, the body in one more group.
+
+    The boundary entities of ``body`` go to ``groups`` (:func:`add_groups`); the entities of
+    ``body`` form the group ``body_tag``, named "body".
+    """
+    dim = body[0][0]
+    add_groups(model, dim - 1, groups, boundary_of(model, body))
+    model.addPhysicalGroup(dim, [e for _, e in body], body_tag, name="body")
+
+
 def boundary_of(model: Any, volumes: list[tuple[int, int]]) -> list[tuple[int, int]]:
     """The (unoriented) boundary entities of a set of entities."""
     return [(d, abs(e)) for d, e in model.getBoundary(volumes, combined=True, oriented=False)]

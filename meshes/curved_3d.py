@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_groups, boundary_of, main
+from _common import add_body_groups, main
 
 CONTACT, TOP, SYMMETRY, ENDS = 1, 2, 3, 4
 BODY = 1
@@ -32,13 +32,12 @@ def build(model: Any, radius: float = RADIUS, length: float = LENGTH, h: float =
     volume, _ = occ.intersect([(3, cylinder)], [(3, box)])
     occ.synchronize()
     tol = 1e-9 * R
-    add_groups(model, 2, {
+    add_body_groups(model, volume, {
         TOP: ("top", lambda c: abs(c[2] - R) < tol),
         SYMMETRY: ("symmetry", lambda c: abs(c[0]) < tol),
         ENDS: ("ends", lambda c: abs(c[1]) < tol or abs(c[1] - length) < tol),
         CONTACT: ("contact", lambda c: True),
-    }, boundary_of(model, volume))
-    model.addPhysicalGroup(3, [v for _, v in volume], BODY, name="body")
+    }, BODY)
     model.mesh.setSize(model.getEntities(0), h)
     model.mesh.generate(3)
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_groups, boundary_of, main, refine_near
+from _common import add_body_groups, main, refine_near
 
 CONTACT, TOP, SYMMETRY = 1, 2, 3
 BODY = 1
@@ -34,12 +34,11 @@ def build(
     surface, _ = occ.intersect([(2, disc)], [(2, box)])
     occ.synchronize()
     R = radius
-    add_groups(model, 1, {
+    add_body_groups(model, surface, {
         TOP: ("top", lambda c: abs(c[1] - R) < 1e-9 * R),
         SYMMETRY: ("symmetry", lambda c: abs(c[0]) < 1e-9 * R),
         CONTACT: ("contact", lambda c: True),
-    }, boundary_of(model, surface))
-    model.addPhysicalGroup(2, [s for _, s in surface], BODY, name="body")
+    }, BODY)
     origin = [p for _, p in model.getEntities(0)
               if np.linalg.norm(model.getValue(0, p, [])) < 1e-9 * R]
     refine_near(model, origin, h_contact, h, refine_radius * R)

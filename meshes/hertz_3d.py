@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_groups, boundary_of, main, refine_near
+from _common import add_body_groups, boundary_of, main, refine_near
 
 CONTACT, TOP, SYMMETRY_X, SYMMETRY_Y = 1, 2, 3, 4
 BODY = 1
@@ -37,13 +37,12 @@ def build(
     volume, _ = occ.intersect([(3, ball)], [(3, box)])
     occ.synchronize()
     tol = 1e-9 * R
-    add_groups(model, 2, {
+    add_body_groups(model, volume, {
         TOP: ("top", lambda c: abs(c[2] - R) < tol),
         SYMMETRY_X: ("symmetry_x", lambda c: abs(c[0]) < tol),
         SYMMETRY_Y: ("symmetry_y", lambda c: abs(c[1]) < tol),
         CONTACT: ("contact", lambda c: True),
-    }, boundary_of(model, volume))
-    model.addPhysicalGroup(3, [v for _, v in volume], BODY, name="body")
+    }, BODY)
     bottom = [p for _, p in model.getEntities(0)
               if np.linalg.norm(model.getValue(0, p, [])) < tol]
     if not bottom:  # the full hemisphere has no vertex at its bottom point: embed one

@@ -20,7 +20,7 @@ import sys
 from typing import Any
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import HERE, add_groups, boundary_of
+from _common import HERE, add_body_groups
 
 DIRICHLET, NEUMANN, CONTACT = 1, 2, 3
 BODY = 1
@@ -31,12 +31,11 @@ def analytic_2d(model: Any, h: float = 0.25) -> None:
     """Example 5.1's rectangle in ``model``, meshed with triangles of size h."""
     surface = [(2, model.occ.addRectangle(-3.0, -1.0, 0.0, 3.0, 2.0))]
     model.occ.synchronize()
-    add_groups(model, 1, {
+    add_body_groups(model, surface, {
         DIRICHLET: ("dirichlet", lambda c: abs(c[0] + 3.0) < TOL),
         CONTACT: ("contact", lambda c: abs(c[0]) < TOL),
         NEUMANN: ("neumann", lambda c: True),
-    }, boundary_of(model, surface))
-    model.addPhysicalGroup(2, [s for _, s in surface], BODY, name="body")
+    }, BODY)
     model.mesh.setSize(model.getEntities(0), h)
     model.mesh.generate(2)
 
@@ -49,12 +48,11 @@ def bar_2d(model: Any, h: float = 0.0125) -> None:
     surface, _ = occ.fragment(surface, [(0, cut)])
     surface = [e for e in surface if e[0] == 2]
     occ.synchronize()
-    add_groups(model, 1, {
+    add_body_groups(model, surface, {
         DIRICHLET: ("dirichlet", lambda c: abs(c[1]) < TOL),
         CONTACT: ("contact", lambda c: abs(c[0] - 0.05) < TOL and c[1] > 0.15),
         NEUMANN: ("neumann", lambda c: True),
-    }, boundary_of(model, surface))
-    model.addPhysicalGroup(2, [s for _, s in surface], BODY, name="body")
+    }, BODY)
     model.mesh.setSize(model.getEntities(0), h)
     model.mesh.generate(2)
 
@@ -66,12 +64,11 @@ def obstacle_3d(model: Any, h: float = 0.125) -> None:
     inner = occ.addBox(0.125, 0.0, 0.0, 0.125, 0.5, 0.5)
     volume, _ = occ.fragment([(3, box)], [(3, inner)])
     occ.synchronize()
-    add_groups(model, 2, {
+    add_body_groups(model, volume, {
         DIRICHLET: ("dirichlet", lambda c: abs(c[0]) < TOL),
         CONTACT: ("contact", lambda c: abs(c[0] - 0.25) < TOL and c[1] < 0.5 and c[2] < 0.5),
         NEUMANN: ("neumann", lambda c: True),
-    }, boundary_of(model, volume))
-    model.addPhysicalGroup(3, [v for _, v in volume], BODY, name="body")
+    }, BODY)
     model.mesh.setSize(model.getEntities(0), h)
     model.mesh.generate(3)
 
