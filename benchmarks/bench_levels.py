@@ -29,7 +29,6 @@ import time
 from pathlib import Path
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 from dolfinx import mesh
@@ -39,7 +38,6 @@ from reference_3d import indentation_problem, total_force
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini.linalg.nullspace import rigid_body_modes
-from dwr_signorini.linalg.options import OptionsScope
 from dwr_signorini.newton import default_petsc_options, iterative_petsc_options
 from dwr_signorini.timing import PHASES, snapshot
 
@@ -49,30 +47,12 @@ COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "higher-order 
 
 def krylov_reference_times(sol: ds.Solution) -> tuple[float, float]:
     """Seconds of one CG + GAMG solve of K (set-up included), twice: the ``ref`` of ``krylov``."""
-    K, f = sol.system.K, sol.system.f
     nullspace = rigid_body_modes(sol.system.V, sol.system.n_u)
-    K.setNearNullSpace(nullspace)
-    comm = K.getComm().tompi4py()
-    x = f.duplicate()
-    seconds = []
-    for _ in range(2):
-        ksp = PETSc.KSP().create(K.getComm())
-        scope = OptionsScope("dwr_signorini_krylov_ref_", options=iterative_petsc_options())
-        scope.apply(ksp)
-        comm.Barrier()
-        tic = time.perf_counter()
-        ksp.setOperators(K)
-        ksp.setUp()
-        x.set(0.0)
-        ksp.solve(f, x)
-        seconds.append(comm.allreduce(time.perf_counter() - tic, op=MPI.MAX))
-        if ksp.getConvergedReason() <= 0:
-            raise RuntimeError(f"the reference CG solve of K failed ({ksp.getConvergedReason()})")
-        ksp.destroy()
-        scope.destroy()
-    x.destroy()
+    sol.system.K.setNearNullSpace(nullspace)
+    (first, _), (second, _) = factor_times(sol.system.K, sol.system.f,
+                                           iterative_petsc_options(), repeat=2)
     nullspace.destroy()
-    return seconds[0], seconds[1]
+    return first, second
 
 
 def reference_times(sol: ds.Solution) -> tuple[float, float]:

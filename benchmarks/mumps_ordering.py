@@ -25,6 +25,7 @@ from dolfinx import mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+from dwr_signorini.linalg.mumps import mumps_factor
 from dwr_signorini.linalg.options import OptionsScope, default_petsc_options
 from dwr_signorini.spaces import discretize
 
@@ -36,11 +37,14 @@ FACTORISATIONS = {"LDL^T": {"pc_type": "cholesky"}, "LU": {"pc_type": "lu"}}
 def factor_times(
     K: PETSc.Mat, f: PETSc.Vec, options: dict, repeat: int
 ) -> list[tuple[float, int]]:
-    """``repeat`` fresh factorisations + solves of K with ``options``, in order.
+    """``repeat`` fresh factorisations (or preconditioner set-ups) + solves of K with ``options``.
 
     Returns:
         For each: the seconds (max over ranks) and the factor entries (MUMPS's INFOG(20),
-        estimated by the analysis).
+        estimated by the analysis; 0 for a solver that is not MUMPS).
+
+    Raises:
+        RuntimeError: A solve did not converge.
     """
     runs = []
     x = f.duplicate()
@@ -54,7 +58,10 @@ def factor_times(
         ksp.setUp()
         ksp.solve(f, x)
         elapsed = K.getComm().tompi4py().allreduce(time.perf_counter() - tic, op=MPI.MAX)
-        runs.append((elapsed, ksp.getPC().getFactorMatrix().getMumpsInfog(20)))
+        if ksp.getConvergedReason() <= 0:
+            raise RuntimeError(f"the solve with K failed (KSP reason {ksp.getConvergedReason()})")
+        factor = mumps_factor(ksp)
+        runs.append((elapsed, 0 if factor is None else factor.getMumpsInfog(20)))
         ksp.destroy()
         scope.destroy()
     x.destroy()
