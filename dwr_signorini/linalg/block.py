@@ -283,14 +283,20 @@ class NewtonSystem(NewtonLinearSystem):
     def _solve_symmetric(self, rhs: PETSc.Vec, w: PETSc.Vec) -> int:
         """A_s w = rhs for the last step's A_s: its factors, or the old ones and the update.
 
+        Through the update, a step of iterative refinement checks w; if it is not accurate,
+        A_s is factored and w solved with its factors.
+
         Returns:
             The KSP's converged reason (> 0: solved).
         """
         if self._update is not None:
             self._update.solve(rhs, w)
-            self._refine(self._update, rhs, w)
-        else:
-            self.ksp.solve(rhs, w)
+            if self._refine(self._update, rhs, w):
+                return self.ksp.getConvergedReason()
+            self._update.destroy()  # not accurate for this right-hand side: factor A_s
+            self._update = None
+            self._factor()
+        self.ksp.solve(rhs, w)
         return self.ksp.getConvergedReason()
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
