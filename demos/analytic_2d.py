@@ -96,7 +96,7 @@ parser.add_argument("--cell-type", choices=("quadrilateral", "triangle"),
                     default="quadrilateral")
 parser.add_argument("--estimator", choices=("eta", "eta_p"), default="eta",
                     help="estimator that drives marking (adaptive runs)")
-parser.add_argument("--weights", choices=("patch", "higher_order"), default="patch")
+parser.add_argument("--weights", choices=ds.WEIGHTS, default="patch")
 parser.add_argument("--ncp-scale", default="1.0",
                     help="c of the NCP function: a number (the paper's 1.0, which its Tables 1-2 "
                          "use) or 'physical' (E / H per macro contact facet, the package's "

@@ -92,7 +92,7 @@ parser.add_argument("--levels", type=int, default=9, help="levels (solves) per r
 parser.add_argument("--refinement", choices=("adaptive", "uniform", "both"), default="both")
 parser.add_argument("--estimator", choices=("eta", "eta_p"), default="eta",
                     help="estimator that drives marking")
-parser.add_argument("--weights", choices=("patch", "higher_order"), default="patch",
+parser.add_argument("--weights", choices=ds.WEIGHTS, default="patch",
                     help="weights of the estimator: patch-wise reconstruction or P2 solves")
 parser.add_argument("--fraction", type=float, default=0.2, help="marking fraction")
 parser.add_argument("--strategy", choices=("fixed_fraction", "doerfler"),

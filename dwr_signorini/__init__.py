@@ -8,7 +8,7 @@ identities (13) and (15); adaptive refinement in parallel.
 
 from . import obstacles
 from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
-from .estimator import Estimate, estimate
+from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .mesh_io import read_mesh
 from .newton import ConvergenceError, Solution, solve
 from .problem import SignoriniProblem
@@ -17,6 +17,8 @@ from .spaces import Discretization, Measures, discretize
 __version__ = "0.1.0"
 
 __all__ = [
+    "ESTIMATORS",
+    "WEIGHTS",
     "AdaptiveResult",
     "ConvergenceError",
     "Discretization",

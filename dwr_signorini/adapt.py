@@ -221,7 +221,8 @@ def solve_adaptive(
             while the contact set is not resolved); ``AdaptiveResult.converged`` tells whether
             that happened, and with ``verbose`` a line says so when it did not.
         estimator: ``"eta"`` or ``"eta_p"``: drives marking and the stopping test.
-        weights: ``"patch"`` or ``"higher_order"`` (see :func:`~dwr_signorini.estimate`).
+        weights: ``"patch"``, ``"higher_order"`` or ``"hierarchical"`` (see
+            :func:`~dwr_signorini.estimate`).
         exact: The exact J(w), if known: fills rel_error and the effectivity indices.
         output_dir: Where to write the table (CSV, JSON, after every level) and fields (XDMF).
         callback: Called as ``callback(record, solution, estimate)`` after every level.

@@ -27,6 +27,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
+from .hierarchical import hierarchical_dual
 from .lifetime import Releasable
 from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
@@ -50,7 +51,7 @@ __all__ = [
 ]
 
 ESTIMATORS = ("eta", "eta_p")
-WEIGHTS = ("patch", "higher_order")
+WEIGHTS = ("patch", "higher_order", "hierarchical")
 
 
 @dataclass
@@ -68,7 +69,7 @@ class Estimate(Releasable):
         rho: rho(w_h)(A z_h - z_h).
         rho_star: rho*(w_h, z_h)(A w_h - w_h), or ``None``.
         estimator: Which estimator the indicators belong to ("eta" or "eta_p").
-        weights: "patch" or "higher_order".
+        weights: "patch", "higher_order" or "hierarchical".
         indicators: DG0 function on T_h of signed cell indicators; their sum is the estimate.
         dual: z_h = (y_h, xi_H).
         goal_is_linear: Whether J is linear in (u, lambda) (then R_J vanishes).
@@ -216,6 +217,11 @@ def estimate(
         with timed("reconstruct"):
             y_plus = rec.patch_quadratic(z.y)
             xi_plus = rec.patch_linear_multiplier(z.xi)
+    elif weights == "hierarchical":
+        z2 = hierarchical_dual(sol, goal_forms, z, rec.V2h)
+        with timed("reconstruct"):
+            y_plus = z2.y
+            xi_plus = rec.patch_linear_multiplier(z2.xi)
     else:
         z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
         with timed("reconstruct"):
@@ -231,7 +237,7 @@ def estimate(
     c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c)
 
     with timed("reconstruct"):
-        if weights == "patch" or w2 is None:
+        if w2 is None:
             u_plus = rec.patch_quadratic(sol.u)
             lam_plus = rec.patch_linear_multiplier(sol.lam)
         else:

@@ -1,0 +1,85 @@
+"""The hierarchical P2 dual (``weights="hierarchical"``) against the directly solved P2 dual.
+
+The truth is the dual of ``weights="higher_order"``: the P2 system with Lambda_H and the final
+active set, factored and solved directly. :mod:`dwr_signorini.hierarchical` solves the same
+system by FGMRES with a two-level preconditioner, so to a tight tolerance it must reproduce its
+solution, and eta_p with it; to the default tolerance the estimate must stay close. Contact
+problems in 2D (the strip, whose contact boundary both ranks share on 2 processes) and 3D
+(example 5.3), serially and on 2 ranks.
+"""
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+from dolfinx import fem
+
+import dwr_signorini as ds
+from dwr_signorini import examples as ex
+from dwr_signorini import hierarchical
+from dwr_signorini.dual import solve_dual
+from dwr_signorini.estimator import _higher_order_solutions
+from dwr_signorini.goal import GoalForms
+from dwr_signorini.hierarchical import hierarchical_dual
+from dwr_signorini.reconstruction import Reconstructor
+
+from .problems import strip_problem
+
+
+def total_force(u, lam, m):
+    return lam * m.ds_contact
+
+
+def _norm(f: fem.Function) -> float:
+    n = f.function_space.dofmap.index_map.size_local * f.function_space.dofmap.index_map_bs
+    return np.sqrt(f.function_space.mesh.comm.allreduce(float(f.x.array[:n] @ f.x.array[:n])))
+
+
+def _difference(a: fem.Function, b: fem.Function) -> float:
+    d = fem.Function(a.function_space)
+    d.x.array[:] = a.x.array - b.x.array
+    return _norm(d) / _norm(b)
+
+
+CASES = {
+    "strip 2D": (lambda comm: strip_problem(comm, 16, 4), total_force),
+    "example 5.3": (lambda comm: ex.obstacle_problem(comm, (1, 4, 4)), ex.goal_obstacle()),
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_iterative_p2_dual_equals_the_factored_one(case):
+    build, goal = CASES[case]
+    comm = MPI.COMM_WORLD
+    with ds.solve(build(comm)) as sol:
+        assert comm.allreduce(int(sol.system.active.sum())) > 0
+        forms = GoalForms(goal, sol.u, sol.lam, sol.disc)
+        z = solve_dual(sol.system, forms)
+        rec = Reconstructor(sol.disc)
+        try:
+            z2, _ = _higher_order_solutions(sol, forms, rec, False, None)
+            errors = []
+            for rtol in (1e-2, 1e-8):
+                zk = hierarchical_dual(sol, forms, z, rec.V2h, rtol=rtol)
+                errors.append((_difference(zk.y, z2.y), _difference(zk.xi, z2.xi)))
+        finally:
+            rec.destroy()
+    assert errors[1][0] < errors[0][0]
+    assert errors[1][0] < 1e-6 and errors[1][1] < 1e-6, errors
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_hierarchical_estimate_approaches_higher_order(case, monkeypatch):
+    """eta_p to a tight tolerance equals the factored P2 dual's, and to the default one is
+    within 1 % of it."""
+    build, goal = CASES[case]
+    comm = MPI.COMM_WORLD
+    with ds.solve(build(comm)) as sol:
+        with ds.estimate(sol, goal, estimator="eta_p", weights="higher_order") as high:
+            with ds.estimate(sol, goal, estimator="eta_p", weights="hierarchical") as hier:
+                monkeypatch.setattr(hierarchical, "HIERARCHICAL_RTOL", 1e-8)
+                with ds.estimate(sol, goal, estimator="eta_p", weights="hierarchical") as many:
+                    pass
+    assert many.eta_p == pytest.approx(high.eta_p, rel=1e-6)
+    assert hier.J_h == high.J_h
+    assert hier.eta_p == pytest.approx(high.eta_p, rel=1e-2)
