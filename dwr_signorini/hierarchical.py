@@ -119,14 +119,15 @@ class _P2DualSystem:
         b = self.b.array_w
         b[:] = 0.0
         if goal.has_u:
+            # As the P1 and P2 right-hand sides of the dual (dwr_signorini.dual.dual_rhs).
             form = ufl.replace(goal.dJ_u, {goal.dJ_u.arguments()[0]: v2})
-            vec = fem_petsc.assemble_vector(disc.form(with_quadrature_degrees(form)))
+            vec = fem_petsc.assemble_vector(disc.form(form))
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             fem_petsc.set_bc(vec, bcs)
             b[: self.n2] = vec.array
             vec.destroy()
         if goal.has_lam:
-            vec = fem_petsc.assemble_vector(disc.form(with_quadrature_degrees(goal.dJ_lam)))
+            vec = fem_petsc.assemble_vector(disc.form(goal.dJ_lam))
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             b[self.n2 :] = vec.array
             vec.destroy()

@@ -4,15 +4,16 @@ The truth is the dual of ``weights="higher_order"``: the P2 system with Lambda_H
 active set, factored and solved directly. :mod:`dwr_signorini.hierarchical` solves the same
 system by FGMRES with a two-level preconditioner, so to a tight tolerance it must reproduce its
 solution, and eta_p with it; to the default tolerance the estimate must stay close. Contact
-problems in 2D (the strip, whose contact boundary both ranks share on 2 processes) and 3D
-(example 5.3), serially and on 2 ranks.
+problems in 2D (the strip, whose contact boundary both ranks share on 2 processes; example 5.1
+on quadrilaterals, where the edge unknowns of Q2 include the cell centres) and 3D (example 5.3),
+serially and on 2 ranks.
 """
 
 from mpi4py import MPI
 
 import numpy as np
 import pytest
-from dolfinx import fem
+from dolfinx import fem, mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
@@ -43,6 +44,10 @@ def _difference(a: fem.Function, b: fem.Function) -> float:
 
 CASES = {
     "strip 2D": (lambda comm: strip_problem(comm, 16, 4), total_force),
+    "example 5.1, quadrilaterals": (
+        lambda comm: ex.analytic_problem(comm, 6, 4, mesh.CellType.quadrilateral),
+        ex.goal_a(-0.5),
+    ),
     "example 5.3": (lambda comm: ex.obstacle_problem(comm, (1, 4, 4)), ex.goal_obstacle()),
 }
 
