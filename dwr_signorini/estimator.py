@@ -27,7 +27,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
-from .hierarchical import hierarchical_dual
+from .hierarchical import hierarchical_dual, hierarchical_primal
 from .lifetime import Releasable
 from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
@@ -217,13 +217,12 @@ def estimate(
         with timed("reconstruct"):
             y_plus = rec.patch_quadratic(z.y)
             xi_plus = rec.patch_linear_multiplier(z.xi)
-    elif weights == "hierarchical":
-        z2 = hierarchical_dual(sol, goal_forms, z, rec.V2h)
-        with timed("reconstruct"):
-            y_plus = z2.y
-            xi_plus = rec.patch_linear_multiplier(z2.xi)
     else:
-        z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
+        if weights == "hierarchical":
+            z2 = hierarchical_dual(sol, goal_forms, z, rec.V2h)
+            w2 = hierarchical_primal(sol, rec.V2h) if want_eta else None
+        else:
+            z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
         with timed("reconstruct"):
             y_plus = z2.y
             xi_plus = rec.patch_linear_multiplier(z2.xi)

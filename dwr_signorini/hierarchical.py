@@ -25,6 +25,8 @@ contact (``benchmarks/unresolved_3d.py``) it gives the estimate of the higher-or
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -41,7 +43,7 @@ from .newton import Solution
 from .quadrature import with_quadrature_degrees
 from .timing import timed
 
-__all__ = ["HIERARCHICAL_RTOL", "hierarchical_dual"]
+__all__ = ["HIERARCHICAL_RTOL", "hierarchical_dual", "hierarchical_primal"]
 
 #: Relative residual of the P2 dual system at which ``weights="hierarchical"`` stops.
 HIERARCHICAL_RTOL = 1e-3
@@ -65,34 +67,33 @@ def _edge_index_set(V2: fem.FunctionSpace) -> PETSc.IS:
     return PETSc.IS().createGeneral(indices, comm=V2.mesh.comm)
 
 
-class _P2DualSystem:
-    """The P2 dual system, its two-level preconditioner and its solver on one solution.
+class _P2System:
+    """The P2 Newton system of the final active set (or its transpose) and its solver.
 
-    Unknowns [y (P2, owned dofs); xi^(1) (owned multipliers)]; operator, with the P2 stiffness
-    K_2 and coupling N_2 (Dirichlet rows and columns removed, as in the P1 system),
-
-        [ K_2    -N_2^T D_A ]
-        [ N_2     D_I M     ],
-
-    the transposed Newton matrix of :mod:`~dwr_signorini.dual` in P2.
+    FGMRES with the two-level preconditioner, on one solution. Unknowns [u (P2, owned dofs);
+    lambda (owned multipliers)]. With the P2 stiffness K_2 and coupling N_2 (Dirichlet rows and
+    columns removed, as in the P1 system) the Newton matrix of
+    :mod:`~dwr_signorini.linalg` is A = [[K_2, N_2^T], [-D_A N_2, D_I M]]; ``transpose``
+    selects A^T = [[K_2, -N_2^T D_A], [N_2, D_I M]], the dual system of
+    :mod:`~dwr_signorini.dual`, whose multiplier is xi^(1).
     """
 
     _petsc_objects = ("K2", "N2", "P", "edges", "edge_ksp", "ksp", "op", "b", "x", "rhs1", "z1")
 
-    def __init__(self, sol: Solution, goal: GoalForms, V2: fem.FunctionSpace) -> None:
+    def __init__(self, sol: Solution, V2: fem.FunctionSpace, transpose: bool) -> None:
         disc, system = sol.disc, sol.system
-        self.disc, self.system, self.V2 = disc, system, V2
+        self.disc, self.system, self.V2, self.transpose = disc, system, V2, transpose
         m = disc.m
         u2, v2 = ufl.TrialFunction(V2), ufl.TestFunction(V2)
         mu = ufl.TestFunction(disc.Q)
-        bcs = disc.dirichlet_bcs(V2)
+        self.bcs = disc.dirichlet_bcs(V2)
         a = disc.problem.elastic_form(u2, v2, m.dx)
         if callable(disc.problem.E) or callable(disc.problem.nu):
             a = with_quadrature_degrees(a)
-        self.K2 = fem_petsc.assemble_matrix(disc.form(a), bcs=bcs)
+        self.K2 = fem_petsc.assemble_matrix(disc.form(a), bcs=self.bcs)
         self.K2.assemble()
         self.N2 = fem_petsc.assemble_matrix(
-            disc.form(ufl.inner(mu, ufl.dot(u2, m.n)) * m.ds_contact), bcs=bcs
+            disc.form(ufl.inner(mu, ufl.dot(u2, m.n)) * m.ds_contact), bcs=self.bcs
         )
         self.N2.assemble()
         self.P = fem_petsc.interpolation_matrix(disc.V, V2)
@@ -116,21 +117,6 @@ class _P2DualSystem:
         self.op.setPythonContext(_Operator(self))
         self.op.setUp()
         self.b, self.x = self.op.createVecs()
-        b = self.b.array_w
-        b[:] = 0.0
-        if goal.has_u:
-            # As the P1 and P2 right-hand sides of the dual (dwr_signorini.dual.dual_rhs).
-            form = ufl.replace(goal.dJ_u, {goal.dJ_u.arguments()[0]: v2})
-            vec = fem_petsc.assemble_vector(disc.form(form))
-            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            fem_petsc.set_bc(vec, bcs)
-            b[: self.n2] = vec.array
-            vec.destroy()
-        if goal.has_lam:
-            vec = fem_petsc.assemble_vector(disc.form(goal.dJ_lam))
-            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            b[self.n2 :] = vec.array
-            vec.destroy()
         self.rhs1 = system.x.duplicate()
         self.z1 = system.x.duplicate()
 
@@ -143,6 +129,17 @@ class _P2DualSystem:
         pc.setPythonContext(_TwoLevel(self))
         self.ksp.setInitialGuessNonzero(True)
 
+    def assemble(self, form: ufl.Form) -> np.ndarray:
+        """The owned values of a linear form on V2 (or Lambda_H), Dirichlet rows of V2 zero."""
+        vec = fem_petsc.assemble_vector(self.disc.form(form))
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        if len(vec.array) == self.n2:
+            for bc in self.bcs:
+                bc.set(vec.array_w, alpha=0.0)
+        out = vec.array.copy()
+        vec.destroy()
+        return out
+
     # -- pieces on owned arrays ------------------------------------------------------------
     def _u_vec(self, arr: np.ndarray) -> PETSc.Vec:
         return PETSc.Vec().createWithArray(arr, size=(self.n2, None), comm=self.disc.comm)
@@ -152,18 +149,21 @@ class _P2DualSystem:
 
     def apply(self, x: np.ndarray, out: np.ndarray) -> None:
         """The operator applied to x, into ``out`` (owned arrays)."""
-        y, xi1 = x[: self.n2], x[self.n2 :]
-        y_vec, out_u = self._u_vec(np.ascontiguousarray(y)), self._u_vec(out[: self.n2])
-        xi_vec = self._lam_vec(np.ascontiguousarray(xi1 * self.system.active))
+        active = self.system.active
+        u, lam = x[: self.n2], x[self.n2 :]
+        u_vec, out_u = self._u_vec(np.ascontiguousarray(u)), self._u_vec(out[: self.n2])
+        # A^T couples -N^T D_A xi into the displacement rows, A couples N^T lambda.
+        lam_vec = self._lam_vec(np.ascontiguousarray(-lam * active if self.transpose else lam))
         out_lam = self._lam_vec(out[self.n2 :])
         tmp = out_u.duplicate()
-        self.K2.mult(y_vec, out_u)
-        self.N2.multTranspose(xi_vec, tmp)
-        out_u.axpy(-1.0, tmp)
-        self.N2.mult(y_vec, out_lam)
+        self.K2.mult(u_vec, out_u)
+        self.N2.multTranspose(lam_vec, tmp)
+        out_u.axpy(1.0, tmp)
+        self.N2.mult(u_vec, out_lam)
+        n_u = out_lam.array if self.transpose else np.where(active, -out_lam.array, 0.0)
         out[: self.n2] = out_u.array
-        out[self.n2 :] = out_lam.array + self.inactive_mass * xi1
-        for vec in (y_vec, out_u, xi_vec, out_lam, tmp):
+        out[self.n2 :] = n_u + self.inactive_mass * lam
+        for vec in (u_vec, out_u, lam_vec, out_lam, tmp):
             vec.destroy()
 
     def edge_solve(self, r: np.ndarray) -> np.ndarray:
@@ -180,6 +180,38 @@ class _P2DualSystem:
             vec.destroy()
         return out
 
+    def _p1_solve(self, r_u: np.ndarray, r_lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The P1 Newton matrix (or its transpose) solved with the last step's factors.
+
+        A = L A_s (:meth:`~dwr_signorini.linalg.block.NewtonSystem.newton_matrix`), and the
+        systems solve A^T z = r (``solve_transpose``, z = L^-T A_s^-1 r), so that
+        A^-1 b = L^T (A^T)^-1 L^-1 b: (L^-1 b)_u = b_u - N_I^T M_I^-1 b_I, (L^-1 b)_A = -b_A,
+        and (L^T z)_A = -z_A, (L^T z)_I = z_I + (N z_u)_I / M_I.
+        """
+        system = self.system
+        active = system.active
+        if not self.transpose:
+            lam = system.N.createVecLeft()
+            lam.array_w[:] = np.where(active, 0.0, r_lam / system.M.array)
+            force = system.N.createVecRight()
+            system.N.multTranspose(lam, force)
+            r_u = r_u - force.array
+            r_lam = np.where(active, -r_lam, r_lam)
+            for vec in (lam, force):
+                vec.destroy()
+        system.write(self.rhs1, r_u, r_lam)
+        system.solve_transpose(self.rhs1, self.z1)
+        d_u, d_lam = (a.copy() for a in system.split(self.z1))
+        if not self.transpose:
+            u = system.N.createVecRight()
+            u.array_w[:] = d_u
+            n_u = system.N.createVecLeft()
+            system.N.mult(u, n_u)
+            d_lam = np.where(active, -d_lam, d_lam + n_u.array / system.M.array)
+            for vec in (u, n_u):
+                vec.destroy()
+        return d_u, d_lam
+
     def coarse_solve(self, r_u: np.ndarray, r_lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The P1 correction by the factors of the last Newton step: (P d_u, d_lam)."""
         system = self.system
@@ -188,9 +220,7 @@ class _P2DualSystem:
         self.P.multTranspose(r_vec, r_1)
         for bc in system.bcs:
             bc.set(r_1.array_w, alpha=0.0)
-        system.write(self.rhs1, r_1.array[: system.n_u], r_lam)
-        system.solve_transpose(self.rhs1, self.z1)
-        d_u, d_lam = system.split(self.z1)
+        d_u, d_lam = self._p1_solve(r_1.array[: system.n_u], r_lam)
         r_1.array_w[:] = 0.0
         r_1.array_w[: system.n_u] = d_u
         out = r_vec.duplicate()
@@ -198,31 +228,28 @@ class _P2DualSystem:
         d_2 = out.array.copy()
         for vec in (r_vec, r_1, out):
             vec.destroy()
-        return d_2, d_lam.copy()
+        return d_2, d_lam
 
-    def solve(self, z: DualSolution, rtol: float) -> DualSolution:
-        """FGMRES from z_h to ``rtol``; the solution as (y on V2, xi on Lambda_H)."""
-        system = self.system
-        y0 = self._u_vec(self.x.array_w[: self.n2])
-        self.P.mult(z.y.x.petsc_vec, y0)
-        y0.destroy()
-        xi = z.xi.x.array[: self.n_lam]
-        self.x.array_w[self.n2 :] = np.where(system.active, xi * system.c_n, xi)
+    def solve(self, u0: fem.Function, lam0: np.ndarray, b_u: np.ndarray, b_lam: np.ndarray,
+              rtol: float) -> tuple[fem.Function, np.ndarray]:
+        """FGMRES from (P u0, lam0) to ``rtol``: (u on V2, lambda on the owned multipliers)."""
+        u_start = self._u_vec(self.x.array_w[: self.n2])
+        self.P.mult(u0.x.petsc_vec, u_start)
+        u_start.destroy()
+        self.x.array_w[self.n2 :] = lam0
+        self.b.array_w[: self.n2] = b_u
+        self.b.array_w[self.n2 :] = b_lam
         self.ksp.setTolerances(rtol=rtol, atol=0.0, max_it=MAX_ITERATIONS)
         self.ksp.solve(self.b, self.x)
         if self.ksp.getConvergedReason() < 0:
             raise RuntimeError(
-                f"the hierarchical P2 dual did not converge (KSP reason "
+                f"the hierarchical P2 solve did not converge (KSP reason "
                 f"{self.ksp.getConvergedReason()}, {self.ksp.getIterationNumber()} iterations)"
             )
-        y = fem.Function(self.V2, name="y2")
-        y.x.array[: self.n2] = self.x.array_r[: self.n2]
-        y.x.scatter_forward()
-        out = fem.Function(self.disc.Q, name="xi2")
-        xi1 = self.x.array_r[self.n2 :]
-        out.x.array[: self.n_lam] = np.where(system.active, xi1 / system.c_n, xi1)
-        out.x.scatter_forward()
-        return DualSolution(y=y, xi=out)
+        u = fem.Function(self.V2)
+        u.x.array[: self.n2] = self.x.array_r[: self.n2]
+        u.x.scatter_forward()
+        return u, self.x.array_r[self.n2 :].copy()
 
     def destroy(self) -> None:
         destroy_attributes(self, self._petsc_objects)
@@ -231,7 +258,7 @@ class _P2DualSystem:
 class _Operator:
     """The P2 dual operator as a PETSc shell matrix (petsc4py's Python matrix protocol)."""
 
-    def __init__(self, system: _P2DualSystem) -> None:
+    def __init__(self, system: _P2System) -> None:
         self.s = system
 
     def mult(self, mat: PETSc.Mat, x: PETSc.Vec, y: PETSc.Vec) -> None:
@@ -241,7 +268,7 @@ class _Operator:
 class _TwoLevel:
     """The preconditioner: edge step, coarse step, edge step (a symmetric two-level sweep)."""
 
-    def __init__(self, system: _P2DualSystem) -> None:
+    def __init__(self, system: _P2System) -> None:
         self.s = system
 
     def apply(self, pc: PETSc.PC, r: PETSc.Vec, d: PETSc.Vec) -> None:
@@ -259,6 +286,38 @@ class _TwoLevel:
         s.apply(out, k)
         out[:n2] += s.edge_solve((res - k)[:n2])
         d.array_w[:] = out
+
+
+def _solve(
+    sol: Solution,
+    V2: fem.FunctionSpace,
+    transpose: bool,
+    rtol: float | None,
+    start: tuple[fem.Function, np.ndarray],
+    rhs: Callable[[_P2System], tuple[np.ndarray, np.ndarray]],
+) -> tuple[fem.Function, np.ndarray]:
+    """Build the P2 system, solve it from ``start`` with the right-hand side ``rhs(system)``."""
+    rtol = HIERARCHICAL_RTOL if rtol is None else rtol
+    if not rtol > 0:
+        raise ValueError(f"rtol must be positive, got {rtol}")
+    with timed("reconstruct"):
+        p2 = _P2System(sol, V2, transpose)
+    try:
+        with timed("reconstruct"):
+            u, lam = p2.solve(*start, *rhs(p2), rtol)
+    finally:
+        p2.destroy()
+    finite = bool(np.all(np.isfinite(u.x.array)) and np.all(np.isfinite(lam)))
+    if not sol.disc.comm.allreduce(finite, op=MPI.LAND):
+        raise RuntimeError("NaN or Inf in a hierarchical P2 solution")
+    return u, lam
+
+
+def _multiplier(sol: Solution, values: np.ndarray, name: str) -> fem.Function:
+    out = fem.Function(sol.disc.Q, name=name)
+    out.x.array[: sol.system.n_lam] = values
+    out.x.scatter_forward()
+    return out
 
 
 def hierarchical_dual(
@@ -280,17 +339,52 @@ def hierarchical_dual(
     Returns:
         (y, xi) with y in V2 and xi on Lambda_H.
     """
-    rtol = HIERARCHICAL_RTOL if rtol is None else rtol
-    if not rtol > 0:
-        raise ValueError(f"rtol must be positive, got {rtol}")
-    with timed("reconstruct"):
-        p2 = _P2DualSystem(sol, goal, V2)
-    try:
-        with timed("reconstruct"):
-            out = p2.solve(z, rtol)
-    finally:
-        p2.destroy()
-    finite = bool(np.all(np.isfinite(out.y.x.array)) and np.all(np.isfinite(out.xi.x.array)))
-    if not sol.disc.comm.allreduce(finite, op=MPI.LAND):
-        raise RuntimeError("NaN or Inf in the hierarchical dual")
-    return out
+    system = sol.system
+
+    def rhs(p2: _P2System) -> tuple[np.ndarray, np.ndarray]:
+        # As the P1 and P2 right-hand sides of the dual (dwr_signorini.dual.dual_rhs).
+        v2 = ufl.TestFunction(V2)
+        b_u = np.zeros(p2.n2)
+        b_lam = np.zeros(p2.n_lam)
+        if goal.has_u:
+            b_u = p2.assemble(ufl.replace(goal.dJ_u, {goal.dJ_u.arguments()[0]: v2}))
+        if goal.has_lam:
+            b_lam = p2.assemble(goal.dJ_lam)
+        return b_u, b_lam
+
+    xi = z.xi.x.array[: system.n_lam]
+    xi1 = np.where(system.active, xi * system.c_n, xi)
+    y, xi1 = _solve(sol, V2, True, rtol, (z.y, xi1), rhs)
+    y.name = "y2"
+    return DualSolution(y=y, xi=_multiplier(sol, np.where(system.active, xi1 / system.c_n, xi1),
+                                            "xi2"))
+
+
+def hierarchical_primal(
+    sol: Solution, V2: fem.FunctionSpace, rtol: float | None = None
+) -> tuple[fem.Function, fem.Function]:
+    """The P2 primal w^(2) with the final active set, by the same solver, from w_h.
+
+    Solved as the correction of w_h: its residual against the P2 test functions,
+    l(v) - a(u_h, v) - (lambda_H, v_n), with homogeneous conditions on Gamma_D (the prescribed
+    values stay those of u_h at the P2 nodes) and the discrete gap conditions, which w_h meets.
+
+    Returns:
+        (u, lambda) with u in V2 and lambda on Lambda_H.
+    """
+    disc = sol.disc
+    m = disc.m
+
+    def rhs(p2: _P2System) -> tuple[np.ndarray, np.ndarray]:
+        v2 = ufl.TestFunction(V2)
+        form = disc.load_form(v2) - disc.problem.elastic_form(sol.u, v2, m.dx)
+        form -= sol.lam * ufl.dot(v2, m.n) * m.ds_contact
+        return p2.assemble(with_quadrature_degrees(form)), np.zeros(p2.n_lam)
+
+    zero_u = fem.Function(disc.V)
+    du, dlam = _solve(sol, V2, False, rtol, (zero_u, np.zeros(sol.system.n_lam)), rhs)
+    u = fem.Function(V2, name="u2")
+    u.interpolate(sol.u)
+    u.x.array[:] += du.x.array
+    lam = _multiplier(sol, sol.lam.x.array[: sol.system.n_lam] + dlam, "lambda2")
+    return u, lam

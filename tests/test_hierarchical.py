@@ -23,7 +23,7 @@ from dwr_signorini import hierarchical
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.estimator import _higher_order_solutions
 from dwr_signorini.goal import GoalForms
-from dwr_signorini.hierarchical import hierarchical_dual
+from dwr_signorini.hierarchical import hierarchical_dual, hierarchical_primal
 from dwr_signorini.reconstruction import Reconstructor
 
 from .problems import strip_problem
@@ -64,49 +64,54 @@ def test_iterative_p2_dual_equals_the_factored_one(case):
         z = solve_dual(sol.system, forms)
         rec = Reconstructor(sol.disc)
         try:
-            z2, _ = _higher_order_solutions(sol, forms, rec, False, None)
-            errors = []
+            z2, w2 = _higher_order_solutions(sol, forms, rec, True, None)
+            errors, primal = [], []
             for rtol in (1e-2, 1e-8):
                 zk = hierarchical_dual(sol, forms, z, rec.V2h, rtol=rtol)
                 errors.append((_difference(zk.y, z2.y), _difference(zk.xi, z2.xi)))
+                uk, lamk = hierarchical_primal(sol, rec.V2h, rtol=rtol)
+                primal.append((_difference(uk, w2[0]), _difference(lamk, w2[1])))
         finally:
             rec.destroy()
-    assert errors[1][0] < errors[0][0]
+    assert errors[1][0] < errors[0][0] and primal[1][0] < primal[0][0]
     assert errors[1][0] < 1e-6 and errors[1][1] < 1e-6, errors
+    assert primal[1][0] < 1e-6 and primal[1][1] < 1e-6, primal
 
 
 @pytest.mark.parametrize("case", CASES)
 def test_hierarchical_estimate_approaches_higher_order(case, monkeypatch):
-    """eta_p to a tight tolerance equals the factored P2 dual's, and to the default one is
-    within 1 % of it."""
+    """eta_p and eta to a tight tolerance equal those of the factored P2 solutions, and to the
+    default one are within 1 % of them."""
     build, goal = CASES[case]
     comm = MPI.COMM_WORLD
     with ds.solve(build(comm)) as sol:
-        with ds.estimate(sol, goal, estimator="eta_p", weights="higher_order") as high:
-            with ds.estimate(sol, goal, estimator="eta_p", weights="hierarchical") as hier:
+        with ds.estimate(sol, goal, weights="higher_order") as high:
+            with ds.estimate(sol, goal, weights="hierarchical") as hier:
                 monkeypatch.setattr(hierarchical, "HIERARCHICAL_RTOL", 1e-8)
-                with ds.estimate(sol, goal, estimator="eta_p", weights="hierarchical") as many:
+                with ds.estimate(sol, goal, weights="hierarchical") as many:
                     pass
     assert many.eta_p == pytest.approx(high.eta_p, rel=1e-6)
+    assert many.eta == pytest.approx(high.eta, rel=1e-6)
     assert hier.J_h == high.J_h
     assert hier.eta_p == pytest.approx(high.eta_p, rel=1e-2)
+    assert hier.eta == pytest.approx(high.eta, rel=1e-2)
 
 
 def test_adaptive_run_with_hierarchical_weights():
-    """solve_adaptive refines by the hierarchical indicators; on every level eta_p is within 1 %
-    of that of the factored P2 dual on the same solution."""
+    """solve_adaptive refines by the hierarchical indicators; on every level eta is within 1 %
+    of that of the factored P2 solutions on the same solution."""
     comm = MPI.COMM_WORLD
     levels = []
 
     def check(record, sol, est):
         with ds.estimate(sol, total_force, weights="higher_order") as high:
-            levels.append((record.level, est.weights, est.eta_p, high.eta_p))
+            levels.append((record.level, est.weights, est.eta, high.eta))
 
     with ds.solve_adaptive(strip_problem(comm, 16, 4), total_force, weights="hierarchical",
                            max_levels=3, verbose=False, callback=check) as res:
         cells = [r.num_cells for r in res.levels]
     assert all(a < b for a, b in itertools.pairwise(cells)), cells
     assert len(levels) == 3
-    for level, weights, eta_p, eta_p_high in levels:
+    for level, weights, eta, eta_high in levels:
         assert weights == "hierarchical"
-        assert eta_p == pytest.approx(eta_p_high, rel=1e-2), level
+        assert eta == pytest.approx(eta_high, rel=1e-2), level
