@@ -7,17 +7,22 @@ Two 3D problems:
   sphere of radius 2 lowered by 0.005 (paraboloid gap), E = 1e3, nu = 0.3, goal the total contact
   force ``int_GC lambda ds`` (the case of the trust issue).
 
-For each, two independent sequences of refinement from the same macro mesh: uniform levels, and
-an adaptive run (eta, fixed fraction). Each sequence's J_h is extrapolated to N -> infinity from
-its last three levels, J_h = J + C N^(-q), with q fitted (no estimate enters, which would make
-checking the estimate circular); the uncertainty of a sequence is the distance of its
-extrapolated value from its last J_h. The reference is the extrapolation with the smaller
-uncertainty; its uncertainty is the larger of that and the distance to the other sequence's
-value beyond that one's own uncertainty. Then Ieff = (J_ref - J_h) / estimate for every level
-whose error is at least 10 times the reference's uncertainty. Tables to stdout, JSON to
-``benchmarks/results/``::
+For each, three independent sequences of refinement from the same macro mesh: uniform levels,
+an adaptive run (eta, fixed fraction, all edges of a marked cell) and an adaptive run with
+another rule (eta, ``refinement_rule="longest_edge"``, ``growth=2``). Each sequence's J_h is
+extrapolated to N -> infinity from its last three levels, J_h = J + C N^(-q), with q fitted (no
+estimate enters, which would make checking the estimate circular); the uncertainty of a
+sequence is the distance of its extrapolated value from its last J_h, or, where its last three
+J_h are not monotone (no asymptotic regime yet), the larger of its last two changes. The
+reference is the extrapolation with the smallest uncertainty; its uncertainty is the largest of
+that and the distance to every other sequence's value beyond that one's own uncertainty. Then
+Ieff = (J_ref - J_h) / estimate for every level whose error is at least 10 times the
+reference's uncertainty. Tables to stdout, JSON to
+``benchmarks/results/`` (a run of some problems replaces theirs in an existing file)::
 
-    scripts/fenicsx mpirun -n 2 python3 benchmarks/reference_3d.py --problems obstacle,indentation
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/reference_3d.py --problems indentation
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/reference_3d.py --problems obstacle \
+        --max-cells 1500000
     scripts/fenicsx python3 benchmarks/reference_3d.py --quick      # small, for checking
     scripts/fenicsx python3 benchmarks/reference_3d.py \\
         --tables-from benchmarks/results/reference_3d.json      # tables again, from a run
@@ -66,20 +71,20 @@ def extrapolate(N: list[float], J: list[float]) -> tuple[float, float, float]:
     """J and q of J_h = J + C N^(-q) through the last three points; the uncertainty |J - J_last|.
 
     q solves (J2 - J1) / (J3 - J2) = (N1^-q - N2^-q) / (N2^-q - N3^-q) by bisection on
-    (0.05, 4); without a sign-consistent fit the last value is returned with the last change as
-    its uncertainty.
+    (0.05, 4); without a sign-consistent fit the last value is returned with the larger of the
+    last two changes as its uncertainty.
     """
     (n1, n2, n3), (j1, j2, j3) = N[-3:], J[-3:]
     d1, d2 = j2 - j1, j3 - j2
     if d1 == 0 or d2 == 0 or d1 * d2 < 0:
-        return j3, abs(d2), float("nan")
+        return j3, max(abs(d1), abs(d2)), float("nan")
 
     def residual(q: float) -> float:
         return (n1**-q - n2**-q) / (n2**-q - n3**-q) - d1 / d2
 
     lo, hi = 0.05, 4.0
     if residual(lo) * residual(hi) > 0:
-        return j3, abs(d2), float("nan")
+        return j3, max(abs(d1), abs(d2)), float("nan")
     for _ in range(200):
         mid = 0.5 * (lo + hi)
         if residual(lo) * residual(mid) <= 0:
@@ -92,15 +97,24 @@ def extrapolate(N: list[float], J: list[float]) -> tuple[float, float, float]:
     return J_inf, abs(J_inf - j3), q
 
 
-def run(problem: ds.SignoriniProblem, goal: Any, refinement: str, levels: int,
-        fraction: float, max_cells: int) -> list[dict[str, Any]]:
+def sequences(fraction: float) -> dict[str, dict[str, Any]]:
+    """The independent sequences of refinement: their ``solve_adaptive`` options."""
+    return {
+        "uniform": {"refinement": "uniform"},
+        "adaptive": {"refinement": "adaptive", "fraction": fraction},
+        "longest_edge": {"refinement": "adaptive", "refinement_rule": "longest_edge",
+                         "growth": 2.0},
+    }
+
+
+def run(problem: ds.SignoriniProblem, goal: Any, name: str, options: dict[str, Any],
+        levels: int, max_cells: int) -> list[dict[str, Any]]:
     tic = time.perf_counter()
-    with ds.solve_adaptive(problem, goal, refinement=refinement, fraction=fraction,
-                           max_levels=levels, max_cells=max_cells, verbose=True) as res:
+    with ds.solve_adaptive(problem, goal, max_levels=levels, max_cells=max_cells,
+                           verbose=True, **options) as res:
         rows = [r.as_dict() for r in res.levels]
     if MPI.COMM_WORLD.rank == 0:
-        print(f"  {refinement}: {len(rows)} levels in {time.perf_counter() - tic:.1f} s",
-              flush=True)
+        print(f"  {name}: {len(rows)} levels in {time.perf_counter() - tic:.1f} s", flush=True)
     return rows
 
 
@@ -113,10 +127,9 @@ def reference(runs: dict[str, list[dict[str, Any]]]) -> tuple[float, float, str,
         # Fewer than three levels: no extrapolation, an unknown (infinite) uncertainty.
         ext[ref] = extrapolate(N, J) if len(rows) >= 3 else (J[-1], float("inf"), float("nan"))
     best = min(ext, key=lambda k: ext[k][1])
-    other = next(k for k in ext if k != best)
     J_ref = ext[best][0]
-    # The other sequence's disagreement beyond its own uncertainty widens the reference's.
-    U = max(ext[best][1], abs(J_ref - ext[other][0]) - ext[other][1])
+    # Every other sequence's disagreement beyond its own uncertainty widens the reference's.
+    U = max([ext[best][1]] + [abs(J_ref - J) - u for k, (J, u, _) in ext.items() if k != best])
     return J_ref, U, best, ext
 
 
@@ -133,14 +146,13 @@ def table(runs: dict[str, list[dict[str, Any]]], J_ref: float, U: float) -> list
 
 
 def print_table(name: str, J_ref: float, U: float, best: str, ext: dict, rows: list) -> None:
-    print(f"\n{name}: J_ref = {J_ref:.6e} +- {U:.1e} (from the {best} sequence; "
-          f"uniform {ext['uniform'][0]:.6e} +- {ext['uniform'][1]:.1e}, adaptive "
-          f"{ext['adaptive'][0]:.6e} +- {ext['adaptive'][1]:.1e})")
-    print(f"{'run':>9} {'L':>2} {'cells':>8} {'J_h':>13} {'eta':>11} {'R_A':>10} "
+    others = ", ".join(f"{k} {J:.6e} +- {u:.1e}" for k, (J, u, _) in ext.items())
+    print(f"\n{name}: J_ref = {J_ref:.6e} +- {U:.1e} (from the {best} sequence; {others})")
+    print(f"{'run':>12} {'L':>2} {'cells':>8} {'J_h':>13} {'eta':>11} {'R_A':>10} "
           f"{'J_ref - J_h':>12} {'Ieff':>7} {'time':>7}")
     for t in rows:
         ieff = f"{t['ieff']:7.3f}" if t["ieff"] is not None else "      -"
-        print(f"{t['refinement']:>9} {t['level']:2d} {t['cells']:8d} {t['J_h']:13.6e} "
+        print(f"{t['refinement']:>12} {t['level']:2d} {t['cells']:8d} {t['J_h']:13.6e} "
               f"{t['eta']:11.3e} {t['R_A']:10.2e} {t['error']:12.3e} {ieff} "
               f"{t['time_cumulative']:7.1f}", flush=True)
 
@@ -162,20 +174,20 @@ def main() -> None:
     }
     max_cells = 60_000 if args.quick else args.max_cells
     old = json.loads(args.tables_from.read_text()) if args.tables_from else None
-    summary: dict[str, Any] = {"max_cells": max_cells, "num_processes": comm.size}
+    summary: dict[str, Any] = {"num_processes": comm.size}
     for name in args.problems.split(","):
         if old is not None:
-            runs: dict[str, list[dict[str, Any]]] = {"uniform": [], "adaptive": []}
+            runs: dict[str, list[dict[str, Any]]] = {}
             for t in old[name]["levels"]:
-                runs[t["refinement"]].append(t)
+                runs.setdefault(t["refinement"], []).append(t)
         else:
             build, goal, fraction = setups[name]
             if comm.rank == 0:
                 print(f"\n{name}", flush=True)
             runs = {}
-            for ref in ("uniform", "adaptive"):
+            for ref, options in sequences(fraction).items():
                 cumulative, rows = 0.0, []
-                for r in run(build(), goal, ref, 12, fraction, max_cells):
+                for r in run(build(), goal, ref, options, 16, max_cells):
                     cumulative += r["time"]["total"]
                     rows.append({"level": r["level"], "cells": r["num_cells"],
                                  "dofs": r["num_dofs"], "J_h": r["J_h"], "eta": r["eta"],
@@ -185,6 +197,7 @@ def main() -> None:
         J_ref, U, best, ext = reference(runs)
         rows = table(runs, J_ref, U)
         summary[name] = {"J_ref": J_ref, "uncertainty": U, "from": best,
+                         "max_cells": max_cells if old is None else old[name].get("max_cells"),
                          "extrapolations": {k: {"J": v[0], "uncertainty": v[1], "q": v[2]}
                                             for k, v in ext.items()},
                          "levels": rows}
@@ -193,6 +206,9 @@ def main() -> None:
     if comm.rank == 0 and old is None:
         args.output.mkdir(parents=True, exist_ok=True)
         path = args.output / ("reference_3d_quick.json" if args.quick else "reference_3d.json")
+        # The problems of this run replace theirs in an earlier file; the others stay.
+        if path.exists():
+            summary = {**json.loads(path.read_text()), **summary}
         path.write_text(json.dumps(summary, indent=1))
         print(f"\nwrote {path}")
 
