@@ -28,6 +28,8 @@ from dwr_signorini.reconstruction import Reconstructor
 
 from .problems import strip_problem
 
+pytestmark = pytest.mark.mpi
+
 
 def total_force(u, lam, m):
     return lam * m.ds_contact
