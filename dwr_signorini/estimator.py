@@ -27,7 +27,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
-from .hierarchical import hierarchical_dual, hierarchical_primal
+from .hierarchical import hierarchical_solutions
 from .lifetime import Releasable
 from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
@@ -219,8 +219,7 @@ def estimate(
             xi_plus = rec.patch_linear_multiplier(z.xi)
     else:
         if weights == "hierarchical":
-            z2 = hierarchical_dual(sol, goal_forms, z, rec.V2h)
-            w2 = hierarchical_primal(sol, rec.V2h) if want_eta else None
+            z2, w2 = hierarchical_solutions(sol, goal_forms, z, rec.V2h, want_eta)
         else:
             z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
         with timed("reconstruct"):

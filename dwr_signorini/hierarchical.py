@@ -29,8 +29,6 @@ a seventh of their time on the indentation there; with hundreds of active multip
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -47,13 +45,12 @@ from .newton import Solution
 from .quadrature import with_quadrature_degrees
 from .timing import timed
 
-__all__ = ["HIERARCHICAL_RTOL", "hierarchical_dual", "hierarchical_primal"]
+__all__ = ["HIERARCHICAL_RTOL", "hierarchical_solutions"]
 
-#: Relative residual of the P2 dual system at which ``weights="hierarchical"`` stops.
+#: Relative residual of the P2 systems at which ``weights="hierarchical"`` stops.
 HIERARCHICAL_RTOL = 1e-3
 
-
-#: Most FGMRES iterations on the P2 dual system.
+#: Most FGMRES iterations on a P2 system.
 MAX_ITERATIONS = 200
 
 
@@ -74,19 +71,20 @@ def _edge_index_set(V2: fem.FunctionSpace) -> PETSc.IS:
 class _P2System:
     """The P2 Newton system of the final active set (or its transpose) and its solver.
 
-    FGMRES with the two-level preconditioner, on one solution. Unknowns [u (P2, owned dofs);
-    lambda (owned multipliers)]. With the P2 stiffness K_2 and coupling N_2 (Dirichlet rows and
-    columns removed, as in the P1 system) the Newton matrix of
-    :mod:`~dwr_signorini.linalg` is A = [[K_2, N_2^T], [-D_A N_2, D_I M]]; ``transpose``
-    selects A^T = [[K_2, -N_2^T D_A], [N_2, D_I M]], the dual system of
-    :mod:`~dwr_signorini.dual`, whose multiplier is xi^(1).
+    FGMRES with the two-level preconditioner, on one solution; the matrices serve both solves.
+    Unknowns [u (P2, owned dofs); lambda (owned multipliers)]. With the P2 stiffness K_2 and
+    coupling N_2 (Dirichlet rows and columns removed, as in the P1 system) the Newton matrix of
+    :mod:`~dwr_signorini.linalg` is A = [[K_2, N_2^T], [-D_A N_2, D_I M]]; with
+    :attr:`transpose` the solver works on A^T = [[K_2, -N_2^T D_A], [N_2, D_I M]], the dual
+    system of :mod:`~dwr_signorini.dual`, whose multiplier is xi^(1).
     """
 
     _petsc_objects = ("K2", "N2", "P", "edges", "edge_ksp", "ksp", "op", "b", "x", "rhs1", "z1")
 
-    def __init__(self, sol: Solution, V2: fem.FunctionSpace, transpose: bool) -> None:
+    def __init__(self, sol: Solution, V2: fem.FunctionSpace) -> None:
         disc, system = sol.disc, sol.system
-        self.disc, self.system, self.V2, self.transpose = disc, system, V2, transpose
+        self.disc, self.system, self.V2 = disc, system, V2
+        self.transpose = True
         m = disc.m
         u2, v2 = ufl.TrialFunction(V2), ufl.TestFunction(V2)
         mu = ufl.TestFunction(disc.Q)
@@ -234,9 +232,14 @@ class _P2System:
             vec.destroy()
         return d_2, d_lam
 
-    def solve(self, u0: fem.Function, lam0: np.ndarray, b_u: np.ndarray, b_lam: np.ndarray,
-              rtol: float) -> tuple[fem.Function, np.ndarray]:
-        """FGMRES from (P u0, lam0) to ``rtol``: (u on V2, lambda on the owned multipliers)."""
+    def solve(self, transpose: bool, u0: fem.Function, lam0: np.ndarray, b_u: np.ndarray,
+              b_lam: np.ndarray, rtol: float) -> tuple[fem.Function, np.ndarray]:
+        """FGMRES on A^T (``transpose``) or A from (P u0, lam0) to ``rtol``.
+
+        Returns:
+            u on V2 and lambda on the owned multipliers.
+        """
+        self.transpose = transpose
         u_start = self._u_vec(self.x.array_w[: self.n2])
         self.P.mult(u0.x.petsc_vec, u_start)
         u_start.destroy()
@@ -260,7 +263,7 @@ class _P2System:
 
 
 class _Operator:
-    """The P2 dual operator as a PETSc shell matrix (petsc4py's Python matrix protocol)."""
+    """The P2 operator as a PETSc shell matrix (petsc4py's Python matrix protocol)."""
 
     def __init__(self, system: _P2System) -> None:
         self.s = system
@@ -292,31 +295,6 @@ class _TwoLevel:
         d.array_w[:] = out
 
 
-def _solve(
-    sol: Solution,
-    V2: fem.FunctionSpace,
-    transpose: bool,
-    rtol: float | None,
-    start: tuple[fem.Function, np.ndarray],
-    rhs: Callable[[_P2System], tuple[np.ndarray, np.ndarray]],
-) -> tuple[fem.Function, np.ndarray]:
-    """Build the P2 system, solve it from ``start`` with the right-hand side ``rhs(system)``."""
-    rtol = HIERARCHICAL_RTOL if rtol is None else rtol
-    if not rtol > 0:
-        raise ValueError(f"rtol must be positive, got {rtol}")
-    with timed("reconstruct"):
-        p2 = _P2System(sol, V2, transpose)
-    try:
-        with timed("reconstruct"):
-            u, lam = p2.solve(*start, *rhs(p2), rtol)
-    finally:
-        p2.destroy()
-    finite = bool(np.all(np.isfinite(u.x.array)) and np.all(np.isfinite(lam)))
-    if not sol.disc.comm.allreduce(finite, op=MPI.LAND):
-        raise RuntimeError("NaN or Inf in a hierarchical P2 solution")
-    return u, lam
-
-
 def _multiplier(sol: Solution, values: np.ndarray, name: str) -> fem.Function:
     out = fem.Function(sol.disc.Q, name=name)
     out.x.array[: sol.system.n_lam] = values
@@ -324,71 +302,82 @@ def _multiplier(sol: Solution, values: np.ndarray, name: str) -> fem.Function:
     return out
 
 
-def hierarchical_dual(
+def _finite(sol: Solution, u: fem.Function, lam: np.ndarray) -> None:
+    finite = bool(np.all(np.isfinite(u.x.array)) and np.all(np.isfinite(lam)))
+    if not sol.disc.comm.allreduce(finite, op=MPI.LAND):
+        raise RuntimeError("NaN or Inf in a hierarchical P2 solution")
+
+
+def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution,
+          rtol: float) -> DualSolution:
+    """z^(2) from z_h; its right-hand side as that of the P1 dual (:func:`~.dual.dual_rhs`)."""
+    system, v2 = sol.system, ufl.TestFunction(p2.V2)
+    b_u = np.zeros(p2.n2)
+    b_lam = np.zeros(p2.n_lam)
+    if goal.has_u:
+        b_u = p2.assemble(ufl.replace(goal.dJ_u, {goal.dJ_u.arguments()[0]: v2}))
+    if goal.has_lam:
+        b_lam = p2.assemble(goal.dJ_lam)
+    xi = z.xi.x.array[: system.n_lam]
+    xi1 = np.where(system.active, xi * system.c_n, xi)
+    y, xi1 = p2.solve(True, z.y, xi1, b_u, b_lam, rtol)
+    _finite(sol, y, xi1)
+    y.name = "y2"
+    xi2 = _multiplier(sol, np.where(system.active, xi1 / system.c_n, xi1), "xi2")
+    return DualSolution(y=y, xi=xi2)
+
+
+def _primal(p2: _P2System, sol: Solution, rtol: float) -> tuple[fem.Function, fem.Function]:
+    """w^(2) as the correction of w_h.
+
+    Its right-hand side is the residual of w_h against the P2 test functions,
+    l(v) - a(u_h, v) - (lambda_H, v_n), with homogeneous conditions on Gamma_D (the prescribed
+    values stay those of u_h at the P2 nodes), and zero in the gap rows, which w_h meets.
+    """
+    disc, m = sol.disc, sol.disc.m
+    v2 = ufl.TestFunction(p2.V2)
+    form = disc.load_form(v2) - disc.problem.elastic_form(sol.u, v2, m.dx)
+    form -= sol.lam * ufl.dot(v2, m.n) * m.ds_contact
+    b_u = p2.assemble(with_quadrature_degrees(form))
+    zero = np.zeros(p2.n_lam)
+    du, dlam = p2.solve(False, fem.Function(disc.V), zero, b_u, zero, rtol)
+    _finite(sol, du, dlam)
+    u = fem.Function(p2.V2, name="u2")
+    u.interpolate(sol.u)
+    u.x.array[:] += du.x.array
+    return u, _multiplier(sol, sol.lam.x.array[: sol.system.n_lam] + dlam, "lambda2")
+
+
+def hierarchical_solutions(
     sol: Solution,
     goal: GoalForms,
     z: DualSolution,
     V2: fem.FunctionSpace,
+    primal: bool,
     rtol: float | None = None,
-) -> DualSolution:
-    """The P2 dual z^(2) by FGMRES with the two-level preconditioner, from z_h (module docstring).
+) -> tuple[DualSolution, tuple[fem.Function, fem.Function] | None]:
+    """The P2 dual (and primal) of the final active set by the two-level solver (module docstring).
 
     Args:
         sol: The solved discrete problem (its last Newton factorisations are reused).
         goal: The goal's derivatives at w_h.
-        z: z_h = (y_h, xi_H), the P1 dual of the same Newton system.
+        z: z_h = (y_h, xi_H), the P1 dual of the same Newton system, the dual's start.
         V2: The P2 (Q2) vector space on T_h.
+        primal: Also solve the primal problem (for eta), from w_h.
         rtol: Relative residual to reach (default :data:`HIERARCHICAL_RTOL`).
 
     Returns:
-        (y, xi) with y in V2 and xi on Lambda_H.
+        z^(2) = (y, xi) with y in V2, and w^(2) = (u, lambda) or ``None``.
     """
-    system = sol.system
-
-    def rhs(p2: _P2System) -> tuple[np.ndarray, np.ndarray]:
-        # As the P1 and P2 right-hand sides of the dual (dwr_signorini.dual.dual_rhs).
-        v2 = ufl.TestFunction(V2)
-        b_u = np.zeros(p2.n2)
-        b_lam = np.zeros(p2.n_lam)
-        if goal.has_u:
-            b_u = p2.assemble(ufl.replace(goal.dJ_u, {goal.dJ_u.arguments()[0]: v2}))
-        if goal.has_lam:
-            b_lam = p2.assemble(goal.dJ_lam)
-        return b_u, b_lam
-
-    xi = z.xi.x.array[: system.n_lam]
-    xi1 = np.where(system.active, xi * system.c_n, xi)
-    y, xi1 = _solve(sol, V2, True, rtol, (z.y, xi1), rhs)
-    y.name = "y2"
-    return DualSolution(y=y, xi=_multiplier(sol, np.where(system.active, xi1 / system.c_n, xi1),
-                                            "xi2"))
-
-
-def hierarchical_primal(
-    sol: Solution, V2: fem.FunctionSpace, rtol: float | None = None
-) -> tuple[fem.Function, fem.Function]:
-    """The P2 primal w^(2) with the final active set, by the same solver, from w_h.
-
-    Solved as the correction of w_h: its residual against the P2 test functions,
-    l(v) - a(u_h, v) - (lambda_H, v_n), with homogeneous conditions on Gamma_D (the prescribed
-    values stay those of u_h at the P2 nodes) and the discrete gap conditions, which w_h meets.
-
-    Returns:
-        (u, lambda) with u in V2 and lambda on Lambda_H.
-    """
-    disc = sol.disc
-    m = disc.m
-
-    def rhs(p2: _P2System) -> tuple[np.ndarray, np.ndarray]:
-        v2 = ufl.TestFunction(V2)
-        form = disc.load_form(v2) - disc.problem.elastic_form(sol.u, v2, m.dx)
-        form -= sol.lam * ufl.dot(v2, m.n) * m.ds_contact
-        return p2.assemble(with_quadrature_degrees(form)), np.zeros(p2.n_lam)
-
-    zero_u = fem.Function(disc.V)
-    du, dlam = _solve(sol, V2, False, rtol, (zero_u, np.zeros(sol.system.n_lam)), rhs)
-    u = fem.Function(V2, name="u2")
-    u.interpolate(sol.u)
-    u.x.array[:] += du.x.array
-    lam = _multiplier(sol, sol.lam.x.array[: sol.system.n_lam] + dlam, "lambda2")
-    return u, lam
+    rtol = HIERARCHICAL_RTOL if rtol is None else rtol
+    if not rtol > 0:
+        raise ValueError(f"rtol must be positive, got {rtol}")
+    with timed("reconstruct"):
+        p2 = _P2System(sol, V2)
+    try:
+        with timed("reconstruct"):
+            z2 = _dual(p2, sol, goal, z, rtol)
+            w2 = _primal(p2, sol, rtol) if primal else None
+    finally:
+        p2.destroy()
+    return z2, w2
