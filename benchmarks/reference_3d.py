@@ -21,7 +21,7 @@ reference's uncertainty. Tables to stdout, JSON to
 ``benchmarks/results/`` (a run of some problems replaces theirs in an existing file)::
 
     scripts/fenicsx mpirun -n 2 python3 benchmarks/reference_3d.py --problems indentation
-    scripts/fenicsx mpirun -n 2 python3 benchmarks/reference_3d.py --problems obstacle \
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/reference_3d.py --problems obstacle \\
         --max-cells 1500000
     scripts/fenicsx python3 benchmarks/reference_3d.py --quick      # small, for checking
     scripts/fenicsx python3 benchmarks/reference_3d.py \\
