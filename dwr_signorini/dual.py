@@ -35,6 +35,7 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from .algebra import ContactAlgebra
 from .goal import GoalForms
 from .linalg import NewtonLinearSystem
 from .timing import timed
@@ -50,7 +51,9 @@ class DualSolution:
     xi: fem.Function
 
 
-def dual_rhs(system: NewtonLinearSystem, goal: GoalForms, out: PETSc.Vec) -> PETSc.Vec:
+def dual_rhs(
+    system: NewtonLinearSystem | ContactAlgebra, goal: GoalForms, out: PETSc.Vec
+) -> PETSc.Vec:
     """Assemble [J'_u(w_h); J'_lambda(w_h)] into the block vector ``out`` (zero on Gamma_D)."""
     disc = system.disc
     arr = out.array_w

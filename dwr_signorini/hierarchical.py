@@ -33,16 +33,15 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
-import ufl
 from dolfinx import fem
 from dolfinx.cpp import mesh as _cpp_mesh
 from dolfinx.fem import petsc as fem_petsc
 
-from .dual import DualSolution
+from .algebra import ContactAlgebra
+from .dual import DualSolution, dual_rhs
 from .goal import GoalForms
 from .lifetime import destroy_attributes
 from .newton import Solution
-from .quadrature import with_quadrature_degrees
 from .timing import timed
 
 __all__ = ["HIERARCHICAL_RTOL", "hierarchical_solutions"]
@@ -79,25 +78,15 @@ class _P2System:
     system of :mod:`~dwr_signorini.dual`, whose multiplier is xi^(1).
     """
 
-    _petsc_objects = ("K2", "N2", "P", "edges", "edge_ksp", "ksp", "op", "b", "x", "rhs1", "z1")
+    _petsc_objects = ("P", "edges", "edge_ksp", "ksp", "op", "b", "x", "rhs1", "z1")
 
     def __init__(self, sol: Solution, V2: fem.FunctionSpace) -> None:
         disc, system = sol.disc, sol.system
         self.disc, self.system, self.V2 = disc, system, V2
         self.transpose = True
-        m = disc.m
-        u2, v2 = ufl.TrialFunction(V2), ufl.TestFunction(V2)
-        mu = ufl.TestFunction(disc.Q)
-        self.bcs = disc.dirichlet_bcs(V2)
-        a = disc.problem.elastic_form(u2, v2, m.dx)
-        if callable(disc.problem.E) or callable(disc.problem.nu):
-            a = with_quadrature_degrees(a)
-        self.K2 = fem_petsc.assemble_matrix(disc.form(a), bcs=self.bcs)
-        self.K2.assemble()
-        self.N2 = fem_petsc.assemble_matrix(
-            disc.form(ufl.inner(mu, ufl.dot(u2, m.n)) * m.ds_contact), bcs=self.bcs
-        )
-        self.N2.assemble()
+        # K_2, N_2, f_2, g on V2: what the factored P2 solve of weights="higher_order" uses.
+        self.algebra = ContactAlgebra(disc, V2, sol.ncp_scale)
+        self.K2, self.N2 = self.algebra.K, self.algebra.N
         self.P = fem_petsc.interpolation_matrix(disc.V, V2)
         self.P.assemble()
         self.edges = _edge_index_set(V2)
@@ -130,17 +119,6 @@ class _P2System:
         pc.setType("python")
         pc.setPythonContext(_TwoLevel(self))
         self.ksp.setInitialGuessNonzero(True)
-
-    def assemble(self, form: ufl.Form) -> np.ndarray:
-        """The owned values of a linear form on V2 (or Lambda_H), Dirichlet rows of V2 zero."""
-        vec = fem_petsc.assemble_vector(self.disc.form(form))
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        if len(vec.array) == self.n2:
-            for bc in self.bcs:
-                bc.set(vec.array_w, alpha=0.0)
-        out = vec.array.copy()
-        vec.destroy()
-        return out
 
     # -- pieces on owned arrays ------------------------------------------------------------
     def _u_vec(self, arr: np.ndarray) -> PETSc.Vec:
@@ -182,47 +160,25 @@ class _P2System:
             vec.destroy()
         return out
 
-    def _p1_solve(self, r_u: np.ndarray, r_lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The P1 Newton matrix (or its transpose) solved with the last step's factors.
-
-        A = L A_s (:meth:`~dwr_signorini.linalg.block.NewtonSystem.newton_matrix`), and the
-        systems solve A^T z = r (``solve_transpose``, z = L^-T A_s^-1 r), so that
-        A^-1 b = L^T (A^T)^-1 L^-1 b: (L^-1 b)_u = b_u - N_I^T M_I^-1 b_I, (L^-1 b)_A = -b_A,
-        and (L^T z)_A = -z_A, (L^T z)_I = z_I + (N z_u)_I / M_I.
-        """
-        system = self.system
-        active = system.active
-        if not self.transpose:
-            lam = system.N.createVecLeft()
-            lam.array_w[:] = np.where(active, 0.0, r_lam / system.M.array)
-            force = system.N.createVecRight()
-            system.N.multTranspose(lam, force)
-            r_u = r_u - force.array
-            r_lam = np.where(active, -r_lam, r_lam)
-            for vec in (lam, force):
-                vec.destroy()
-        system.write(self.rhs1, r_u, r_lam)
-        system.solve_transpose(self.rhs1, self.z1)
-        d_u, d_lam = (a.copy() for a in system.split(self.z1))
-        if not self.transpose:
-            u = system.N.createVecRight()
-            u.array_w[:] = d_u
-            n_u = system.N.createVecLeft()
-            system.N.mult(u, n_u)
-            d_lam = np.where(active, -d_lam, d_lam + n_u.array / system.M.array)
-            for vec in (u, n_u):
-                vec.destroy()
-        return d_u, d_lam
-
     def coarse_solve(self, r_u: np.ndarray, r_lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The P1 correction by the factors of the last Newton step: (P d_u, d_lam)."""
+        """The P1 correction by the factors of the last Newton step: (P d_u, d_lam).
+
+        The Newton matrix (:meth:`~dwr_signorini.linalg.base.NewtonLinearSystem.solve_forward`)
+        or its transpose (``solve_transpose``) of the P1 system, on the residual tested with
+        the P1 functions.
+        """
         system = self.system
         r_vec = self._u_vec(np.ascontiguousarray(r_u))
         r_1 = self.P.createVecRight()
         self.P.multTranspose(r_vec, r_1)
         for bc in system.bcs:
             bc.set(r_1.array_w, alpha=0.0)
-        d_u, d_lam = self._p1_solve(r_1.array[: system.n_u], r_lam)
+        system.write(self.rhs1, r_1.array[: system.n_u], r_lam)
+        if self.transpose:
+            system.solve_transpose(self.rhs1, self.z1)
+        else:
+            system.solve_forward(self.rhs1, self.z1)
+        d_u, d_lam = (a.copy() for a in system.split(self.z1))
         r_1.array_w[:] = 0.0
         r_1.array_w[: system.n_u] = d_u
         out = r_vec.duplicate()
@@ -260,6 +216,7 @@ class _P2System:
 
     def destroy(self) -> None:
         destroy_attributes(self, self._petsc_objects)
+        self.algebra.destroy()
 
 
 class _Operator:
@@ -310,14 +267,12 @@ def _finite(sol: Solution, u: fem.Function, lam: np.ndarray) -> None:
 
 def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution,
           rtol: float) -> DualSolution:
-    """z^(2) from z_h; its right-hand side as that of the P1 dual (:func:`~.dual.dual_rhs`)."""
-    system, v2 = sol.system, ufl.TestFunction(p2.V2)
-    b_u = np.zeros(p2.n2)
-    b_lam = np.zeros(p2.n_lam)
-    if goal.has_u:
-        b_u = p2.assemble(ufl.replace(goal.dJ_u, {goal.dJ_u.arguments()[0]: v2}))
-    if goal.has_lam:
-        b_lam = p2.assemble(goal.dJ_lam)
+    """z^(2) from z_h, with the right-hand side of :func:`~dwr_signorini.dual.dual_rhs` on V2."""
+    system = sol.system
+    b = p2.b.duplicate()
+    dual_rhs(p2.algebra, goal, b)
+    b_u, b_lam = b.array_r[: p2.n2].copy(), b.array_r[p2.n2 :].copy()
+    b.destroy()
     xi = z.xi.x.array[: system.n_lam]
     xi1 = np.where(system.active, xi * system.c_n, xi)
     y, xi1 = p2.solve(True, z.y, xi1, b_u, b_lam, rtol)
@@ -328,24 +283,30 @@ def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution,
 
 
 def _primal(p2: _P2System, sol: Solution, rtol: float) -> tuple[fem.Function, fem.Function]:
-    """w^(2) as the correction of w_h.
+    """w^(2) as the correction of w_h in the P2 Newton system of the final active set.
 
-    Its right-hand side is the residual of w_h against the P2 test functions,
-    l(v) - a(u_h, v) - (lambda_H, v_n), with homogeneous conditions on Gamma_D (the prescribed
-    values stay those of u_h at the P2 nodes), and zero in the gap rows, which w_h meets.
+    A [u; lam] = [f_2; -D_A g], with the prescribed Dirichlet values lifted as in the P1 system
+    (:class:`~dwr_signorini.algebra.ContactAlgebra` on V2, as for ``weights="higher_order"``).
+    The correction starts from zero, so ``rtol`` is relative to the residual of w_h (its rows
+    mix forces and gaps, whose right-hand sides differ by many orders of magnitude).
     """
-    disc, m = sol.disc, sol.disc.m
-    v2 = ufl.TestFunction(p2.V2)
-    form = disc.load_form(v2) - disc.problem.elastic_form(sol.u, v2, m.dx)
-    form -= sol.lam * ufl.dot(v2, m.n) * m.ds_contact
-    b_u = p2.assemble(with_quadrature_degrees(form))
-    zero = np.zeros(p2.n_lam)
-    du, dlam = p2.solve(False, fem.Function(disc.V), zero, b_u, zero, rtol)
-    _finite(sol, du, dlam)
+    system, algebra = sol.system, p2.algebra
+    start = np.zeros(p2.n2 + p2.n_lam)
     u = fem.Function(p2.V2, name="u2")
     u.interpolate(sol.u)
+    start[: p2.n2] = u.x.array[: p2.n2]
+    start[p2.n2 :] = sol.lam.x.array[: system.n_lam]
+    p2.transpose = False
+    residual = np.empty_like(start)
+    p2.apply(start, residual)
+    residual[: p2.n2] = algebra.f.array - residual[: p2.n2]
+    residual[p2.n2 :] = np.where(system.active, -algebra.g.array, 0.0) - residual[p2.n2 :]
+    zero = np.zeros(p2.n_lam)
+    du, dlam = p2.solve(False, fem.Function(sol.disc.V), zero, residual[: p2.n2],
+                        residual[p2.n2 :], rtol)
+    _finite(sol, du, dlam)
     u.x.array[:] += du.x.array
-    return u, _multiplier(sol, sol.lam.x.array[: sol.system.n_lam] + dlam, "lambda2")
+    return u, _multiplier(sol, start[p2.n2 :] + dlam, "lambda2")
 
 
 def hierarchical_solutions(

@@ -186,6 +186,48 @@ def test_schur_path_bad_input(monkeypatch):
     assert sol.num_active > 0
 
 
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", METHODS)
+def test_forward_solve_with_the_last_newton_matrix(method):
+    """solve_forward (through the transposed solve) solves A x = b for the Newton matrix
+    A = [[K, N^T], [-D_A N, D_I M]] of the last step, applied here from its pieces, for a right
+    -hand side with inactive rows, and gives back the last step from its own right-hand side."""
+    comm = MPI.COMM_WORLD
+    with ds.solve(strip_problem(comm, 16, 4), method=method) as sol:
+        system = sol.system
+        active = system.active
+        assert comm.allreduce(int(active.sum())) > 0 and comm.allreduce(int((~active).sum())) > 0
+        b, x = system.x.duplicate(), system.x.duplicate()
+        rng = np.random.default_rng(comm.rank)
+        b.array_w[:] = rng.standard_normal(len(b.array))
+        for bc in system.bcs:
+            bc.set(b.array_w[: system.n_u], alpha=0.0)
+        system.solve_forward(b, x)
+        u, lam = (system.K.createVecRight() for _ in range(2))
+        u.array_w[:] = system.split(x)[0]
+        lam_vec, n_u = system.N.createVecLeft(), system.N.createVecLeft()
+        lam_vec.array_w[:] = system.split(x)[1]
+        system.K.mult(u, lam)
+        force = system.K.createVecRight()
+        system.N.multTranspose(lam_vec, force)
+        system.N.mult(u, n_u)
+        residual_u = lam.array + force.array - system.split(b)[0]
+        residual_lam = (np.where(active, -n_u.array, system.M.array * system.split(x)[1])
+                        - system.split(b)[1])
+        for res, rhs in ((residual_u, system.split(b)[0]), (residual_lam, system.split(b)[1])):
+            scale = comm.allreduce(float(np.max(np.abs(rhs), initial=0.0)), MPI.MAX)
+            assert comm.allreduce(float(np.max(np.abs(res), initial=0.0)), MPI.MAX) < 1e-8 * scale
+
+        system.write(b, system.f.array, np.where(active, -system.g.array, 0.0))
+        system.solve_forward(b, x)
+        for ours, step in zip(system.split(x), system.split(system.x), strict=True):
+            scale = comm.allreduce(float(np.max(np.abs(step), initial=0.0)), MPI.MAX)
+            assert comm.allreduce(float(np.max(np.abs(ours - step), initial=0.0)),
+                                  MPI.MAX) <= 1e-9 * scale
+        for vec in (b, x, u, lam, lam_vec, n_u, force):
+            vec.destroy()
+
+
 def test_dual_needs_a_solved_system():
     """The dual problem transposes the last Newton step: none yet is an error on both paths."""
     problem = strip_problem(MPI.COMM_WORLD, 8, 2)

@@ -186,6 +186,31 @@ class NewtonLinearSystem:
         """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem)."""
         raise NotImplementedError
 
+    def solve_forward(self, rhs: PETSc.Vec, x: PETSc.Vec) -> None:
+        """Solve A x = rhs with the Newton matrix A of the last step, through its transpose.
+
+        A = L A_s (:meth:`~dwr_signorini.linalg.block.NewtonSystem.newton_matrix`), and
+        :meth:`solve_transpose` computes z = L^-T A_s^-1 r, so A^-1 b = L^T (A^T)^-1 L^-1 b
+        with (L^-1 b)_u = b_u - N_I^T M_I^-1 b_I, (L^-1 b)_A = -b_A, (L^-1 b)_I = b_I and
+        (L^T z)_u = z_u, (L^T z)_A = -z_A, (L^T z)_I = z_I + (N z_u)_I / M_I: the same
+        factorisations on either path, no new one.
+        """
+        active, M = self.active, self.M.array
+        b_u, b_lam = self.split(rhs)
+        lam = self.N.createVecLeft()
+        lam.array_w[:] = np.where(active, 0.0, b_lam / M)
+        force = self.N.createVecRight()
+        self.N.multTranspose(lam, force)
+        w = rhs.duplicate()
+        self.write(w, b_u - force.array, np.where(active, -b_lam, b_lam))
+        self.solve_transpose(w, x)
+        force.array_w[:] = self.split(x)[0]
+        self.N.mult(force, lam)
+        z_lam = x.array_w[self.n_u :]
+        z_lam[:] = np.where(active, -z_lam, z_lam + lam.array / M)
+        for vec in (lam, force, w):
+            vec.destroy()
+
     def check_solved(self) -> None:
         """RuntimeError if no Newton step was solved (no matrix to transpose)."""
         if not self.solved:
