@@ -18,7 +18,6 @@ from typing import Any
 
 from mpi4py import MPI
 
-import basix.ufl
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -176,10 +175,13 @@ class Discretization:
     def load_form(self, v: Any) -> ufl.Form:
         """<l, v> on T_h (Section 2), for test functions or weights ``v`` of any degree.
 
-        A non-polynomial body force is evaluated once per mesh at the points of the
-        degree-:data:`~dwr_signorini.quadrature.DATA_QUADRATURE_DEGREE` rule (a function of a
-        quadrature space) and reused by the Newton system and the residuals of the estimators,
-        with the same values as the expression integrated at that degree.
+        A non-polynomial body force is integrated with the
+        degree-:data:`~dwr_signorini.quadrature.DATA_QUADRATURE_DEGREE` rule wherever it
+        appears (the Newton system, the residuals of the estimators), its integer powers
+        written as products (:func:`~dwr_signorini.quadrature.expand_integer_powers`) once per
+        mesh. Without ``pow`` calls, evaluating it inside each kernel costs less than storing
+        its values at the quadrature points once (a quadrature space of 16 values per triangle
+        to build, fill and pack into every kernel).
         """
         if self._body_force is None:
             with timed("assemble"):
@@ -190,16 +192,8 @@ class Discretization:
         expr = self.problem.vector(self.problem.body_force, self.m.x)
         if is_polynomial(expr):
             return expr, self.m.dx
-        element = basix.ufl.quadrature_element(
-            self.mesh.basix_cell(),
-            value_shape=(self.mesh.geometry.dim,),
-            degree=DATA_QUADRATURE_DEGREE,
-        )
-        space = fem.functionspace(self.mesh, element)
-        f = fem.Function(space, name="f")
-        points = compat.interpolation_points(space.element)
-        f.interpolate(fem.Expression(expand_integer_powers(expr), points))
-        return f, self.m.dx(metadata={"quadrature_degree": DATA_QUADRATURE_DEGREE})
+        degree = {"quadrature_degree": DATA_QUADRATURE_DEGREE}
+        return expand_integer_powers(expr), self.m.dx(metadata=degree)
 
     def dirichlet_bcs(
         self, V: fem.FunctionSpace, homogeneous: bool = True
