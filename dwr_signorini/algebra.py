@@ -249,9 +249,15 @@ class ContactAlgebra:
     def stiffness_norm(self) -> float:
         """Max row sum of |K| over the rows that are not Dirichlet rows (collective).
 
-        Dirichlet rows hold a lone 1 on the diagonal; every row of K holds its diagonal entry,
-        so no row is empty.
+        Dirichlet rows hold a lone 1 on the diagonal, so their row sum is 1: PETSc's infinity
+        norm (the max row sum over all rows) is the wanted one whenever it exceeds 1. Only
+        otherwise (no coupled row sums to more than 1, e.g. a small modulus) are the rows of K
+        summed here, without the Dirichlet rows; every row of K holds its diagonal entry, so no
+        row is empty.
         """
+        norm = self.K.norm(PETSc.NormType.INFINITY)
+        if norm > 1.0:
+            return norm
         rows, _, values = self.K.getValuesCSR()
         row_sum = np.add.reduceat(np.abs(values), rows[:-1]) if len(rows) > 1 else np.zeros(0)
         diagonal = self.K.getDiagonal()

@@ -31,7 +31,7 @@ from dwr_signorini.newton import (
 )
 from dwr_signorini.spaces import discretize
 
-from .problems import strip_problem
+from .problems import indented_block, strip_problem
 from .test_extreme import _cycling_cantilever
 
 
@@ -452,3 +452,33 @@ def test_newton_steps_reusing_factors_match_factoring(monkeypatch):
             b.num_cells, b.newton_iterations, b.num_active)
         assert b.J_h == pytest.approx(a.J_h, rel=1e-11)
         assert b.eta == pytest.approx(a.eta, rel=1e-8, abs=1e-10 * abs(a.J_h))
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("s_E", [1.0, 1e-6])
+def test_stiffness_norm_is_the_largest_row_sum_off_the_dirichlet_rows(s_E):
+    """||K||_inf without the Dirichlet rows, against the rows summed off the dofs of the bcs.
+
+    With the unit modulus scale PETSc's norm answers (rows sum to more than 1); with 1e-6 every
+    coupled row sums to less than the Dirichlet rows' 1, and the rows are summed instead.
+    """
+    from dwr_signorini.algebra import ContactAlgebra
+
+    disc = discretize(indented_block(MPI.COMM_WORLD, 4, 3, 0.002, s_E=s_E))
+    algebra = ContactAlgebra(disc)
+    try:
+        free = fem.Function(disc.V)
+        free.x.array[:] = 1.0
+        for bc in disc.bcs:
+            bc.set(free.x.array)
+        rows, _, values = algebra.K.getValuesCSR()
+        row_sums = np.add.reduceat(np.abs(values), rows[:-1])
+        coupled = free.x.array[: len(row_sums)] == 1.0
+        comm = MPI.COMM_WORLD
+        counts = comm.allreduce(np.array([coupled.sum(), (~coupled).sum()]), op=MPI.SUM)
+        assert counts.min() > 0  # both kinds of rows are there
+        expected = comm.allreduce(float(row_sums[coupled].max(initial=0.0)), op=MPI.MAX)
+        assert (expected > 1.0) == (s_E == 1.0)
+        assert np.isclose(algebra.stiffness_norm(), expected, rtol=1e-14, atol=0)
+    finally:
+        algebra.destroy()
