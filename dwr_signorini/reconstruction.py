@@ -108,6 +108,33 @@ def _reference_coordinates(edges: np.ndarray, points: np.ndarray) -> np.ndarray:
     return out
 
 
+def _child_vertex_nodes(
+    disc: Discretization, node_of_key: np.ndarray, chunk: int = 1 << 14
+) -> np.ndarray:
+    """For each local fine cell, which of its parent's P2 nodes each of its vertices is.
+
+    The reference coordinates of the vertices in the parent (in units of 1/2: integers) are
+    computed for ``chunk`` cells at a time, so that the temporaries stay small.
+    Returns (cells, tdim + 1) indices into the parent's P2 nodes (-1: not a P2 node).
+    """
+    fine, macro = disc.mesh, disc.macro_mesh
+    tdim = fine.topology.dim
+    parents = disc.parent_cell
+    gx = macro.geometry.x[:, :tdim]
+    macro_cells = compat.geometry_dofmap(macro)
+    fine_cells = compat.geometry_dofmap(fine)
+    node = np.empty((len(parents), tdim + 1), dtype=np.int64)
+    for start in range(0, len(parents), chunk):
+        block = slice(start, min(start + chunk, len(parents)))
+        parent_vertices = macro_cells[parents[block]]
+        origin = gx[parent_vertices[:, 0]]
+        edges = gx[parent_vertices[:, 1:]] - origin[:, None, :]
+        vertices = fine.geometry.x[fine_cells[block], :tdim] - origin[:, None, :]
+        reference = _reference_coordinates(edges, vertices)  # P1 dof order
+        node[block] = node_of_key[_lattice_key(np.rint(2 * reference).astype(np.int8), 3)]
+    return node
+
+
 def patch_p2_matrix(
     disc: Discretization, V2h: fem.FunctionSpace
 ) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
@@ -133,39 +160,35 @@ def patch_p2_matrix(
     node_of_key = np.full(3**tdim, -1, dtype=np.int64)
     node_of_key[_lattice_key(half, 3)] = np.arange(len(half))
 
-    # Which of its parent's P2 nodes each child vertex is (geometry of the P1 cells). Arrays
-    # of the size of the mesh are kept few and small (int8 lattice coordinates).
-    num_cells = len(disc.parent_cell)
+    # Which of its parent's P2 nodes each child vertex is (geometry of the P1 cells).
     parents = disc.parent_cell
-    gx = macro.geometry.x[:, :tdim]
-    parent_vertices = compat.geometry_dofmap(macro)[parents]
-    origin = gx[parent_vertices[:, 0]]  # (n, tdim)
-    edges = gx[parent_vertices[:, 1:]] - origin[:, None, :]
-    vertices = fine.geometry.x[compat.geometry_dofmap(fine)[:num_cells], :tdim] - origin[:, None, :]
-    reference = _reference_coordinates(edges, vertices)  # P1 dof order
-    del edges, vertices, origin, parent_vertices
-    node = node_of_key[_lattice_key(np.rint(2 * reference).astype(np.int8), 3)]  # (n, tdim+1)
-    del reference
+    node = _child_vertex_nodes(disc, node_of_key)  # (n, tdim+1), P1 dof order
     if np.any(node < 0):
         raise RuntimeError(
             "a child vertex is not a P2 node of its parent: not a uniform refinement"
         )
+    num_cells = len(parents)
     dofs1 = disc.V.dofmap.list[:num_cells]
     num_nodes = len(half)
     parent_node_dof = np.full((macro.topology.index_map(tdim).size_local, num_nodes), -1, np.int64)
     parent_node_dof[np.repeat(parents, dofs1.shape[1]), node.ravel()] = dofs1.ravel()
-    if np.any(parent_node_dof[np.unique(parents)] < 0):
+    has_children = np.zeros(len(parent_node_dof), dtype=bool)
+    has_children[parents] = True
+    if np.any(parent_node_dof[has_children] < 0):
         raise RuntimeError("a P2 node of a macro cell is not a vertex of its children")
 
     # The P2 nodes of each child (vertices, then the midpoints of the reference edges), in
-    # units of 1/4 of the parent's reference cell, and the parent's P2 basis there.
-    quarter = _p2_nodes_doubled(half[node], cell)  # (n, P2 nodes of a child, tdim)
+    # units of 1/4 of the parent's reference cell, and the parent's P2 basis there. They depend
+    # on the child's vertex nodes alone: tabulated once for every combination of them.
     grid = np.array([q for q in np.ndindex(*(5,) * tdim) if sum(q) <= 4])
     row_of_key = np.full(5**tdim, -1, dtype=np.int64)
     row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
     table = element.tabulate(0, grid / 4.0)[0, :, :, 0]  # (grid points, num_nodes)
-    point = row_of_key[_lattice_key(quarter, 5)].astype(np.int8)  # (n, P2 nodes of a child)
-    del quarter
+    combinations = np.array(list(np.ndindex(*(num_nodes,) * (tdim + 1))), dtype=np.int64)
+    quarter = _p2_nodes_doubled(half[combinations], cell)  # (combinations, P2 nodes, tdim)
+    point_of = np.empty((len(combinations), quarter.shape[1]), dtype=np.int8)
+    point_of[_lattice_key(combinations, num_nodes)] = row_of_key[_lattice_key(quarter, 5)]
+    point = point_of[_lattice_key(node, num_nodes)]  # (n, P2 nodes of a child)
 
     # Each fine P2 node once (any of its cells: on a macro facet the parents' P2 interpolants
     # agree), found by a scatter rather than a sort.
