@@ -215,6 +215,43 @@ def patch_p2_matrix(
     return matrix, parent_node_dof
 
 
+def p1_in_p2_matrix(V: fem.FunctionSpace, V2: fem.FunctionSpace) -> scipy.sparse.csr_matrix:
+    """The map P1 nodal values -> P2 nodal values of the same function, on simplices.
+
+    A P2 node is a vertex (the P1 value there) or an edge midpoint (the mean of the two end
+    values); every local P2 node is read in one of its local cells. Rows hold two entries, a
+    vertex twice with 1/2.
+
+    Args:
+        V: P1 on a simplex mesh (scalar or blocked).
+        V2: P2 on the same mesh, with the same block size.
+
+    Returns:
+        A sparse matrix from the local (scalar) nodes of ``V`` to the local nodes of ``V2``.
+    """
+    msh = V.mesh
+    num_cells = msh.topology.index_map(msh.topology.dim).size_local
+    num_cells += msh.topology.index_map(msh.topology.dim).num_ghosts
+    dofs1, dofs2 = V.dofmap.list[:num_cells], V2.dofmap.list[:num_cells]
+    ends = np.array(basix.topology(_SIMPLEX[msh.topology.cell_type])[1])
+    vertices = np.arange(dofs1.shape[1])
+    pairs = np.concatenate([np.stack([vertices, vertices], axis=1), ends])  # per P2 local node
+    if dofs2.shape[1] != len(pairs):
+        raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
+    num_rows = V2.dofmap.index_map.size_local + V2.dofmap.index_map.num_ghosts
+    occurrence = np.full(num_rows, -1, dtype=np.int64)
+    occurrence[dofs2.ravel()] = np.arange(dofs2.size)
+    if np.any(occurrence < 0):
+        raise RuntimeError("a local P2 node lies in no local cell")
+    cell, local = np.divmod(occurrence, dofs2.shape[1])
+    cols = dofs1[cell[:, None], pairs[local]].astype(np.int32)
+    num_cols = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+    return scipy.sparse.csr_matrix(
+        (np.full(cols.size, 0.5), cols.ravel(), np.arange(0, cols.size + 1, 2, dtype=np.int32)),
+        shape=(num_rows, num_cols),
+    )
+
+
 class Reconstructor:
     """Patch-wise reconstructions on one discretisation (interpolation data built once)."""
 
@@ -228,10 +265,12 @@ class Reconstructor:
         self.simplex = disc.mesh.topology.cell_type in _SIMPLEX
         if self.simplex:
             self._p2_matrix, self._parent_node_dof = patch_p2_matrix(disc, self.V2h)
+            self._p1_in_p2 = p1_in_p2_matrix(disc.V, self.V2h)
         else:
             # Quadrilaterals/hexahedra (uniform runs only): through the macro Q2 space.
             self._p2_matrix = None
             self._parent_node_dof = None
+            self._p1_in_p2 = None
             self._fine_to_macro = _Transfer(self.V2H, disc.V)
             self._macro_to_fine = _Transfer(self.V2h, self.V2H)
         if self._parent_node_dof is None:
@@ -262,7 +301,11 @@ class Reconstructor:
     def as_fine_p2(self, v: fem.Function) -> fem.Function:
         """A fine P1 function written in the fine P2 space (exact)."""
         out = fem.Function(self.V2h)
-        out.interpolate(v)
+        if self._p1_in_p2 is None:
+            out.interpolate(v)
+            return out
+        bs = self.V2h.dofmap.index_map_bs
+        out.x.array[:] = (self._p1_in_p2 @ v.x.array.reshape(-1, bs)).ravel()
         return out
 
     def weight(self, v_plus: fem.Function, v: fem.Function) -> fem.Function:

@@ -95,8 +95,12 @@ def _transfer_by_parents(
     """
     u0 = fem.Function(disc.V, name="u")
     dofs = disc.V.dofmap.list[: len(disc.parent_cell)]
-    nodes, first = np.unique(dofs.ravel(), return_index=True)
-    cells = macro_parent[disc.parent_cell[first // dofs.shape[1]]]
+    # A cell of each node (any: the old macro P2 function is continuous), by a scatter.
+    occurrence = np.full(disc.V.dofmap.index_map.size_local + disc.V.dofmap.index_map.num_ghosts,
+                         -1, dtype=np.int64)
+    occurrence[dofs.ravel()] = np.arange(dofs.size)
+    nodes = np.flatnonzero(occurrence >= 0)
+    cells = macro_parent[disc.parent_cell[occurrence[nodes] // dofs.shape[1]]]
     x = disc.V.tabulate_dof_coordinates()[nodes]
     bs = disc.V.dofmap.index_map_bs
     u0.x.array.reshape(-1, bs)[nodes] = rec.macro_quadratic(old.u).eval(x, cells)

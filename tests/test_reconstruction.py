@@ -150,3 +150,26 @@ def test_warm_start_by_parent_maps_equals_point_location(kind):
     lam_scale = comm.allreduce(np.abs(lam_slow.x.array).max(initial=0.0), op=MPI.MAX)
     assert lam_scale > 0
     assert np.allclose(lam_fast.x.array, lam_slow.x.array, rtol=0, atol=1e-12 * lam_scale)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("tdim", [2, 3])
+@pytest.mark.parametrize("shape", [(), (3,)])
+def test_p1_in_p2_matrix_equals_interpolation(tdim, shape):
+    """P1 written in P2 by the sparse map equals dolfinx's interpolation, ghosted mesh."""
+    from dwr_signorini.reconstruction import p1_in_p2_matrix
+
+    comm = MPI.COMM_WORLD
+    msh = (mesh.create_unit_square(comm, 5, 4) if tdim == 2
+           else mesh.create_unit_cube(comm, 3, 2, 2))
+    V = fem.functionspace(msh, ("Lagrange", 1, shape))
+    V2 = fem.functionspace(msh, ("Lagrange", 2, shape))
+    v = fem.Function(V)
+    v.interpolate(lambda x: np.vstack([np.sin(3 * x[0] + x[i % tdim]) + i for i in
+                                       range(max(1, np.prod(shape, dtype=int)))]))
+    expected = fem.Function(V2)
+    expected.interpolate(v)
+    bs = V2.dofmap.index_map_bs
+    mapped = (p1_in_p2_matrix(V, V2) @ v.x.array.reshape(-1, bs)).ravel()
+    assert np.abs(expected.x.array).max() > 0.5
+    assert np.allclose(mapped, expected.x.array, rtol=1e-14, atol=1e-14)
