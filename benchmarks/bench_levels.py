@@ -18,6 +18,14 @@ prints the speed-ups::
     scripts/fenicsx python3 benchmarks/bench_levels.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/bench_levels.py
     scripts/fenicsx python3 benchmarks/bench_levels.py --summary
+
+Timings on a shared or virtual machine vary from run to run; ``--run k`` numbers the tables of
+repeated runs (each in a new process, so that ``ref`` is again in memory not used before), and
+``--summary`` then prints the median of each column over them::
+
+    for k in 1 2 3; do
+        scripts/fenicsx python3 benchmarks/bench_levels.py --examples 2d --run $k
+    done
 """
 
 from __future__ import annotations
@@ -180,34 +188,52 @@ def plot(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def summary(out: Path) -> None:
-    """Speed-up of 2 ranks over 1 and the ratios of each level, from the two CSV files.
+def _runs(out: Path, ranks: int) -> list[dict]:
+    """The tables of the runs with ``ranks`` ranks: ``bench_levels_np<ranks>_run<k>.csv``, or
+    if there are none, the single ``bench_levels_np<ranks>.csv``."""
+    paths = sorted(out.glob(f"bench_levels_np{ranks}_run*.csv")) or sorted(
+        out.glob(f"bench_levels_np{ranks}.csv")
+    )
+    if not paths:
+        raise FileNotFoundError(f"no bench_levels_np{ranks}*.csv in {out}")
+    tables = []
+    for path in paths:
+        with open(path) as fh:
+            tables.append(
+                {(r["example"], r["refinement"], r["method"], r["level"]): r
+                 for r in csv.DictReader(fh)}
+            )
+    return tables
 
+
+def _median(tables: list[dict], key: tuple, column: str) -> float:
+    return float(np.median([float(t[key][column]) for t in tables if key in t]))
+
+
+def summary(out: Path) -> None:
+    """Speed-up of 2 ranks over 1 and the ratios of each level, from the CSV files.
+
+    With several runs per rank count (``--run``), every column is the median over the runs.
     ratio1/ratio2: total/ref with 1/2 ranks; warm1/warm2: total/ref_warm; dual/pr and est/pr:
     dual solve and estimator (reconstructions + indicators) against the primal solve (assembly,
     factorisations and Newton solves), 1 rank.
     """
-    tables = {}
-    for np_ in (1, 2):
-        path = out / f"bench_levels_np{np_}.csv"
-        with open(path) as fh:
-            rows = csv.DictReader(fh)
-            tables[np_] = {
-                (r["example"], r["refinement"], r["method"], r["level"]): r for r in rows
-            }
+    tables = {np_: _runs(out, np_) for np_ in (1, 2)}
+    print(f"runs: {len(tables[1])} with 1 rank, {len(tables[2])} with 2 ranks (medians)")
     print(f"{'example':>8} {'refinement':>10} {'method':>6} {'level':>5} {'dofs':>9} "
           f"{'newton':>6} {'t1':>9} {'t2':>9} {'speed-up':>9} {'ratio1':>7} {'ratio2':>7} "
           f"{'warm1':>7} {'warm2':>7} {'dual/pr':>7} {'est/pr':>7}")
-    for key, r1 in tables[1].items():
-        r2 = tables[2].get(key)
-        if r2 is None:
+    for key, r1 in tables[1][0].items():
+        if not all(key in t for t in tables[2]):
             continue
-        t1, t2 = float(r1["total"]), float(r2["total"])
+        one = {c: _median(tables[1], key, c) for c in
+               ("total", "ratio", "ratio_warm", "dual/primal", "est/primal")}
+        two = {c: _median(tables[2], key, c) for c in ("total", "ratio", "ratio_warm")}
         print(f"{key[0]:>8} {key[1]:>10} {key[2]:>6} {key[3]:>5} {r1['dofs']:>9} "
-              f"{r1['newton']:>6} {t1:9.3f} {t2:9.3f} {t1 / t2:9.2f} {float(r1['ratio']):7.2f} "
-              f"{float(r2['ratio']):7.2f} {float(r1['ratio_warm']):7.2f} "
-              f"{float(r2['ratio_warm']):7.2f} {float(r1['dual/primal']):7.3f} "
-              f"{float(r1['est/primal']):7.3f}")
+              f"{r1['newton']:>6} {one['total']:9.3f} {two['total']:9.3f} "
+              f"{one['total'] / two['total']:9.2f} {one['ratio']:7.2f} {two['ratio']:7.2f} "
+              f"{one['ratio_warm']:7.2f} {two['ratio_warm']:7.2f} {one['dual/primal']:7.3f} "
+              f"{one['est/primal']:7.3f}")
 
 
 def main() -> None:
@@ -229,7 +255,10 @@ def main() -> None:
     parser.add_argument("--methods", default="block",
                         help="Newton linear algebra, comma-separated: block, schur, auto, krylov")
     parser.add_argument("--output", type=Path, default=Path("benchmarks/results"))
-    parser.add_argument("--summary", action="store_true")
+    parser.add_argument("--run", type=int, default=None,
+                        help="number of this run: writes bench_levels_np<ranks>_run<k>.csv")
+    parser.add_argument("--summary", action="store_true",
+                        help="print the table of the runs written before (medians over runs)")
     args = parser.parse_args()
     if args.summary:
         summary(args.output)
@@ -249,12 +278,13 @@ def main() -> None:
             for method in args.methods.split(","):
                 rows += run(example, refinement, levels, start, comm, method, args.growth)
     if comm.rank == 0:
-        path = args.output / f"bench_levels_np{comm.size}.csv"
+        suffix = "" if args.run is None else f"_run{args.run}"
+        path = args.output / f"bench_levels_np{comm.size}{suffix}.csv"
         with open(path, "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
-        plot(rows, args.output / f"bench_levels_np{comm.size}.png")
+        plot(rows, args.output / f"bench_levels_np{comm.size}{suffix}.png")
         print(f"wrote {path}")
 
 
