@@ -123,7 +123,7 @@ def _child_vertex_nodes(
     gx = macro.geometry.x[:, :tdim]
     macro_cells = compat.geometry_dofmap(macro)
     fine_cells = compat.geometry_dofmap(fine)
-    node = np.empty((len(parents), tdim + 1), dtype=np.int64)
+    node = np.empty((len(parents), tdim + 1), dtype=np.int8)
     for start in range(0, len(parents), chunk):
         block = slice(start, min(start + chunk, len(parents)))
         parent_vertices = macro_cells[parents[block]]
@@ -157,7 +157,7 @@ def patch_p2_matrix(
         basix.ElementFamily.P, cell, 2, basix.LagrangeVariant.equispaced
     )
     half = np.rint(2 * element.points).astype(np.int8)  # parent P2 nodes, in units of 1/2
-    node_of_key = np.full(3**tdim, -1, dtype=np.int64)
+    node_of_key = np.full(3**tdim, -1, dtype=np.int8)
     node_of_key[_lattice_key(half, 3)] = np.arange(len(half))
 
     # Which of its parent's P2 nodes each child vertex is (geometry of the P1 cells).
@@ -170,7 +170,7 @@ def patch_p2_matrix(
     num_cells = len(parents)
     dofs1 = disc.V.dofmap.list[:num_cells]
     num_nodes = len(half)
-    parent_node_dof = np.full((macro.topology.index_map(tdim).size_local, num_nodes), -1, np.int64)
+    parent_node_dof = np.full((macro.topology.index_map(tdim).size_local, num_nodes), -1, np.int32)
     parent_node_dof[np.repeat(parents, dofs1.shape[1]), node.ravel()] = dofs1.ravel()
     has_children = np.zeros(len(parent_node_dof), dtype=bool)
     has_children[parents] = True
@@ -202,7 +202,7 @@ def patch_p2_matrix(
     first = occurrence[rows]
     cell_of = first // dofs2.shape[1]
     phi = table[point.ravel()[first]]  # (rows, num_nodes)
-    cols = parent_node_dof[parents[cell_of]].astype(np.int32)
+    cols = parent_node_dof[parents[cell_of]]
     # CSR directly (32-bit indices, no copies): the rows are sorted and each has one entry per
     # parent P2 node.
     indptr = np.zeros(num_rows + 1, dtype=np.int32)
@@ -239,12 +239,12 @@ def p1_in_p2_matrix(V: fem.FunctionSpace, V2: fem.FunctionSpace) -> scipy.sparse
     if dofs2.shape[1] != len(pairs):
         raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
     num_rows = V2.dofmap.index_map.size_local + V2.dofmap.index_map.num_ghosts
-    occurrence = np.full(num_rows, -1, dtype=np.int64)
-    occurrence[dofs2.ravel()] = np.arange(dofs2.size)
+    occurrence = np.full(num_rows, -1, dtype=np.int32)
+    occurrence[dofs2.ravel()] = np.arange(dofs2.size, dtype=np.int32)
     if np.any(occurrence < 0):
         raise RuntimeError("a local P2 node lies in no local cell")
     cell, local = np.divmod(occurrence, dofs2.shape[1])
-    cols = dofs1[cell[:, None], pairs[local]].astype(np.int32)
+    cols = dofs1[cell[:, None], pairs[local]]
     num_cols = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
     return scipy.sparse.csr_matrix(
         (np.full(cols.size, 0.5), cols.ravel(), np.arange(0, cols.size + 1, 2, dtype=np.int32)),
