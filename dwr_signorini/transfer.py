@@ -97,8 +97,8 @@ def _transfer_by_parents(
     dofs = disc.V.dofmap.list[: len(disc.parent_cell)]
     # A cell of each node (any: the old macro P2 function is continuous), by a scatter.
     occurrence = np.full(disc.V.dofmap.index_map.size_local + disc.V.dofmap.index_map.num_ghosts,
-                         -1, dtype=np.int64)
-    occurrence[dofs.ravel()] = np.arange(dofs.size)
+                         -1, dtype=np.int32)
+    occurrence[dofs.ravel()] = np.arange(dofs.size, dtype=np.int32)
     nodes = np.flatnonzero(occurrence >= 0)
     cells = macro_parent[disc.parent_cell[occurrence[nodes] // dofs.shape[1]]]
     x = disc.V.tabulate_dof_coordinates()[nodes]
