@@ -49,7 +49,7 @@ from dwr_signorini.linalg.nullspace import rigid_body_modes
 from dwr_signorini.newton import default_petsc_options, iterative_petsc_options
 from dwr_signorini.timing import PHASES, snapshot
 
-COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "higher-order solve",
+COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "goal", "higher-order solve",
            "reconstruct", "indicators", "mark", "refine", "discretize", "transfer", "output")
 
 
@@ -152,8 +152,8 @@ def run(
 
 
 HEADER = ("example", "refinement", "method", "used", "level", "cells", "dofs", "newton", "assemble",
-          "factorize", "newton solve", "dual solve", "reconstruct", "indicators", "mark", "refine",
-          "total", "ref", "ratio", "ref_warm", "ratio_warm", "dual/primal", "est/primal",
+          "factorize", "newton solve", "dual solve", "goal", "reconstruct", "indicators", "mark",
+          "refine", "total", "ref", "ratio", "ref_warm", "ratio_warm", "dual/primal", "est/primal",
           "peak_MiB")
 
 

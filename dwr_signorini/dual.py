@@ -90,7 +90,7 @@ def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:
         raise RuntimeError("the Newton system has not been solved: no matrix to transpose")
     rhs = system.x.duplicate()
     z = system.x.duplicate()
-    with timed("assemble"):
+    with timed("goal"):
         dual_rhs(system, goal, rhs)
     with timed("dual solve"):
         system.solve_transpose(rhs, z)

@@ -18,6 +18,7 @@ from dolfinx import fem
 from ufl.algorithms import expand_derivatives
 
 from .spaces import Discretization
+from .timing import timed
 
 __all__ = ["Goal", "GoalForms", "localize"]
 
@@ -104,7 +105,8 @@ class GoalForms:
 
     def value(self) -> float:
         """J(w_h), reduced over all ranks."""
-        local = fem.assemble_scalar(self.disc.form(self.J))
+        with timed("goal"):
+            local = fem.assemble_scalar(self.disc.form(self.J))
         return self.disc.comm.allreduce(local, op=MPI.SUM)
 
     def directional(self, du: Any, dlam: Any) -> ufl.Form:

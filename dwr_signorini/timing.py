@@ -23,6 +23,7 @@ PHASES = (
     "factorize",
     "newton solve",
     "dual solve",
+    "goal",
     "higher-order solve",
     "reconstruct",
     "indicators",
