@@ -38,6 +38,26 @@ def _all_cells(V: fem.FunctionSpace) -> np.ndarray:
     return np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
 
 
+def node_occurrences(dofs: np.ndarray, num_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each node that the cells' dofs touch once, with one of its places in ``dofs``.
+
+    Found by a scatter rather than a sort (any occurrence serves the callers: the functions they
+    read there are continuous).
+
+    Args:
+        dofs: (cells, dofs per cell) node indices, below ``num_nodes``.
+        num_nodes: The number of nodes.
+
+    Returns:
+        The touched nodes (sorted), and for each its flat index in ``dofs``: the cell is that
+        index divided by the dofs per cell, the local dof the remainder.
+    """
+    occurrence = np.full(num_nodes, -1, dtype=np.int32)
+    occurrence[dofs.ravel()] = np.arange(dofs.size, dtype=np.int32)
+    nodes = np.flatnonzero(occurrence >= 0)
+    return nodes, occurrence[nodes]
+
+
 class _Transfer:
     """Interpolation between two spaces on different meshes, data built once."""
 
@@ -191,15 +211,12 @@ def patch_p2_matrix(
     point = point_of[_lattice_key(node, num_nodes)]  # (n, P2 nodes of a child)
 
     # Each fine P2 node once (any of its cells: on a macro facet the parents' P2 interpolants
-    # agree), found by a scatter rather than a sort.
+    # agree).
     dofs2 = V2h.dofmap.list[:num_cells]
     if dofs2.shape[1] != point.shape[1]:
         raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
     num_rows = V2h.dofmap.index_map.size_local + V2h.dofmap.index_map.num_ghosts
-    occurrence = np.full(num_rows, -1, dtype=np.int32)
-    occurrence[dofs2.ravel()] = np.arange(dofs2.size, dtype=np.int32)
-    rows = np.flatnonzero(occurrence >= 0)
-    first = occurrence[rows]
+    rows, first = node_occurrences(dofs2, num_rows)
     cell_of = first // dofs2.shape[1]
     phi = table[point.ravel()[first]]  # (rows, num_nodes)
     cols = parent_node_dof[parents[cell_of]]
@@ -239,11 +256,10 @@ def p1_in_p2_matrix(V: fem.FunctionSpace, V2: fem.FunctionSpace) -> scipy.sparse
     if dofs2.shape[1] != len(pairs):
         raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
     num_rows = V2.dofmap.index_map.size_local + V2.dofmap.index_map.num_ghosts
-    occurrence = np.full(num_rows, -1, dtype=np.int32)
-    occurrence[dofs2.ravel()] = np.arange(dofs2.size, dtype=np.int32)
-    if np.any(occurrence < 0):
+    nodes, first = node_occurrences(dofs2, num_rows)
+    if len(nodes) != num_rows:
         raise RuntimeError("a local P2 node lies in no local cell")
-    cell, local = np.divmod(occurrence, dofs2.shape[1])
+    cell, local = np.divmod(first, dofs2.shape[1])
     cols = dofs1[cell[:, None], pairs[local]]
     num_cols = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
     return scipy.sparse.csr_matrix(

@@ -16,7 +16,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 
 from .newton import Solution
-from .reconstruction import Reconstructor
+from .reconstruction import Reconstructor, node_occurrences
 from .spaces import Discretization
 
 __all__ = ["transfer_solution"]
@@ -95,12 +95,10 @@ def _transfer_by_parents(
     """
     u0 = fem.Function(disc.V, name="u")
     dofs = disc.V.dofmap.list[: len(disc.parent_cell)]
-    # A cell of each node (any: the old macro P2 function is continuous), by a scatter.
-    occurrence = np.full(disc.V.dofmap.index_map.size_local + disc.V.dofmap.index_map.num_ghosts,
-                         -1, dtype=np.int32)
-    occurrence[dofs.ravel()] = np.arange(dofs.size, dtype=np.int32)
-    nodes = np.flatnonzero(occurrence >= 0)
-    cells = macro_parent[disc.parent_cell[occurrence[nodes] // dofs.shape[1]]]
+    # A cell of each node (any: the old macro P2 function is continuous).
+    imap = disc.V.dofmap.index_map
+    nodes, first = node_occurrences(dofs, imap.size_local + imap.num_ghosts)
+    cells = macro_parent[disc.parent_cell[first // dofs.shape[1]]]
     x = disc.V.tabulate_dof_coordinates()[nodes]
     bs = disc.V.dofmap.index_map_bs
     u0.x.array.reshape(-1, bs)[nodes] = rec.macro_quadratic(old.u).eval(x, cells)
