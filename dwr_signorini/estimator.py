@@ -104,10 +104,7 @@ class Estimate(Releasable):
 
 def ncp_scale_function(sol: Solution) -> fem.Function:
     """The c of the NCP function the solution was computed with, as a function on Lambda_H."""
-    c = fem.Function(sol.disc.Q, name="c")
-    c.x.array[: sol.system.n_lam] = sol.system.c_n
-    c.x.scatter_forward()
-    return c
+    return sol.multiplier_function(sol.system.c_n, "c")
 
 
 def _assemble_indicators(
@@ -152,13 +149,10 @@ def _higher_order_solutions(
         w2 = None
         if primal:
             u2 = fem.Function(rec.V2h, name="u2")
-            lam2 = fem.Function(sol.disc.Q, name="lambda2")
             u_arr, lam_arr = system2.split(system2.x)
             u2.x.array[: system2.n_u] = u_arr
             u2.x.scatter_forward()
-            lam2.x.array[: system2.n_lam] = lam_arr
-            lam2.x.scatter_forward()
-            w2 = (u2, lam2)
+            w2 = (u2, sol.multiplier_function(lam_arr, "lambda2"))
     finally:
         system2.destroy()
     return z2, w2

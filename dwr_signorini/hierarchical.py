@@ -252,13 +252,6 @@ class _TwoLevel:
         d.array_w[:] = out
 
 
-def _multiplier(sol: Solution, values: np.ndarray, name: str) -> fem.Function:
-    out = fem.Function(sol.disc.Q, name=name)
-    out.x.array[: sol.system.n_lam] = values
-    out.x.scatter_forward()
-    return out
-
-
 def _finite(sol: Solution, u: fem.Function, lam: np.ndarray) -> None:
     finite = bool(np.all(np.isfinite(u.x.array)) and np.all(np.isfinite(lam)))
     if not sol.disc.comm.allreduce(finite, op=MPI.LAND):
@@ -278,7 +271,7 @@ def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution,
     y, xi1 = p2.solve(True, z.y, xi1, b_u, b_lam, rtol)
     _finite(sol, y, xi1)
     y.name = "y2"
-    xi2 = _multiplier(sol, np.where(system.active, xi1 / system.c_n, xi1), "xi2")
+    xi2 = sol.multiplier_function(np.where(system.active, xi1 / system.c_n, xi1), "xi2")
     return DualSolution(y=y, xi=xi2)
 
 
@@ -293,7 +286,8 @@ def _primal(p2: _P2System, sol: Solution, rtol: float) -> tuple[fem.Function, fe
     system, algebra = sol.system, p2.algebra
     start = np.zeros(p2.n2 + p2.n_lam)
     u = fem.Function(p2.V2, name="u2")
-    u.interpolate(sol.u)
+    p2.P.mult(sol.u.x.petsc_vec, u.x.petsc_vec)  # w_h written in P2 (the coarse step's P)
+    u.x.scatter_forward()
     start[: p2.n2] = u.x.array[: p2.n2]
     start[p2.n2 :] = sol.lam.x.array[: system.n_lam]
     p2.transpose = False
@@ -306,7 +300,7 @@ def _primal(p2: _P2System, sol: Solution, rtol: float) -> tuple[fem.Function, fe
                         residual[p2.n2 :], rtol)
     _finite(sol, du, dlam)
     u.x.array[:] += du.x.array
-    return u, _multiplier(sol, start[p2.n2 :] + dlam, "lambda2")
+    return u, sol.multiplier_function(start[p2.n2 :] + dlam, "lambda2")
 
 
 def hierarchical_solutions(
@@ -333,10 +327,10 @@ def hierarchical_solutions(
     rtol = HIERARCHICAL_RTOL if rtol is None else rtol
     if not rtol > 0:
         raise ValueError(f"rtol must be positive, got {rtol}")
-    with timed("reconstruct"):
+    with timed("higher-order solve"):
         p2 = _P2System(sol, V2)
     try:
-        with timed("reconstruct"):
+        with timed("higher-order solve"):
             z2 = _dual(p2, sol, goal, z, rtol)
             w2 = _primal(p2, sol, rtol) if primal else None
     finally:

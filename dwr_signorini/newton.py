@@ -139,6 +139,13 @@ class Solution(Releasable):
         """Release the Newton system's PETSc objects and options (collective; idempotent)."""
         self.system.destroy()
 
+    def multiplier_function(self, values: Any, name: str) -> fem.Function:
+        """A function on Lambda_H from values on the owned multipliers (ghosts updated)."""
+        out = fem.Function(self.disc.Q, name=name)
+        out.x.array[: self.system.n_lam] = values
+        out.x.scatter_forward()
+        return out
+
 
 
 def _global_key(comm: MPI.Comm, active: np.ndarray) -> tuple[bytes, ...]:
