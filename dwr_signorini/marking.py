@@ -8,6 +8,9 @@ fraction for which the refined macro mesh has about a given multiple of the cell
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TypeVar
+
 from mpi4py import MPI
 
 import numpy as np
@@ -17,11 +20,13 @@ from .problem import SignoriniProblem
 from .refine import refine_marked
 from .spaces import Discretization
 
-__all__ = ["STRATEGIES", "mark", "mark_for_growth", "patch_indicators"]
+__all__ = ["STRATEGIES", "mark", "mark_for_growth", "patch_indicators", "search_fraction"]
 
 STRATEGIES = ("fixed_fraction", "doerfler")
 
 TIE_TOLERANCE = 1e-8
+
+T = TypeVar("T")
 
 
 def patch_indicators(disc: Discretization, indicators: npt.NDArray[np.floating]) -> np.ndarray:
@@ -82,6 +87,56 @@ def mark(
     return np.flatnonzero(np.abs(eta_K) >= threshold * (1.0 - TIE_TOLERANCE)).astype(np.int32)
 
 
+def _first_fraction(growth: float, tdim: int) -> float:
+    """A first guess of the marking fraction for ``growth``.
+
+    A marked simplex has up to 2**tdim children, and the closure that keeps the mesh conforming
+    refines several times as many cells again: ratio - 1 ~ 4 (2**tdim - 1) fraction.
+    """
+    return min(1.0, (growth - 1.0) / (4.0 * (2**tdim - 1)))
+
+
+def _next_fraction(
+    growth: float,
+    below: tuple[float, float] | None,
+    above: tuple[float, float] | None,
+    flat: bool = False,
+) -> float:
+    """The next trial fraction from the closest trials below and above ``growth``.
+
+    ``below`` and ``above`` are ``(fraction, ratio)`` of the largest fraction whose ratio fell
+    short and of the smallest whose ratio exceeded ``growth``. The new cells grow about like a
+    power of the fraction, so the fraction is interpolated (or, with one side known,
+    extrapolated linearly, at most by a factor 32) in log(ratio - 1) against log(fraction);
+    where that is undefined or leaves the bracket, the bracket is bisected geometrically. With
+    ``flat`` (the last two trials gave about the same count: small meshes' counts go in steps)
+    a one-sided step at least halves or doubles the fraction, and a bracket is bisected.
+    """
+    target = np.log(growth - 1.0)
+
+    def extrapolate(point: tuple[float, float]) -> float:
+        fraction, ratio = point
+        if ratio <= 1.0:
+            return 8.0 * fraction
+        factor = float(np.clip((growth - 1.0) / (ratio - 1.0), 1 / 32, 32.0))
+        if flat:
+            factor = min(factor, 0.5) if ratio > growth else max(factor, 2.0)
+        return fraction * factor
+
+    if below is None:
+        return extrapolate(above)
+    if above is None:
+        return min(1.0, extrapolate(below))
+    (f_lo, r_lo), (f_hi, r_hi) = below, above
+    if r_lo > 1.0 and not flat:
+        t = (target - np.log(r_lo - 1.0)) / (np.log(r_hi - 1.0) - np.log(r_lo - 1.0))
+        fraction = float(np.exp(np.log(f_lo) + t * (np.log(f_hi) - np.log(f_lo))))
+        # stay clear of the bracket's ends, where the cell counts are already known
+        if f_lo * (f_hi / f_lo) ** 0.1 < fraction < f_hi * (f_lo / f_hi) ** 0.1:
+            return fraction
+    return float(np.sqrt(f_lo * f_hi))
+
+
 def mark_for_growth(
     disc: Discretization,
     problem: SignoriniProblem,
@@ -94,8 +149,9 @@ def mark_for_growth(
     """Mark so that the refined macro mesh has about ``growth`` times the cells of this one.
 
     The number of new cells grows monotonically with the marking fraction, so the fraction is
-    found by bisection on (0, 1], refining the macro mesh for each trial (cheap against a
-    solve) and keeping the trial whose cell ratio is closest to ``growth``.
+    found by a safeguarded secant search in log-log (:func:`search_fraction`) on (0, 1], refining
+    the macro mesh for each trial (cheap against a solve, but not free: two or three trials are
+    typical) and keeping the trial whose cell ratio is closest to ``growth``.
 
     Args:
         disc: The discretisation of ``problem``.
@@ -113,17 +169,50 @@ def mark_for_growth(
         raise ValueError(f"growth must be a number > 1, got {growth!r}")
     tdim = problem.mesh.topology.dim
     cells_now = problem.mesh.topology.index_map(tdim).size_global
-    lo, hi = 0.0, 1.0
-    best = None
-    for _ in range(trials):
-        fraction = 0.5 * (lo + hi) if best is not None else min(1.0, (growth - 1.0) / 3.0)
+
+    def trial(fraction: float) -> tuple[float, tuple]:
         marked = mark(disc, indicators, strategy, fraction)
         refined, parent = refine_marked(problem, marked, rule)
-        ratio = refined.mesh.topology.index_map(tdim).size_global / cells_now
-        if best is None or abs(np.log(ratio / growth)) < abs(np.log(best[4] / growth)):
-            best = (marked, refined, parent, fraction, ratio)
-        if abs(ratio / growth - 1.0) < 0.05:
-            break
-        lo, hi = (fraction, hi) if ratio < growth else (lo, fraction)
-    marked, refined, parent, fraction, _ = best
+        return refined.mesh.topology.index_map(tdim).size_global / cells_now, (marked, refined,
+                                                                              parent)
+
+    fraction, _, (marked, refined, parent), _ = search_fraction(
+        trial, growth, _first_fraction(growth, tdim), trials
+    )
     return marked, refined, parent, fraction
+
+
+def search_fraction(
+    trial: Callable[[float], tuple[float, T]], growth: float, first: float, trials: int = 8
+) -> tuple[float, float, T, int]:
+    """The marking fraction in (0, 1] whose cell ratio is closest to ``growth``.
+
+    ``trial(fraction)`` returns the ratio of cells (refined / now), non-decreasing in the
+    fraction, and whatever the caller keeps of the trial. Trials stop when a ratio is within
+    5 % of ``growth``, when the fraction 1 still falls short, when the bracket around
+    ``growth`` has closed to 1 % (the count jumps across ``growth`` there) or after ``trials``;
+    the next fraction comes from :func:`_next_fraction`.
+
+    Returns:
+        ``(fraction, ratio, kept, number of trials)`` of the trial closest to ``growth`` in
+        log(ratio / growth).
+    """
+    below = above = best = None
+    ratios: list[float] = []
+    fraction = first
+    for _ in range(trials):
+        ratio, kept = trial(fraction)
+        ratios.append(ratio)
+        if best is None or abs(np.log(ratio / growth)) < abs(np.log(best[1] / growth)):
+            best = (fraction, ratio, kept)
+        if abs(ratio / growth - 1.0) < 0.05 or (ratio < growth and fraction >= 1.0):
+            break
+        if ratio < growth:
+            below = (fraction, ratio)
+        else:
+            above = (fraction, ratio)
+        if below is not None and above is not None and above[0] < 1.01 * below[0]:
+            break
+        flat = len(ratios) > 1 and abs(ratios[-1] / ratios[-2] - 1.0) < 0.02
+        fraction = _next_fraction(growth, below, above, flat)
+    return (*best, len(ratios))

@@ -3,7 +3,9 @@
 * ``refinement_rule="longest_edge"`` bisects each marked macro cell through its longest edge:
   for the same marked cells the refined mesh has fewer cells than with all edges, and at least
   one more cell per marked cell (each marked cell is split);
-* ``growth=g`` makes each adaptive level have about g times the macro cells of the last one.
+* ``growth=g`` makes each adaptive level have about g times the macro cells of the last one;
+  the fraction that gives it is searched with few refinements (``search_fraction``, checked on
+  cell ratios with a known inverse).
 """
 
 from mpi4py import MPI
@@ -13,7 +15,7 @@ import pytest
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.marking import mark
+from dwr_signorini.marking import mark, search_fraction
 from dwr_signorini.refine import refine_marked
 
 
@@ -51,3 +53,42 @@ def test_growth_sets_the_cells_per_level(rule):
     with pytest.raises(ValueError, match="refinement_rule"):
         ds.solve_adaptive(ex.obstacle_problem(MPI.COMM_WORLD, (1, 4, 4)), ex.goal_obstacle(),
                           refinement_rule="bisect")
+
+
+def _recorded(ratio_of):
+    calls = []
+
+    def trial(fraction):
+        calls.append(fraction)
+        return ratio_of(fraction), fraction
+
+    return trial, calls
+
+
+@pytest.mark.parametrize("a, p", [(20.0, 1.0), (40.0, 0.7), (10.0, 1.5), (300.0, 2.0)])
+@pytest.mark.parametrize("growth", [1.5, 2.0, 4.0])
+@pytest.mark.parametrize("first", [0.01, 0.3])
+def test_search_fraction_finds_a_smooth_growth_in_few_trials(a, p, growth, first):
+    """Ratios 1 + a f^p: the fraction (growth - 1)^(1/p) / a^(1/p) is found to 5 % in <= 4."""
+    trial, calls = _recorded(lambda f: 1.0 + a * f**p)
+    fraction, ratio, kept, count = search_fraction(trial, growth, first)
+    assert abs(ratio / growth - 1.0) < 0.05
+    assert kept == fraction and ratio == 1.0 + a * fraction**p
+    assert count == len(calls) <= 4, calls
+    assert all(0.0 < f <= 1.0 for f in calls)
+
+
+def test_search_fraction_in_steps_and_out_of_reach():
+    """Counts in steps (no fraction within 5 %) end with the closest trial; a growth that even
+    the fraction 1 does not reach ends at 1."""
+    def steps(f):
+        return 1.0 + 0.6 * np.floor(5 * f)  # 1, 1.6, 2.2, ...
+
+    trial, calls = _recorded(steps)
+    fraction, ratio, _, count = search_fraction(trial, 2.0, 0.05)
+    assert count == len(calls) <= 8
+    assert ratio == 2.2 and min(abs(np.log(steps(f) / 2.0)) for f in calls) == abs(np.log(1.1))
+    trial, calls = _recorded(lambda f: 1.0 + 0.5 * f)
+    fraction, ratio, _, _ = search_fraction(trial, 2.0, 0.1)
+    assert fraction == 1.0 and ratio == 1.5
+    assert all(0.0 < f <= 1.0 for f in calls)
