@@ -12,9 +12,10 @@ Factor reuse: a step whose active set differs from that of the factors in r mult
 solved with those factors and a rank-2r correction (:class:`~.lowrank.WoodburyUpdate`), when its
 solves (one of 2r right-hand sides, priced at :data:`BLOCK_SOLVE_COST` single solves each, and
 two single ones) take less than :data:`REUSE_FRACTION` of the last factorisation's time (both
-measured, the maximum over ranks). A step of iterative refinement corrects it and estimates its
-error (:data:`REUSE_RTOL`); a refused or inaccurate update falls back to factoring the new
-matrix, so that the null-pivot check applies.
+measured, the maximum over ranks). Steps of iterative refinement (at most :data:`REFINE_STEPS`)
+correct it until the correction, the estimate of the error, is below :data:`REUSE_RTOL`; a
+refused or inaccurate update falls back to factoring the new matrix, so that the null-pivot
+check applies.
 The last semi-smooth Newton steps often change a few contact facets: those steps, and the dual
 problem after them, then cost a few solves instead of a factorisation.
 """
@@ -46,9 +47,12 @@ REUSE_FRACTION = 0.7
 #: right-hand side (about 0.2-0.3 for 8-40 right-hand sides on 3D factors of 30k DoFs).
 BLOCK_SOLVE_COST = 0.3
 
-#: Largest relative error (estimated by a step of iterative refinement, per block, max norms)
+#: Largest relative error (estimated by iterative refinement, per block, max norms)
 #: of a step solved by reusing the factors.
 REUSE_RTOL = 1e-9
+
+#: Most steps of iterative refinement of a solve by reused factors before they are refused.
+REFINE_STEPS = 3
 
 
 class LinearSolveError(RuntimeError):
@@ -258,33 +262,43 @@ class NewtonSystem(NewtonLinearSystem):
         return True
 
     def _refine(self, update: WoodburyUpdate, rhs: PETSc.Vec, x: PETSc.Vec) -> bool:
-        """One step of iterative refinement of A_s x = rhs; whether x was accurate.
+        """Iterative refinement of A_s x = rhs, at most :data:`REFINE_STEPS`; whether x is accurate.
 
-        The correction d of A_s d = rhs - A_s x measures the error of x: it must be below
-        :data:`REUSE_RTOL` of x in each block (displacements, multipliers; max norms).
+        The correction d of A_s d = rhs - A_s x measures the error of x: once it is below
+        :data:`REUSE_RTOL` of x in each block (displacements, multipliers; max norms), x + d is
+        accepted. A correction above it is applied and the next step measures again: the
+        Woodbury solves lose a few digits when the capacitance matrix is ill-conditioned, and
+        one more step recovers them at the cost of one solve, not a factorisation.
         """
         residual, correction = rhs.duplicate(), x.duplicate()
-        self.A.mult(x, residual)
-        residual.aypx(-1.0, rhs)
-        update.solve(residual, correction)
-        x.axpy(1.0, correction)
         comm, n_u = self.disc.comm, self.n_u
-        accurate = True
-        for part in (slice(0, n_u), slice(n_u, None)):
-            size = comm.allreduce(float(np.max(np.abs(x.array_r[part]), initial=0.0)),
-                                  op=MPI.MAX)
-            error = comm.allreduce(
-                float(np.max(np.abs(correction.array_r[part]), initial=0.0)), op=MPI.MAX)
-            accurate &= error <= REUSE_RTOL * size
-        for vec in (residual, correction):
-            vec.destroy()
-        return accurate
+        try:
+            for _ in range(REFINE_STEPS):
+                self.A.mult(x, residual)
+                residual.aypx(-1.0, rhs)
+                update.solve(residual, correction)
+                x.axpy(1.0, correction)
+                accurate = True
+                for part in (slice(0, n_u), slice(n_u, None)):
+                    size = comm.allreduce(
+                        float(np.max(np.abs(x.array_r[part]), initial=0.0)), op=MPI.MAX
+                    )
+                    error = comm.allreduce(
+                        float(np.max(np.abs(correction.array_r[part]), initial=0.0)), op=MPI.MAX
+                    )
+                    accurate &= error <= REUSE_RTOL * size
+                if accurate:
+                    return True
+            return False
+        finally:
+            for vec in (residual, correction):
+                vec.destroy()
 
     def _solve_symmetric(self, rhs: PETSc.Vec, w: PETSc.Vec) -> int:
         """A_s w = rhs for the last step's A_s: its factors, or the old ones and the update.
 
-        Through the update, a step of iterative refinement checks w; if it is not accurate,
-        A_s is factored and w solved with its factors.
+        Through the update, iterative refinement (:meth:`_refine`) checks w; if it is not
+        accurate, A_s is factored and w solved with its factors.
 
         Returns:
             The KSP's converged reason (> 0: solved).
