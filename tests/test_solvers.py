@@ -482,3 +482,69 @@ def test_stiffness_norm_is_the_largest_row_sum_off_the_dirichlet_rows(s_E):
         assert np.isclose(algebra.stiffness_norm(), expected, rtol=1e-14, atol=0)
     finally:
         algebra.destroy()
+
+
+@pytest.mark.mpi
+def test_woodbury_update_with_kept_columns_solves_the_changed_matrix():
+    """``lowrank``: the columns kept per changed row are those of A_new - A_old, and the update
+    solves A_new x = b as a factorisation of A_new does, also for a second set of changes that
+    reuses the first set's columns and adds only its new rows."""
+    from petsc4py import PETSc
+
+    from dwr_signorini.linalg.lowrank import FactorColumns, WoodburyUpdate
+
+    comm = MPI.COMM_WORLD
+    with ds.solve(indented_block(comm, 16, 6, 0.02), method="block") as sol:
+        system = sol.system
+        q_start = sol.disc.Q.dofmap.index_map.local_range[0]
+        assert sol.disc.num_contact_elements >= 8 and sol.num_active >= 2
+        active0 = sol.active.copy()
+
+        def flipped(globals_):
+            own = np.isin(q_start + np.arange(active0.size), globals_)
+            active = active0 ^ own
+            first = system.A.getOwnershipRange()[0] + system.n_u
+            rows = np.concatenate(comm.allgather(first + np.flatnonzero(own)))
+            return active, np.sort(rows).astype(np.int64)
+
+        def factored(A):
+            ksp = PETSc.KSP().create(comm)
+            ksp.setOperators(A)
+            ksp.setType("preonly")
+            ksp.getPC().setType("lu")
+            ksp.getPC().setFactorSolverType("mumps")
+            ksp.setUp()
+            return ksp
+
+        A_old = system.newton_matrix(active0)
+        ksp_old = factored(A_old)
+        columns = FactorColumns(ksp_old, A_old)
+        b = A_old.createVecLeft()
+        b.array_w[:] = np.random.default_rng(comm.rank).random(b.getLocalSize())
+        for changed, new in (([0, 1, 2, 3], [0, 1, 2, 3]), ([0, 1, 2, 3, 6, 7], [6, 7])):
+            active, rows = flipped(changed)
+            assert len(columns.missing(rows)) == len(new)
+            A_new = system.newton_matrix(active)
+            update = WoodburyUpdate(columns, A_new, rows)
+            x, x_direct = A_new.createVecRight(), A_new.createVecRight()
+            update.solve(b, x)
+            ksp_new = factored(A_new)
+            ksp_new.solve(b, x_direct)
+            x.axpy(-1.0, x_direct)
+            assert x.norm() <= 1e-9 * x_direct.norm()
+            D = A_new.copy()
+            D.axpy(-1.0, A_old)
+            e, column = D.createVecRight(), D.createVecLeft()
+            for row in rows:
+                e.set(0.0)
+                if e.getOwnershipRange()[0] <= row < e.getOwnershipRange()[1]:
+                    e.setValue(int(row), 1.0)
+                e.assemble()
+                D.mult(e, column)
+                assert np.array_equal(columns.d[:, columns.index[int(row)]], column.array_r)
+            for obj in (A_new, x, x_direct, ksp_new, D, e, column):
+                obj.destroy()
+            update.destroy()
+        for obj in (A_old, ksp_old, b):
+            obj.destroy()
+        columns.destroy()

@@ -10,12 +10,14 @@ factored by MUMPS's LDL^T; the dual problem A^T z = r uses the same factors.
 
 Factor reuse: a step whose active set differs from that of the factors in r multipliers is
 solved with those factors and a rank-2r correction (:class:`~.lowrank.WoodburyUpdate`), when its
-solves (one of 2r right-hand sides, priced at :data:`BLOCK_SOLVE_COST` single solves each, and
-two single ones) take less than :data:`REUSE_FRACTION` of the last factorisation's time (both
-measured, the maximum over ranks). Steps of iterative refinement (at most :data:`REFINE_STEPS`)
-correct it until the correction, the estimate of the error, is below :data:`REUSE_RTOL`; a
-refused or inaccurate update falls back to factoring the new matrix, so that the null-pivot
-check applies.
+solves (one of 2k right-hand sides for the k of those rows that no earlier step against the same
+factors had changed, priced at :data:`BLOCK_SOLVE_COST` single solves each, and two single ones)
+and its dense products (:data:`DENSE_FLOPS`) take less than :data:`REUSE_FRACTION` of the last
+factorisation's time (both measured, the maximum over ranks). The columns of earlier steps are
+kept (:class:`~.lowrank.FactorColumns`). Steps of iterative refinement (at most
+:data:`REFINE_STEPS`) correct it until the correction, the estimate of the error, is below
+:data:`REUSE_RTOL`; a refused or inaccurate update falls back to factoring the new matrix, so
+that the null-pivot check applies.
 The last semi-smooth Newton steps often change a few contact facets: those steps, and the dual
 problem after them, then cost a few solves instead of a factorisation.
 """
@@ -31,7 +33,7 @@ import numpy as np
 
 from ..timing import timed
 from .base import NewtonLinearSystem
-from .lowrank import WoodburyUpdate
+from .lowrank import FactorColumns, WoodburyUpdate
 from .mumps import mumps_failure, null_pivots, set_up
 from .nullspace import rigid_body_modes
 
@@ -46,6 +48,10 @@ REUSE_FRACTION = 0.7
 #: The time of a solve of k right-hand sides at once with MUMPS's factors, in single solves per
 #: right-hand side (about 0.2-0.3 for 8-40 right-hand sides on 3D factors of 30k DoFs).
 BLOCK_SOLVE_COST = 0.3
+
+#: Floating-point operations per second assumed for the dense products of an update (its
+#: 2r x 2r capacitance from n x 2r blocks): a conservative rate for BLAS-3 on one core.
+DENSE_FLOPS = 1e10
 
 #: Largest relative error (estimated by iterative refinement, per block, max norms)
 #: of a step solved by reusing the factors.
@@ -82,6 +88,7 @@ class NewtonSystem(NewtonLinearSystem):
     _petsc_objects = (
         *NewtonLinearSystem._petsc_objects,
         "_update",
+        "_columns",
         "A0",
         "A",
         "_A_factored",
@@ -107,6 +114,7 @@ class NewtonSystem(NewtonLinearSystem):
         self._A_factored: PETSc.Mat | None = None  # the matrix whose factors the KSP holds
         self._factored_active: np.ndarray | None = None
         self._update: WoodburyUpdate | None = None
+        self._columns: FactorColumns | None = None  # of the current factors, per changed row
         self._t_factor = self._t_solve = 0.0
         self.factorizations = self.reused = 0
         comm, alg = self.disc.comm, self.algebra
@@ -207,6 +215,9 @@ class NewtonSystem(NewtonLinearSystem):
         else:
             self.A.copy(self._A_factored, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         self._factored_active = None
+        if self._columns is not None:
+            self._columns.destroy()
+            self._columns = None
         with timed("factorize"):
             tic = time.perf_counter()
             set_up(self.ksp, self._A_factored)
@@ -218,6 +229,7 @@ class NewtonSystem(NewtonLinearSystem):
                 f"MUMPS found {count} null pivots: the Newton matrix is singular"
             )
         self._factored_active = self.active.copy()
+        self._columns = FactorColumns(self.ksp, self._A_factored)
 
     def _changed_rows(self, active: np.ndarray) -> np.ndarray:
         """Global rows of the multipliers whose activity differs from the factors' (all ranks)."""
@@ -241,11 +253,15 @@ class NewtonSystem(NewtonLinearSystem):
             with timed("newton solve"):
                 self.ksp.solve(self.b, self.x)
             return self.ksp.getConvergedReason() > 0
-        if (2 + BLOCK_SOLVE_COST * 2 * len(rows)) * t_solve > REUSE_FRACTION * t_factor:
+        new_rows = len(self._columns.missing(rows))
+        lo, hi = self.A.getOwnershipRange()
+        dense = (hi - lo) * (2 * len(rows)) ** 2 / DENSE_FLOPS  # U^T Z: n x 2r by 2r x 2r
+        cost = (2 + BLOCK_SOLVE_COST * 2 * new_rows) * t_solve + comm.allreduce(dense, MPI.MAX)
+        if cost > REUSE_FRACTION * t_factor:
             return False
         with timed("newton solve"):
             try:
-                update = WoodburyUpdate(self.ksp, self._A_factored, self.A, rows)
+                update = WoodburyUpdate(self._columns, self.A, rows)
             except np.linalg.LinAlgError:
                 return False
             try:

@@ -14,79 +14,146 @@ solves A_new x = b with the factors of A_old:
     S^-1 = [[0, I], [I, D_CC]],
 
 that is one solve of 2r right-hand sides with the old factors once (Z), and one solve and a
-dense 2r x 2r solve per right-hand side. The capacitance matrix S^-1 + U^T Z is equilibrated
-(its entries range from those of S^-1 to those of the inverse on the multiplier rows); singular
-or ill-conditioned after that (a singular A_new, e.g. linearly dependent active constraints),
-it is refused, so that the caller factors A_new and its checks apply.
+dense 2r x 2r solve per right-hand side.
+
+The columns of U and Z belonging to a row c depend only on c: the column D e_c of A_s's change is
+that of the row's own new activity (a multiplier row of A_s is N's row or M's diagonal entry), so
+:class:`FactorColumns` keeps them per row for as long as the factors last. A later Newton step
+against the same factors, whose changes mostly repeat the earlier ones, solves only for its new
+rows. D e_c is read from the rows c of A_new and A_old (A_s is symmetric), not multiplied out.
+
+The capacitance matrix S^-1 + U^T Z is equilibrated (its entries range from those of S^-1 to
+those of the inverse on the multiplier rows); singular or ill-conditioned after that (a
+singular A_new, e.g. linearly dependent active constraints), it is refused, so that the caller
+factors A_new and its checks apply.
 """
 
 from __future__ import annotations
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
 
-__all__ = ["WoodburyUpdate"]
+__all__ = ["FactorColumns", "WoodburyUpdate"]
 
 #: Largest condition number of the capacitance matrix that is accepted.
 MAX_CAPACITANCE_CONDITION = 1e14
 
 
+class FactorColumns:
+    """Per changed row c: D e_c, A_old^-1 e_c and A_old^-1 D e_c (module docstring).
+
+    Args:
+        ksp: The solver holding the factors of ``A_old`` (a factorisation).
+        A_old: The factored (symmetric) matrix.
+    """
+
+    def __init__(self, ksp: PETSc.KSP, A_old: PETSc.Mat) -> None:
+        self.ksp, self.A_old = ksp, A_old
+        self.comm: MPI.Comm = A_old.getComm().tompi4py()
+        self.lo, self.hi = A_old.getOwnershipRange()
+        n_local = self.hi - self.lo
+        self.index: dict[int, int] = {}
+        self.d = np.zeros((n_local, 0))
+        self.z_e = np.zeros((n_local, 0))
+        self.z_d = np.zeros((n_local, 0))
+
+    def missing(self, rows: np.ndarray) -> np.ndarray:
+        """The rows (global, the same on every rank) whose columns are not kept yet."""
+        return np.array([r for r in rows if int(r) not in self.index], dtype=np.int64)
+
+    def add(self, A_new: PETSc.Mat, rows: np.ndarray) -> None:
+        """Compute and keep the columns of ``rows`` (not kept yet; collective).
+
+        One solve of 2k right-hand sides with the old factors, k = ``len(rows)``.
+        """
+        k = len(rows)
+        if k == 0:
+            return
+        d = self._changed_columns(A_new, rows)
+        n_local, n = self.hi - self.lo, A_new.getSize()[0]
+        rhs, sol = (
+            PETSc.Mat().createDense(((n_local, n), (None, 2 * k)), comm=A_new.getComm())
+            for _ in range(2)
+        )
+        for block in (rhs, sol):
+            block.setUp()
+            block.assemble()
+        values = rhs.getDenseArray()
+        mine = (rows >= self.lo) & (rows < self.hi)
+        values[rows[mine] - self.lo, np.flatnonzero(mine)] = 1.0
+        values[:, k:] = d
+        rhs.assemble()
+        self.ksp.getPC().getFactorMatrix().matSolve(rhs, sol)
+        z = sol.getDenseArray()
+        for j, row in enumerate(rows):
+            self.index[int(row)] = self.d.shape[1] + j
+        self.d = np.hstack([self.d, d])
+        self.z_e = np.hstack([self.z_e, z[:, :k]])
+        self.z_d = np.hstack([self.z_d, z[:, k:]])
+        rhs.destroy()
+        sol.destroy()
+
+    def _changed_columns(self, A_new: PETSc.Mat, rows: np.ndarray) -> np.ndarray:
+        """D e_c = (A_new - A_old) e_c for each row c of ``rows``, owned entries (collective).
+
+        By symmetry the column is the row, which the owner of c reads and every rank receives.
+        """
+        entries = []
+        for j in np.flatnonzero((rows >= self.lo) & (rows < self.hi)):
+            cols, new = A_new.getRow(int(rows[j]))
+            cols_old, old = self.A_old.getRow(int(rows[j]))
+            if not np.array_equal(cols, cols_old):
+                raise ValueError("A_new and A_old must share their sparsity pattern")
+            change = new - old
+            keep = change != 0.0
+            entries.append((j, cols[keep], change[keep]))
+        d = np.zeros((self.hi - self.lo, len(rows)))
+        for part in self.comm.allgather(entries):
+            for j, cols, change in part:
+                mine = (cols >= self.lo) & (cols < self.hi)
+                d[cols[mine] - self.lo, j] = change[mine]
+        return d
+
+    def destroy(self) -> None:
+        """Drop the kept columns (numpy arrays: nothing collective)."""
+        self.index = {}
+        self.d = self.z_e = self.z_d = np.zeros((0, 0))
+
+
 class WoodburyUpdate:
     """Solves with A_new = A_old + U S U^T through the factors of A_old (module docstring).
 
-    U and Z = A_old^-1 U are dense blocks of 2r columns (the owned rows of each rank); Z comes
-    from one multi-right-hand-side solve with the factors (``MatMatSolve``).
+    U = [E_C, D E_C] and Z = A_old^-1 U come from ``columns``, which computes those of the rows it
+    does not keep yet (one multi-right-hand-side solve, ``MatMatSolve``).
 
     Args:
-        ksp: The solver holding the factors of ``A_old`` (its operator; a factorisation).
-        A_old: The factored matrix.
-        A_new: The matrix to solve with (same layout and pattern).
+        columns: The kept columns of the factors of ``A_old``.
+        A_new: The matrix to solve with (same layout and pattern as ``A_old``).
         rows: Global indices of the changed rows, the same on every rank.
 
     Raises:
         numpy.linalg.LinAlgError: The capacitance matrix is singular or ill-conditioned.
     """
 
-    def __init__(
-        self, ksp: PETSc.KSP, A_old: PETSc.Mat, A_new: PETSc.Mat, rows: np.ndarray
-    ) -> None:
-        self.ksp = ksp
-        self.comm = A_new.getComm().tompi4py()
+    def __init__(self, columns: FactorColumns, A_new: PETSc.Mat, rows: np.ndarray) -> None:
+        columns.add(A_new, columns.missing(rows))
+        self.ksp, self.comm = columns.ksp, columns.comm
         r = len(rows)
-        D = A_new.copy()
-        D.axpy(-1.0, A_old, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        lo, hi = D.getOwnershipRange()
-        n_local, n = hi - lo, D.getSize()[0]
-        blocks = []
-        for _ in range(2):
-            block = PETSc.Mat().createDense(((n_local, n), (None, 2 * r)), comm=D.getComm())
-            block.setUp()
-            block.assemble()
-            blocks.append(block)
-        U, Z = blocks
-        mine = (rows >= lo) & (rows < hi)
-        e, column = D.createVecRight(), D.createVecLeft()
-        u = U.getDenseArray()
-        u[rows[mine] - lo, np.flatnonzero(mine)] = 1.0  # E_C
-        for j, row in enumerate(rows):  # D E_C
-            e.set(0.0)
-            if lo <= row < hi:
-                e.setValue(int(row), 1.0)
-            e.assemble()
-            D.mult(e, column)
-            u[:, r + j] = column.array_r
-        for obj in (D, e, column):
-            obj.destroy()
-        U.assemble()
-        ksp.getPC().getFactorMatrix().matSolve(U, Z)
-        self.U, self.Z = U.getDenseArray().copy(), Z.getDenseArray().copy()
-        U.destroy()
-        Z.destroy()
-        # S^-1 + U^T Z, with D_CC[a, b] = e_a . (D e_b)
-        UtU = self.comm.allreduce(self.U.T @ self.U)
-        UtZ = self.comm.allreduce(self.U.T @ self.Z)
-        D_CC = UtU[:r, r:]
+        at = [columns.index[int(row)] for row in rows]
+        self.d = columns.d[:, at]
+        self.Z = np.hstack([columns.z_e[:, at], columns.z_d[:, at]])
+        mine = (rows >= columns.lo) & (rows < columns.hi)
+        self._local = rows[mine] - columns.lo  # owned changed rows, local indices
+        self._position = np.flatnonzero(mine)  # their positions in ``rows``
+        # U^T Z and D_CC = E_C^T D E_C, one reduction
+        local = np.zeros((2 * r + r, 2 * r))
+        local[self._position] = self.Z[self._local]
+        local[r : 2 * r] = self.d.T @ self.Z
+        local[2 * r + self._position, :r] = self.d[self._local]
+        total = self.comm.allreduce(local)
+        UtZ, D_CC = total[: 2 * r], total[2 * r :, :r]
         S_inv = np.block([[np.zeros((r, r)), np.eye(r)], [np.eye(r), D_CC]])
         capacitance = S_inv + UtZ  # symmetric; its entries span many orders of magnitude
         self.scale = 1.0 / np.sqrt(np.max(np.abs(capacitance), axis=1))
@@ -102,10 +169,15 @@ class WoodburyUpdate:
         self.ksp.solve(b, x)
         if self.ksp.getConvergedReason() < 0:
             raise np.linalg.LinAlgError("a solve with the old factors failed")
-        t = self.comm.allreduce(self.U.T @ x.array_r)
+        r = self.d.shape[1]
+        local = np.zeros(2 * r)
+        y = x.array_r
+        local[self._position] = y[self._local]
+        local[r:] = self.d.T @ y
+        t = self.comm.allreduce(local)
         s = self.scale * np.linalg.solve(self.capacitance, self.scale * t)
         x.array_w[:] -= self.Z @ s
 
     def destroy(self) -> None:
         """Release the blocks (numpy arrays: nothing collective)."""
-        self.U = self.Z = np.zeros((0, 0))
+        self.d = self.Z = np.zeros((0, 0))
