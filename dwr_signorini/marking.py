@@ -175,8 +175,8 @@ def mark_for_growth(
     def trial(fraction: float) -> tuple[float, tuple]:
         marked = mark(disc, indicators, strategy, fraction)
         refined, parent = refine_marked(problem, marked, rule)
-        return refined.mesh.topology.index_map(tdim).size_global / cells_now, (marked, refined,
-                                                                              parent)
+        ratio = refined.mesh.topology.index_map(tdim).size_global / cells_now
+        return ratio, (marked, refined, parent)
 
     fraction, _, (marked, refined, parent), _ = search_fraction(
         trial, growth, _first_fraction(growth, tdim), trials
