@@ -209,7 +209,7 @@ def estimate(
     w2 = None
     if weights == "patch":
         with timed("reconstruct"):
-            y_plus = rec.patch_quadratic(z.y)
+            w_y = rec.patch_weight(z.y)
             xi_plus = rec.patch_linear_multiplier(z.xi)
     else:
         if weights == "hierarchical":
@@ -217,10 +217,8 @@ def estimate(
         else:
             z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
         with timed("reconstruct"):
-            y_plus = z2.y
+            w_y = rec.weight(z2.y, z.y)
             xi_plus = rec.patch_linear_multiplier(z2.xi)
-    with timed("reconstruct"):
-        w_y = rec.weight(y_plus, z.y)
     w_xi = xi_plus - z.xi
 
     gap, m = disc.problem.gap_expr(disc.m.x), disc.m
@@ -230,15 +228,15 @@ def estimate(
 
     with timed("reconstruct"):
         if w2 is None:
-            u_plus = rec.patch_quadratic(sol.u)
+            w_u = rec.patch_weight(sol.u)
+            u_plus = sol.u + w_u  # i_2h^(2) u_h
             lam_plus = rec.patch_linear_multiplier(sol.lam)
         else:
             u_plus = w2[0]
+            w_u = rec.weight(u_plus, sol.u) if want_eta else None
             lam_plus = rec.patch_linear_multiplier(w2[1])
     forms = [rho_form, c_form, active_set_remainder(sol, u_plus, lam_plus, xi_plus, c)]
     if want_eta:
-        with timed("reconstruct"):
-            w_u = rec.weight(u_plus, sol.u)
         w_lam = lam_plus - sol.lam
         forms.append(dual_residual(sol, goal_forms, z, w_u, w_lam, c))
     DG0 = fem.functionspace(disc.mesh, ("DG", 0))

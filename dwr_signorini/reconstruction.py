@@ -155,16 +155,19 @@ def _child_vertex_nodes(
     return node
 
 
-def patch_p2_matrix(
+def patch_surplus_matrix(
     disc: Discretization, V2h: fem.FunctionSpace
 ) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
-    """The map fine P1 nodal values -> fine P2 nodal values of i_2h^(2), on simplices.
+    """The map fine P1 nodal values -> fine P2 nodal values of i_2h^(2) - I, on simplices.
 
+    This is the patch weight ``i_2h^(2) v - v`` of the estimators (Section 4) in one product.
     Built from the refinement's parent map alone (no point location). In the reference
     coordinates of its parent, every vertex of a child is one of the parent's P2 nodes (a point
     of the lattice of step 1/2), found once from the vertex coordinates; every P2 node of a child
     is a vertex or an edge midpoint of the child, a point of the lattice of step 1/4, where the
-    parent's P2 basis is tabulated once on the reference cell.
+    parent's P2 basis is tabulated once on the reference cell. A fine P1 function is, at the
+    midpoint of a child's edge, the mean of its values at the edge's ends, which are parent P2
+    nodes too. At the fine vertices i_2h^(2) interpolates: their rows are empty.
 
     Returns:
         A sparse matrix from the local (scalar) nodes of V_h to the local nodes of ``V2h``, and
@@ -198,38 +201,56 @@ def patch_p2_matrix(
         raise RuntimeError("a P2 node of a macro cell is not a vertex of its children")
 
     # The P2 nodes of each child (vertices, then the midpoints of the reference edges), in
-    # units of 1/4 of the parent's reference cell, and the parent's P2 basis there. They depend
-    # on the child's vertex nodes alone: tabulated once for every combination of them.
+    # units of 1/4 of the parent's reference cell, and i_2h^(2) - I there: the parent's P2
+    # basis minus half at the parent nodes of the ends of the child's edge. They depend on the
+    # child's vertex nodes alone: tabulated once for every combination of them.
     grid = np.array([q for q in np.ndindex(*(5,) * tdim) if sum(q) <= 4])
     row_of_key = np.full(5**tdim, -1, dtype=np.int64)
     row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
     table = element.tabulate(0, grid / 4.0)[0, :, :, 0]  # (grid points, num_nodes)
     combinations = np.array(list(np.ndindex(*(num_nodes,) * (tdim + 1))), dtype=np.int64)
+    combinations = combinations[np.argsort(_lattice_key(combinations, num_nodes))]  # row = key
     quarter = _p2_nodes_doubled(half[combinations], cell)  # (combinations, P2 nodes, tdim)
-    point_of = np.empty((len(combinations), quarter.shape[1]), dtype=np.int8)
-    point_of[_lattice_key(combinations, num_nodes)] = row_of_key[_lattice_key(quarter, 5)]
-    point = point_of[_lattice_key(node, num_nodes)]  # (n, P2 nodes of a child)
+    surplus_of = table[row_of_key[_lattice_key(quarter, 5)]]  # (combinations, nodes, nodes)
+    ends = _child_edge_ends(cell)
+    at_row, at_node = np.indices(combinations.shape[:1] + ends.shape[:1])
+    for k in range(2):
+        np.subtract.at(surplus_of, (at_row, at_node, combinations[:, ends[:, k]]), 0.5)
+    combination = _lattice_key(node, num_nodes)  # (n,): the row of each child in the table
 
     # Each fine P2 node once (any of its cells: on a macro facet the parents' P2 interpolants
-    # agree).
+    # agree); only the midpoints of the fine edges have entries.
     dofs2 = V2h.dofmap.list[:num_cells]
-    if dofs2.shape[1] != point.shape[1]:
+    if dofs2.shape[1] != quarter.shape[1]:
         raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
     num_rows = V2h.dofmap.index_map.size_local + V2h.dofmap.index_map.num_ghosts
     rows, first = node_occurrences(dofs2, num_rows)
-    cell_of = first // dofs2.shape[1]
-    phi = table[point.ravel()[first]]  # (rows, num_nodes)
+    cell_of, local = np.divmod(first, dofs2.shape[1])
+    midpoint = local > tdim
+    rows, cell_of, local = rows[midpoint], cell_of[midpoint], local[midpoint]
+    data = surplus_of.reshape(-1, num_nodes)[combination[cell_of] * dofs2.shape[1] + local]
     cols = parent_node_dof[parents[cell_of]]
-    # CSR directly (32-bit indices, no copies): the rows are sorted and each has one entry per
-    # parent P2 node.
+
+    # CSR directly (32-bit indices, no copies): the rows are sorted and each midpoint row has
+    # one entry per parent P2 node.
     indptr = np.zeros(num_rows + 1, dtype=np.int32)
     indptr[rows + 1] = num_nodes
     num_cols = disc.V.dofmap.index_map.size_local + disc.V.dofmap.index_map.num_ghosts
     matrix = scipy.sparse.csr_matrix(
-        (phi.ravel(), cols.ravel(), np.cumsum(indptr, dtype=np.int32)),
+        (data.ravel(), cols.ravel(), np.cumsum(indptr, dtype=np.int32)),
         shape=(num_rows, num_cols),
     )
     return matrix, parent_node_dof
+
+
+def _child_edge_ends(cell: basix.CellType) -> np.ndarray:
+    """For each local P2 node of a simplex (vertices, then edges), the two vertices of its edge.
+
+    A vertex is given twice: a P1 function's value at any P2 node is the mean at these two.
+    """
+    vertices = np.arange(len(basix.topology(cell)[0]))
+    ends = np.array(basix.topology(cell)[1])
+    return np.concatenate([np.stack([vertices, vertices], axis=1), ends])
 
 
 def p1_in_p2_matrix(V: fem.FunctionSpace, V2: fem.FunctionSpace) -> scipy.sparse.csr_matrix:
@@ -250,9 +271,7 @@ def p1_in_p2_matrix(V: fem.FunctionSpace, V2: fem.FunctionSpace) -> scipy.sparse
     num_cells = msh.topology.index_map(msh.topology.dim).size_local
     num_cells += msh.topology.index_map(msh.topology.dim).num_ghosts
     dofs1, dofs2 = V.dofmap.list[:num_cells], V2.dofmap.list[:num_cells]
-    ends = np.array(basix.topology(_SIMPLEX[msh.topology.cell_type])[1])
-    vertices = np.arange(dofs1.shape[1])
-    pairs = np.concatenate([np.stack([vertices, vertices], axis=1), ends])  # per P2 local node
+    pairs = _child_edge_ends(_SIMPLEX[msh.topology.cell_type])  # per P2 local node
     if dofs2.shape[1] != len(pairs):
         raise RuntimeError("unexpected P2 cell layout (vertices, then edges)")
     num_rows = V2.dofmap.index_map.size_local + V2.dofmap.index_map.num_ghosts
@@ -280,13 +299,11 @@ class Reconstructor:
         self.P1h = fem.functionspace(disc.mesh, ("Lagrange", 1))
         self.simplex = disc.mesh.topology.cell_type in _SIMPLEX
         if self.simplex:
-            self._p2_matrix, self._parent_node_dof = patch_p2_matrix(disc, self.V2h)
-            self._p1_in_p2 = p1_in_p2_matrix(disc.V, self.V2h)
+            self._surplus_matrix, self._parent_node_dof = patch_surplus_matrix(disc, self.V2h)
         else:
             # Quadrilaterals/hexahedra (uniform runs only): through the macro Q2 space.
-            self._p2_matrix = None
+            self._surplus_matrix = None
             self._parent_node_dof = None
-            self._p1_in_p2 = None
             self._fine_to_macro = _Transfer(self.V2H, disc.V)
             self._macro_to_fine = _Transfer(self.V2h, self.V2H)
         if self._parent_node_dof is None:
@@ -314,15 +331,26 @@ class Reconstructor:
             self._mass.destroy()
             self._mass = None
 
+    @functools.cached_property
+    def _p1_in_p2(self) -> scipy.sparse.csr_matrix | None:
+        """P1 -> P2 nodal values on T_h (simplices; built when first needed)."""
+        return p1_in_p2_matrix(self.disc.V, self.V2h) if self.simplex else None
+
+    def _apply(self, matrix: scipy.sparse.csr_matrix, v: fem.Function, name: str) -> fem.Function:
+        """The fine P2 function of nodal values ``matrix`` times those of the fine P1 ``v``."""
+        out = fem.Function(self.V2h, name=name)
+        bs = self.V2h.dofmap.index_map_bs
+        out.x.array[:] = (matrix @ v.x.array.reshape(-1, bs)).ravel()
+        out.x.scatter_forward()
+        return out
+
     def as_fine_p2(self, v: fem.Function) -> fem.Function:
         """A fine P1 function written in the fine P2 space (exact)."""
-        out = fem.Function(self.V2h)
         if self._p1_in_p2 is None:
+            out = fem.Function(self.V2h)
             out.interpolate(v)
             return out
-        bs = self.V2h.dofmap.index_map_bs
-        out.x.array[:] = (self._p1_in_p2 @ v.x.array.reshape(-1, bs)).ravel()
-        return out
+        return self._apply(self._p1_in_p2, v, v.name)
 
     def weight(self, v_plus: fem.Function, v: fem.Function) -> fem.Function:
         """The weight ``v_plus - v`` of the estimators (``A z_h - z_h``, Section 4) in fine P2.
@@ -342,14 +370,22 @@ class Reconstructor:
         out.name = f"{v_plus.name}-{v.name}"
         return out
 
+    def patch_weight(self, v: fem.Function) -> fem.Function:
+        """The patch weight ``i_2h^(2) v - v`` of the estimators (Section 4) in fine P2.
+
+        Equal to ``weight(patch_quadratic(v), v)``; on simplices one product with the map
+        of :func:`patch_surplus_matrix`, zero at the fine vertices.
+        """
+        if self._surplus_matrix is None:
+            return self.weight(self.patch_quadratic(v), v)
+        return self._apply(self._surplus_matrix, v, f"i2h({v.name})-{v.name}")
+
     def patch_quadratic(self, v: fem.Function) -> fem.Function:
         """i_2h^(2) v: fine P1 values read as macro P2 values, as a fine P2 function."""
-        if self._p2_matrix is not None:
-            out = fem.Function(self.V2h, name=f"i2h({v.name})")
-            bs = self.V2h.dofmap.index_map_bs
-            values = self._p2_matrix @ v.x.array.reshape(-1, bs)
-            out.x.array[:] = values.ravel()
-            out.x.scatter_forward()
+        if self._surplus_matrix is not None:
+            out = self.as_fine_p2(v)
+            out.x.array[:] += self.patch_weight(v).x.array
+            out.name = f"i2h({v.name})"
             return out
         macro = fem.Function(self.V2H)
         self._fine_to_macro(macro, v)

@@ -66,6 +66,40 @@ def test_reconstruction_is_exact_for_quadratics(kind):
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("kind", ["triangle", "tetrahedron"])
+def test_patch_weight_is_the_quadratic_minus_its_linear_interpolant(kind):
+    """For v = I_h q of a global quadratic q, i_2h^(2) v - v = q - I_h q, zero at the vertices.
+
+    Both sides in fine P2: q interpolated there exactly, I_h q by interpolation of v (not the
+    package's P1-in-P2 map); the weight of a smooth v also agrees with the generic difference.
+    """
+    disc = _disc(kind)
+    rec = Reconstructor(disc)
+    gdim = disc.mesh.geometry.dim
+
+    def quad(x):
+        rows = [x[0] ** 2 - 3 * x[0] * x[1] + x[2], 2 * x[1] ** 2 + x[0] * x[2] - 1, x[2] * x[1]]
+        return np.vstack(rows[:gdim])
+
+    v = fem.Function(disc.V)
+    v.interpolate(quad)
+    q2, v2 = fem.Function(rec.V2h), fem.Function(rec.V2h)
+    q2.interpolate(quad)
+    v2.interpolate(v)
+    weight = rec.patch_weight(v)
+    assert np.allclose(weight.x.array, q2.x.array - v2.x.array, atol=1e-12)
+    bs = rec.V2h.dofmap.index_map_bs
+    nodes = np.unique(rec.V2h.dofmap.list[:, : gdim + 1])
+    assert np.all(weight.x.array.reshape(-1, bs)[nodes] == 0.0)
+    assert np.max(np.abs(weight.x.array)) > 1e-3  # the edge midpoints carry the surplus
+
+    s = fem.Function(disc.V)
+    s.interpolate(lambda x: _smooth(x)[:gdim])
+    generic = rec.weight(rec.patch_quadratic(s), s)
+    assert np.allclose(rec.patch_weight(s).x.array, generic.x.array, atol=1e-12)
+
+
+@pytest.mark.mpi
 def test_multiplier_recovery_reproduces_constants():
     """The vertex-averaged recovery of a constant P0 multiplier is that constant on Gamma_C."""
     disc = _disc("triangle")
