@@ -43,7 +43,12 @@ REFINEMENTS = ("adaptive", "uniform")
 
 @dataclass
 class LevelRecord:
-    """One row of the table of an adaptive or uniform run (the paper's Tables 1-3)."""
+    """One row of the table of an adaptive or uniform run (the paper's Tables 1-3).
+
+    ``J_low`` and ``J_high`` bound J(w) (:attr:`~dwr_signorini.Estimate.interval`, under the
+    assumptions of :mod:`~dwr_signorini.interval`); ``weights`` names the weights the level's
+    estimate used and ``resolved`` whether its contact set counted as resolved.
+    """
 
     level: int
     num_cells: int
@@ -63,6 +68,10 @@ class LevelRecord:
     rel_error: float | None = None
     ieff_p: float | None = None
     ieff: float | None = None
+    J_low: float | None = None
+    J_high: float | None = None
+    weights: str = ""
+    resolved: bool = True
 
     def as_dict(self) -> dict[str, Any]:
         """The record as a plain dict (timings nested under ``time``)."""
@@ -74,9 +83,9 @@ class AdaptiveResult(Releasable):
     """The levels of a run and the last solution and estimate.
 
     Attributes:
-        converged: Whether the run stopped on ``tol``: |estimate| + |active-set remainder| <=
-            tol on the last level. False when it ended at ``max_levels`` or ``max_cells``
-            without that, and always without ``tol``.
+        converged: Whether the run stopped on ``tol``: J_high - J_low <= 2 tol on the last
+            level. False when it ended at ``max_levels`` or ``max_cells`` without that, and
+            always without ``tol``.
     """
 
     levels: list[LevelRecord]
@@ -135,12 +144,16 @@ def _validate(
         raise ValueError(f"refinement must be one of {REFINEMENTS}, got {refinement!r}")
     if strategy not in STRATEGIES:
         raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
-    if (
+    if fraction is not None and (
         isinstance(fraction, bool)
         or not isinstance(fraction, (int, float))
         or not 0.0 < fraction <= 1.0
     ):
-        raise ValueError(f"fraction must be a number in (0, 1], got {fraction!r}")
+        raise ValueError(f"fraction must be a number in (0, 1] or None, got {fraction!r}")
+    if fraction is not None and growth is not None:
+        raise ValueError(
+            f"give fraction or growth, not both (got fraction={fraction!r}, growth={growth!r})"
+        )
     if isinstance(max_levels, bool) or not isinstance(max_levels, int) or max_levels < 1:
         raise ValueError(f"max_levels must be an integer >= 1, got {max_levels!r}")
     if max_cells is not None and (not isinstance(max_cells, int) or max_cells < 1):
@@ -178,24 +191,116 @@ def _progress(comm: MPI.Comm, record: LevelRecord) -> None:
     if comm.rank == 0:
         print(
             f"level {record.level:2d}  cells {record.num_cells:8d}  dofs {record.num_dofs:8d}  "
-            f"J_h {record.J_h: .6e}  estimate {record.estimate: .3e}  "
-            f"R_A {record.active_set_remainder: .1e}  "
+            f"J_h {record.J_h: .6e}  J in [{record.J_low: .6e}, {record.J_high: .6e}]  "
+            f"estimate {record.estimate: .3e} ({record.weights})  "
             f"newton {record.newton_iterations:2d}  {record.time['total']:7.2f} s",
             flush=True,
         )
+
+
+#: The default of ``growth`` for adaptive runs in 3D: the macro mesh about doubles per level.
+DEFAULT_GROWTH_3D = 2.0
+
+#: The default of ``fraction`` for adaptive runs in 2D.
+DEFAULT_FRACTION = 0.2
+
+
+def marking_defaults(
+    problem: SignoriniProblem, fraction: float | None, growth: float | None
+) -> tuple[float | None, float | None]:
+    """``(fraction, growth)`` of a run: the given one, else 0.2 in 2D and growth 2 in 3D.
+
+    A fixed fraction of the macro cells spreads in 3D: the edges of a marked tetrahedron split
+    its neighbours too, and on the first levels, where the indicators of most cells are tied,
+    a fraction of 0.2 refines every cell (``benchmarks/payoff_3d.py``). Growth-controlled
+    marking (:func:`~dwr_signorini.marking.mark_for_growth`) keeps the number of cells to
+    about twice the last level's.
+    """
+    if fraction is not None or growth is not None:
+        return fraction, growth
+    if problem.mesh.topology.dim == 3:
+        return None, DEFAULT_GROWTH_3D
+    return DEFAULT_FRACTION, None
+
+
+def _next_level(
+    current: SignoriniProblem,
+    disc: Any,
+    est: Estimate,
+    refinement: str,
+    strategy: str,
+    fraction: float | None,
+    growth: float | None,
+    refinement_rule: str,
+) -> tuple[np.ndarray, SignoriniProblem, Any]:
+    """Mark (adaptive runs) and refine: the marked macro cells, the next problem, its parents."""
+    marked = np.zeros(0, dtype=np.int32)
+    if refinement == "adaptive" and growth is not None:
+        with timed("mark"):
+            marked, next_problem, macro_parent, _ = mark_for_growth(
+                disc, current, est.indicators.x.array, strategy, growth, refinement_rule
+            )
+        return marked, next_problem, macro_parent
+    if refinement == "adaptive":
+        with timed("mark"):
+            marked = mark(disc, est.indicators.x.array, strategy, fraction)
+        with timed("refine"):
+            next_problem, macro_parent = refine_marked(current, marked, refinement_rule)
+        return marked, next_problem, macro_parent
+    with timed("refine"):
+        if current.boundary_projection:  # refine again, projecting the new vertices
+            next_problem, macro_parent = refine_marked(current, None)
+        else:  # T_h, the uniform refinement of T_H, is the next macro mesh
+            next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
+            macro_parent = disc.parent_cell
+    return marked, next_problem, macro_parent
+
+
+def _record(
+    level: int, disc: Any, sol: Solution, est: Estimate, exact: float | None, num_marked: int
+) -> LevelRecord:
+    """The level's row of the table (its times are filled in by the loop)."""
+    J_low, J_high = est.interval
+    record = LevelRecord(
+        level=level,
+        num_cells=disc.num_cells,
+        num_macro_cells=disc.num_macro_cells,
+        num_contact_elements=disc.num_contact_elements,
+        num_dofs=disc.num_dofs,
+        num_active=sol.num_active,
+        J_h=est.J_h,
+        eta_p=est.eta_p,
+        eta=est.eta,
+        estimate=est.value,
+        contact_term=est.contact_term,
+        active_set_remainder=est.active_set_remainder,
+        newton_iterations=sol.newton_iterations,
+        num_marked=num_marked,
+        J_low=J_low,
+        J_high=J_high,
+        weights=est.weights,
+        resolved=est.resolved,
+    )
+    if exact is not None:
+        err = exact - est.J_h
+        record.rel_error = abs(err) / abs(exact) if exact != 0 else abs(err)
+        record.ieff_p = err / est.eta_p if est.eta_p != 0 else math.inf
+        if est.eta is not None:
+            record.ieff = err / est.eta if est.eta != 0 else math.inf
+    return record
 
 
 def solve_adaptive(
     problem: SignoriniProblem,
     goal: Goal,
     refinement: str = "adaptive",
-    fraction: float = 0.2,
+    fraction: float | None = None,
     strategy: str = "fixed_fraction",
     max_levels: int = 8,
     max_cells: int | None = None,
     tol: float | None = None,
     estimator: str = "eta",
-    weights: str = "patch",
+    weights: str = "auto",
     exact: float | None = None,
     output_dir: str | Path | None = None,
     callback: Callable[[LevelRecord, Solution, Estimate], None] | None = None,
@@ -213,15 +318,19 @@ def solve_adaptive(
         goal: ``goal(u, lam, m) -> ufl.Form``, the quantity of interest J.
         refinement: ``"adaptive"`` (mark and refine, simplices only) or ``"uniform"``.
         fraction: Marking fraction in (0, 1] (of cells, or of indicator mass for Doerfler).
+            Without ``fraction`` and ``growth``: 0.2 in 2D, and ``growth=2`` in 3D
+            (:func:`marking_defaults`).
         strategy: ``"fixed_fraction"`` or ``"doerfler"``.
         max_levels: Number of levels (solves) at most.
         max_cells: Stop before a level whose fine mesh would exceed this many cells.
-        tol: Stop when |estimate| + |active-set remainder| <= tol (the remainder R_A of
-            Proposition 4, :attr:`~dwr_signorini.Estimate.active_set_remainder`, which is large
-            while the contact set is not resolved); ``AdaptiveResult.converged`` tells whether
-            that happened, and with ``verbose`` a line says so when it did not.
+        tol: Stop when the interval for J is at most ``2 tol`` wide, J_high - J_low <= 2 tol
+            (:attr:`~dwr_signorini.Estimate.interval`, which contains the active-set
+            remainder R_A of Proposition 4, large while the contact set is not resolved);
+            ``AdaptiveResult.converged`` tells whether that happened, and with ``verbose`` a
+            line says so when it did not.
         estimator: ``"eta"`` or ``"eta_p"``: drives marking and the stopping test.
-        weights: ``"patch"``, ``"higher_order"`` or ``"hierarchical"`` (see
+        weights: ``"auto"`` (patch weights, P2 weights on levels whose contact set is not
+            resolved), ``"patch"``, ``"higher_order"`` or ``"hierarchical"`` (see
             :func:`~dwr_signorini.estimate`).
         exact: The exact J(w), if known: fills rel_error and the effectivity indices.
         output_dir: Where to write the table (CSV, JSON, after every level) and fields (XDMF).
@@ -239,7 +348,7 @@ def solve_adaptive(
             :func:`~dwr_signorini.refine.marked_edges`.
         growth: Instead of a fixed ``fraction``, the wanted ratio of macro cells from one level
             to the next (> 1): the fraction of each level follows from it
-            (:func:`~dwr_signorini.marking.mark_for_growth`).
+            (:func:`~dwr_signorini.marking.mark_for_growth`). Not with ``fraction``.
 
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level.
@@ -262,6 +371,8 @@ def solve_adaptive(
         growth,
     )
     comm = problem.mesh.comm
+    if refinement == "adaptive":
+        fraction, growth = marking_defaults(problem, fraction, growth)
     meta = {
         "refinement": refinement,
         "fraction": fraction,
@@ -313,33 +424,15 @@ def solve_adaptive(
         t_solve = time.perf_counter() - tic
         est = estimate(sol, goal, estimator=estimator, weights=weights, petsc_options=petsc_options)
 
-        value = est.value
-        # Converged: the estimate and the active-set remainder together below tol.
-        result.converged = tol is not None and abs(value) + abs(est.active_set_remainder) <= tol
+        J_low, J_high = est.interval
+        result.converged = tol is not None and J_high - J_low <= 2 * tol
         stop = result.converged or level == max_levels - 1
-        marked = np.zeros(0, dtype=np.int32)
-        t_refine = 0.0
-        next_problem = None
+        marked, t_refine = np.zeros(0, dtype=np.int32), 0.0
         if not stop:
             tic = time.perf_counter()
-            if refinement == "adaptive" and growth is not None:
-                with timed("mark"):
-                    marked, next_problem, macro_parent, _ = mark_for_growth(
-                        disc, current, est.indicators.x.array, strategy, growth, refinement_rule
-                    )
-            elif refinement == "adaptive":
-                with timed("mark"):
-                    marked = mark(disc, est.indicators.x.array, strategy, fraction)
-            with timed("refine"):
-                if refinement == "adaptive" and growth is not None:
-                    pass  # refined while marking
-                elif refinement == "adaptive":
-                    next_problem, macro_parent = refine_marked(current, marked, refinement_rule)
-                elif current.boundary_projection:  # refine again, projecting the new vertices
-                    next_problem, macro_parent = refine_marked(current, None)
-                else:  # T_h, the uniform refinement of T_H, is the next macro mesh
-                    next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
-                    macro_parent = disc.parent_cell
+            marked, next_problem, macro_parent = _next_level(
+                current, disc, est, refinement, strategy, fraction, growth, refinement_rule
+            )
             t_refine = time.perf_counter() - tic
             next_cells = (
                 next_problem.mesh.topology.index_map(next_problem.mesh.topology.dim).size_global
@@ -348,36 +441,15 @@ def solve_adaptive(
             if max_cells is not None and next_cells > max_cells:
                 stop = True
 
-        record = LevelRecord(
-            level=level,
-            num_cells=disc.num_cells,
-            num_macro_cells=disc.num_macro_cells,
-            num_contact_elements=disc.num_contact_elements,
-            num_dofs=disc.num_dofs,
-            num_active=sol.num_active,
-            J_h=est.J_h,
-            eta_p=est.eta_p,
-            eta=est.eta,
-            estimate=value,
-            contact_term=est.contact_term,
-            active_set_remainder=est.active_set_remainder,
-            newton_iterations=sol.newton_iterations,
-            num_marked=comm.allreduce(len(marked), op=MPI.SUM),
-            time={
-                "setup": t_setup,
-                "solve": t_solve,
-                "dual": est.timings["dual"],
-                "estimate": est.timings["estimate"],
-                "refine": t_refine,
-            },
-        )
-        record.time["total"] = time.perf_counter() - t_start
-        if exact is not None:
-            err = exact - est.J_h
-            record.rel_error = abs(err) / abs(exact) if exact != 0 else abs(err)
-            record.ieff_p = err / est.eta_p if est.eta_p != 0 else math.inf
-            if est.eta is not None:
-                record.ieff = err / est.eta if est.eta != 0 else math.inf
+        record = _record(level, disc, sol, est, exact, comm.allreduce(len(marked), op=MPI.SUM))
+        record.time = {
+            "setup": t_setup,
+            "solve": t_solve,
+            "dual": est.timings["dual"],
+            "estimate": est.timings["estimate"],
+            "refine": t_refine,
+            "total": time.perf_counter() - t_start,
+        }
         result.levels.append(record)
         if out is not None:
             with timed("output"):
@@ -395,9 +467,9 @@ def solve_adaptive(
     if verbose and tol is not None and not result.converged and comm.rank == 0:
         last = result.levels[-1]
         print(
-            f"not converged: |estimate| + |active-set remainder| = "
-            f"{abs(last.estimate) + abs(last.active_set_remainder):.3e} > tol = {tol:.3e} after "
-            f"{len(result.levels)} levels (max_levels = {max_levels}, max_cells = {max_cells})",
+            f"not converged: J_high - J_low = {last.J_high - last.J_low:.3e} > 2 tol = "
+            f"{2 * tol:.3e} after {len(result.levels)} levels (max_levels = {max_levels}, "
+            f"max_cells = {max_cells})",
             flush=True,
         )
     return result

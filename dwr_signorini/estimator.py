@@ -28,6 +28,7 @@ from dolfinx.fem import petsc as fem_petsc
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
+from .interval import contact_set_resolved, error_interval
 from .lifetime import Releasable
 from .newton import Solution
 from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
@@ -51,7 +52,7 @@ __all__ = [
 ]
 
 ESTIMATORS = ("eta", "eta_p")
-WEIGHTS = ("patch", "higher_order", "hierarchical")
+WEIGHTS = ("auto", "patch", "higher_order", "hierarchical")
 
 
 @dataclass
@@ -69,10 +70,14 @@ class Estimate(Releasable):
         rho: rho(w_h)(A z_h - z_h).
         rho_star: rho*(w_h, z_h)(A w_h - w_h), or ``None``.
         estimator: Which estimator the indicators belong to ("eta" or "eta_p").
-        weights: "patch", "higher_order" or "hierarchical".
+        weights: The weights it was computed with: "patch", "higher_order" or "hierarchical"
+            (``weights="auto"`` gives "patch" or "hierarchical").
         indicators: DG0 function on T_h of signed cell indicators; their sum is the estimate.
         dual: z_h = (y_h, xi_H).
         goal_is_linear: Whether J is linear in (u, lambda) (then R_J vanishes).
+        resolved: Whether the contact set counts as resolved (|R_A| + |C| <= |estimate| / 4
+            with the weights first computed,
+            :func:`~dwr_signorini.interval.contact_set_resolved`).
     """
 
     J_h: float
@@ -89,17 +94,30 @@ class Estimate(Releasable):
     goal_is_linear: bool = False
     timings: dict[str, float] = field(default_factory=dict)
     reconstructor: Reconstructor | None = field(default=None, repr=False)
+    resolved: bool = True
 
     def destroy(self) -> None:
         """Release the PETSc objects of the reconstruction (collective; idempotent)."""
         if self.reconstructor is not None:
             self.reconstructor.destroy()
 
-
     @property
     def value(self) -> float:
         """The estimate of J(w) - J(w_h) of the chosen estimator."""
         return self.eta if self.estimator == "eta" else self.eta_p
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """``(J_low, J_high)``: the interval for J(w) of :mod:`~dwr_signorini.interval`.
+
+        J_h + [1/(1 + b), 1/(1 - b)] x the estimate (b = 0.4 where the contact set is
+        resolved, 1/2 where not), widened by |eta - eta_p| + |R_A| on both sides (without the
+        first term for ``estimator="eta_p"``).
+        """
+        eta = self.eta if self.estimator == "eta" else None
+        return error_interval(
+            self.J_h, eta, self.eta_p, self.active_set_remainder, self.resolved
+        )
 
 
 def ncp_scale_function(sol: Solution) -> fem.Function:
@@ -158,23 +176,128 @@ def _higher_order_solutions(
     return z2, w2
 
 
+def _weights(
+    sol: Solution,
+    goal_forms: GoalForms,
+    z: DualSolution,
+    rec: Reconstructor,
+    weights: str,
+    want_eta: bool,
+    petsc_options: Any,
+) -> tuple[Any, Any, Any, Any, Any]:
+    """The weights of the estimators: w_y = A y_h - y_h, xi^+, u^+, w_u = A u_h - u_h, lambda^+.
+
+    ``"patch"``: the paper's reconstructions of z_h and w_h; otherwise the P2 solutions of the
+    final active set (hierarchical or factored; the multipliers reconstructed patch-wise from
+    them). Without eta the P2 primal is not solved and w_h is reconstructed patch-wise.
+    """
+    if weights == "patch":
+        z2, w2 = z, None
+    elif weights == "hierarchical":
+        z2, w2 = hierarchical_solutions(sol, goal_forms, z, rec.V2h, want_eta)
+    else:
+        z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
+    with timed("reconstruct"):
+        w_y = rec.patch_weight(z.y) if weights == "patch" else rec.weight(z2.y, z.y)
+        xi_plus = rec.patch_linear_multiplier(z2.xi)
+        if w2 is None:  # the patch reconstruction of w_h
+            w_u = rec.patch_weight(sol.u)
+            return w_y, xi_plus, sol.u + w_u, w_u, rec.patch_linear_multiplier(sol.lam)
+        u_plus = w2[0]
+        w_u = rec.weight(u_plus, sol.u) if want_eta else None
+        return w_y, xi_plus, u_plus, w_u, rec.patch_linear_multiplier(w2[1])
+
+
+@dataclass
+class _Terms:
+    """The estimators' terms with one kind of weights: totals and cell indicators."""
+
+    weights: str
+    rho: float
+    rho_star: float | None
+    contact: float
+    remainder: float
+    indicators: np.ndarray
+
+    @property
+    def eta_p(self) -> float:
+        return self.rho - self.contact
+
+    @property
+    def eta(self) -> float | None:
+        if self.rho_star is None:
+            return None
+        return 0.5 * self.rho + 0.5 * self.rho_star - self.contact
+
+    def value(self, estimator: str) -> float:
+        return self.eta if estimator == "eta" else self.eta_p
+
+
+def _terms(
+    sol: Solution,
+    goal_forms: GoalForms,
+    z: DualSolution,
+    rec: Reconstructor,
+    weights: str,
+    want_eta: bool,
+    petsc_options: Any,
+    quadrature_degree: int | None,
+    DG0: fem.FunctionSpace,
+) -> _Terms:
+    """rho(w_h)(A z_h - z_h), rho*(w_h, z_h)(A w_h - w_h), C(w_h)(xi_H) and R_A, eq. (13), (15)."""
+    disc = sol.disc
+    w_y, xi_plus, u_plus, w_u, lam_plus = _weights(
+        sol, goal_forms, z, rec, weights, want_eta, petsc_options
+    )
+    w_xi = xi_plus - z.xi
+    gap, m = disc.problem.gap_expr(disc.m.x), disc.m
+    c = ncp_scale_function(sol)
+    forms = [
+        primal_residual(sol, w_y, w_xi, c),
+        contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c),
+        active_set_remainder(sol, u_plus, lam_plus, xi_plus, c),
+    ]
+    if want_eta:
+        forms.append(dual_residual(sol, goal_forms, z, w_u, lam_plus - sol.lam, c))
+    ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
+    ind_star = rest[0] if want_eta else None
+
+    def total(a: np.ndarray) -> float:
+        return disc.comm.allreduce(float(a.sum()), op=MPI.SUM)
+
+    local = ind_rho - ind_c if ind_star is None else 0.5 * ind_rho + 0.5 * ind_star - ind_c
+    return _Terms(
+        weights=weights,
+        rho=total(ind_rho),
+        rho_star=None if ind_star is None else total(ind_star),
+        contact=total(ind_c),
+        remainder=total(ind_a),
+        indicators=local,
+    )
+
+
 def estimate(
     sol: Solution,
     goal: Goal,
     estimator: str = "eta",
-    weights: str = "patch",
+    weights: str = "auto",
     petsc_options: dict[str, Any] | None = None,
     quadrature_degree: int | None = DATA_QUADRATURE_DEGREE,
 ) -> Estimate:
-    """Estimate J(w) - J(w_h) by eta_p or eta (Section 4).
+    """Estimate J(w) - J(w_h) by eta_p or eta (Section 4), and an interval for J(w).
 
     Args:
         sol: The discrete solution (its last Newton factorisation serves the dual solve).
         goal: ``goal(u, lam, m) -> ufl.Form``.
         estimator: ``"eta"`` (primal and dual residual, (15)) or ``"eta_p"`` (primal residual,
             (13)). eta_p is reported in both cases.
-        weights: ``"patch"`` (the paper's patch-wise reconstructions) or ``"higher_order"`` (dual,
-            and for eta the primal, solved in P2 with Lambda_H and the final active set).
+        weights: ``"auto"`` (the default: the patch weights, and the hierarchical P2 weights
+            instead on a level whose contact set is not resolved, see
+            :mod:`~dwr_signorini.interval`), ``"patch"`` (the paper's patch-wise
+            reconstructions), ``"higher_order"`` (dual, and for eta the primal, solved in P2
+            with Lambda_H and the final active set, by a factorisation) or ``"hierarchical"``
+            (the same P2 solutions by a two-level iteration on the Newton factors,
+            :mod:`~dwr_signorini.hierarchical`).
         petsc_options: Linear solver options for the higher-order solves, which use the
             primal's kind of Newton system (block, or Schur complement with these options for
             K, e.g. :func:`~dwr_signorini.newton.iterative_petsc_options`), under the
@@ -187,7 +310,11 @@ def estimate(
             On example 5.1 degrees 4, 6, 8 and UFL's estimate give the same Ieff to 6 digits.
 
     Returns:
-        The :class:`Estimate`.
+        The :class:`Estimate`; ``Estimate.weights`` names the weights it was computed with.
+
+    Raises:
+        ValueError: For an unknown ``estimator`` or ``weights``.
+        TypeError: If ``sol`` is not a :class:`~dwr_signorini.newton.Solution`.
     """
     if estimator not in ESTIMATORS:
         raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
@@ -198,7 +325,6 @@ def estimate(
             f"estimate() takes the Solution returned by solve(), got {type(sol).__name__}"
         )
     disc = sol.disc
-    comm: MPI.Comm = disc.comm
     goal_forms = GoalForms(goal, sol.u, sol.lam, disc)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
@@ -206,70 +332,33 @@ def estimate(
     want_eta = estimator == "eta"
     with timed("reconstruct"):
         rec = Reconstructor(disc)
-    w2 = None
-    if weights == "patch":
-        with timed("reconstruct"):
-            w_y = rec.patch_weight(z.y)
-            xi_plus = rec.patch_linear_multiplier(z.xi)
-    else:
-        if weights == "hierarchical":
-            z2, w2 = hierarchical_solutions(sol, goal_forms, z, rec.V2h, want_eta)
-        else:
-            z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
-        with timed("reconstruct"):
-            w_y = rec.weight(z2.y, z.y)
-            xi_plus = rec.patch_linear_multiplier(z2.xi)
-    w_xi = xi_plus - z.xi
-
-    gap, m = disc.problem.gap_expr(disc.m.x), disc.m
-    c = ncp_scale_function(sol)
-    rho_form = primal_residual(sol, w_y, w_xi, c)
-    c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c)
-
-    with timed("reconstruct"):
-        if w2 is None:
-            w_u = rec.patch_weight(sol.u)
-            u_plus = sol.u + w_u  # i_2h^(2) u_h
-            lam_plus = rec.patch_linear_multiplier(sol.lam)
-        else:
-            u_plus = w2[0]
-            w_u = rec.weight(u_plus, sol.u) if want_eta else None
-            lam_plus = rec.patch_linear_multiplier(w2[1])
-    forms = [rho_form, c_form, active_set_remainder(sol, u_plus, lam_plus, xi_plus, c)]
-    if want_eta:
-        w_lam = lam_plus - sol.lam
-        forms.append(dual_residual(sol, goal_forms, z, w_u, w_lam, c))
     DG0 = fem.functionspace(disc.mesh, ("DG", 0))
-    ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
-    ind_star = rest[0] if want_eta else None
-
-    def total(a: np.ndarray) -> float:
-        return comm.allreduce(float(a.sum()), op=MPI.SUM)
-
-    rho, contact = total(ind_rho), total(ind_c)
-    rho_star = None if ind_star is None else total(ind_star)
-    eta_p = rho - contact
-    eta = None if rho_star is None else 0.5 * rho + 0.5 * rho_star - contact
+    args = (sol, goal_forms, z, rec)
+    rest = (want_eta, petsc_options, quadrature_degree, DG0)
+    terms = _terms(*args, "patch" if weights == "auto" else weights, *rest)
+    resolved = contact_set_resolved(terms.value(estimator), terms.remainder, terms.contact)
+    if weights == "auto" and not resolved:
+        terms = _terms(*args, "hierarchical", *rest)
 
     t_estimate = time.perf_counter() - tic - t_dual
     indicators = fem.Function(DG0, name="indicators")
     n_local = DG0.dofmap.index_map.size_local
-    local = ind_rho - ind_c if not want_eta else 0.5 * ind_rho + 0.5 * ind_star - ind_c
-    indicators.x.array[:n_local] = local[:n_local]
+    indicators.x.array[:n_local] = terms.indicators[:n_local]
     indicators.x.scatter_forward()
     return Estimate(
         J_h=goal_forms.value(),
-        eta_p=eta_p,
-        eta=eta,
-        contact_term=contact,
-        active_set_remainder=total(ind_a),
-        rho=rho,
-        rho_star=rho_star,
+        eta_p=terms.eta_p,
+        eta=terms.eta,
+        contact_term=terms.contact,
+        active_set_remainder=terms.remainder,
+        rho=terms.rho,
+        rho_star=terms.rho_star,
         estimator=estimator,
-        weights=weights,
+        weights=terms.weights,
         indicators=indicators,
         dual=z,
         goal_is_linear=goal_forms.is_linear,
         timings={"dual": t_dual, "estimate": t_estimate},
         reconstructor=rec,
+        resolved=resolved,
     )

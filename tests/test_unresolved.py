@@ -5,8 +5,9 @@ zone is narrower than a macro facet, so on the first levels the integrated gap o
 facet is positive and no multiplier is active, J_h = 0, although the disc penetrates the body
 pointwise. The goal is the total contact force. The reference value comes from J_h alone (the
 finest of 12 adaptive levels, its uncertainty the change from the level before), not from any
-estimate; every level whose error is at least 10 times that uncertainty must have an
-effectivity in [1/3, 3], the levels without contact and the first ones with it included.
+estimate; on every level whose error is at least 10 times that uncertainty the interval for J
+must contain it, and the estimate must have an effectivity in [1/3, 3], the levels without
+contact and the first ones with it included.
 """
 
 from mpi4py import MPI
@@ -22,25 +23,41 @@ def total_force(u, lam, m):
     return lam * m.ds_contact
 
 
-def test_unresolved_contact_is_estimated_on_every_level():
+def _crossing(errors: list[float], k: int) -> bool:
+    """Whether J_h passes close to J at level k: its error is below a third of both neighbours'.
+
+    There an error is small by cancellation, and no estimate can have the effectivity of the
+    levels around it.
+    """
+    inner = 0 < k < len(errors) - 1
+    return inner and abs(errors[k]) < min(abs(errors[k - 1]), abs(errors[k + 1])) / 3
+
+
+def test_unresolved_contact_is_estimated_and_bracketed_on_every_level():
+    """With the defaults (weights="auto"): the interval contains the reference on every judged
+    level, and the estimate and the interval's centre have effectivities in [1/3, 3] on every
+    judged level but a crossing."""
     comm = MPI.COMM_WORLD
-    with ds.solve_adaptive(indented_block(comm, 4, 3, 0.002), total_force, fraction=0.2,
-                           max_levels=12, verbose=False) as res:
+    with ds.solve_adaptive(indented_block(comm, 4, 3, 0.002), total_force, max_levels=12,
+                           verbose=False) as res:
         levels = res.levels
     J = [r.J_h for r in levels]
     reference, uncertainty = J[-1], abs(J[-1] - J[-2])
     assert uncertainty < 1e-4 * reference
     assert levels[0].num_active == 0 and levels[0].J_h == 0.0  # the contact is missed
-    checked = []
-    for r in levels[:-2]:
-        error = reference - r.J_h
-        if abs(error) >= 10 * uncertainty:
-            checked.append((r.level, r.num_active, error / r.estimate))
-    assert [c[0] for c in checked][:3] == [0, 1, 2]  # the unresolved levels are checked
-    assert any(active > 0 for _, active, _ in checked[:3])  # and the first one with contact
-    assert len(checked) >= 6
-    for level, _, ieff in checked:
-        assert 1 / 3 <= ieff <= 3, (level, ieff, checked)
+    errors = [reference - r.J_h for r in levels]
+    judged = [r for r in levels[:-2] if abs(errors[r.level]) >= 10 * uncertainty]
+    assert [r.level for r in judged][:3] == [0, 1, 2]  # the unresolved levels are judged
+    assert any(r.num_active > 0 for r in judged[:3])  # and the first one with contact
+    assert any(not r.resolved for r in judged)  # some computed with P2 weights
+    assert len(judged) >= 6
+    for r in judged:
+        assert r.J_low <= reference <= r.J_high, (r.level, r.J_low, reference, r.J_high)
+        if _crossing(errors, r.level):
+            continue
+        centre = 0.5 * (r.J_low + r.J_high) - r.J_h
+        for ieff in (errors[r.level] / r.estimate, errors[r.level] / centre):
+            assert 1 / 3 <= ieff <= 3, (r.level, ieff)
 
 
 @pytest.mark.parametrize("ncp_scale", [1.0])

@@ -2,7 +2,8 @@
 
 Two kinds of functions:
 
-* **table plots** (:func:`plot_convergence`, :func:`plot_effectivity`, :func:`plot_sweep`, in
+* **table plots** (:func:`plot_convergence`, :func:`plot_effectivity`, :func:`plot_interval`,
+  :func:`plot_sweep`, in
   :mod:`.tables`) take plain data: lists of row dicts as returned by
   :meth:`~dwr_signorini.AdaptiveResult.rows` or read back from the CSV/JSON of a run with
   :func:`read_rows`. They involve no MPI; pass ``comm`` to let only its rank 0 write, or call them
@@ -44,6 +45,7 @@ from .tables import (
     cumulative_time,
     plot_convergence,
     plot_effectivity,
+    plot_interval,
     plot_sweep,
     read_rows,
 )
@@ -55,6 +57,7 @@ __all__ = [
     "plot_contact_force",
     "plot_convergence",
     "plot_effectivity",
+    "plot_interval",
     "plot_mesh",
     "plot_solution_2d",
     "plot_solution_3d",

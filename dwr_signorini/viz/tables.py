@@ -28,6 +28,7 @@ __all__ = [
     "cumulative_time",
     "plot_convergence",
     "plot_effectivity",
+    "plot_interval",
     "plot_sweep",
     "read_rows",
 ]
@@ -140,6 +141,10 @@ def plot_convergence(
 ) -> Path | None:
     """Errors and estimates against cells or cumulative run time, log-log (paper Figure 6).
 
+    Where the rows have ``J_low`` and ``J_high``, the ``estimate`` series carries error bars:
+    the least and the largest |J - J_h| / |J| over the interval [J_low, J_high] (down to the
+    axis where J_h lies inside it).
+
     Each run (e.g. ``{"adaptive": rows, "uniform": rows}``) gets a colour and each quantity a
     line style. Estimate-type quantities (``estimate``, ``eta``, ``eta_p``, ``contact_term``) are
     plotted as ``|value| / |J|`` so that they compare with ``E_rel``; ``J`` is ``reference`` if
@@ -186,7 +191,7 @@ def plot_convergence(
             continue
         xs = _column(rows, "num_cells") if x == "num_cells" else cumulative_time(rows)
         for q in quantities:
-            ys = np.abs(_column(rows, q))
+            ys, denom = np.abs(_column(rows, q)), 1.0
             if q in _RELATIVE:
                 denom = abs(reference) if reference else np.abs(_column(rows, "J_h"))
                 ys = ys / denom
@@ -202,6 +207,8 @@ def plot_convergence(
                 markersize=4,
                 label=f"{label}: {_SHORT[q]}",
             )
+            if q == "estimate":
+                _interval_error_bars(ax, rows, xs, ok, ys, denom, colors[i % len(colors)])
             xs_all.extend(xs[ok])
             if anchor is None:
                 anchor = (float(xs[ok][0]), float(ys[ok][0]))
@@ -222,6 +229,81 @@ def plot_convergence(
         r"cells $M_\Omega$ of $T_h$" if x == "num_cells" else "cumulative wall-clock time [s]"
     )
     ax.set_ylabel("relative error / estimate")
+    ax.grid(True, which="both", alpha=0.3)
+    if title:
+        ax.set_title(title)
+    ax.legend(fontsize="small")
+    return save_figure(fig, path)
+
+
+def _error_range(rows: Sequence[Mapping[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+    """The least and the largest |J - J_h| over J in [J_low, J_high], per row (NaN without)."""
+    J_h, lo, hi = _column(rows, "J_h"), _column(rows, "J_low"), _column(rows, "J_high")
+    least = np.maximum(np.maximum(lo - J_h, J_h - hi), 0.0)
+    largest = np.maximum(np.abs(lo - J_h), np.abs(hi - J_h))
+    return least, largest
+
+
+def _interval_error_bars(
+    ax: Any, rows: Sequence[Mapping[str, Any]], xs: np.ndarray, ok: np.ndarray,
+    ys: np.ndarray, denom: Any, color: str,
+) -> None:
+    """Vertical bars from the least to the largest error that the interval allows."""
+    least, largest = (r / denom for r in _error_range(rows))
+    bar = ok & np.isfinite(largest) & (largest > 0)
+    if not bar.any():
+        return
+    # A log axis has no 0: a bar whose interval holds J_h reaches down to the axis.
+    low = np.where(least[bar] > 0, least[bar], ys[bar] * 1e-6)
+    ax.errorbar(
+        xs[bar], ys[bar], yerr=[ys[bar] - np.minimum(low, ys[bar]),
+                                np.maximum(largest[bar] - ys[bar], 0.0)],
+        fmt="none", ecolor=color, elinewidth=0.8, capsize=2, alpha=0.6,
+    )
+
+
+def plot_interval(
+    runs: Mapping[str, Sequence[Mapping[str, Any]]],
+    path: str | os.PathLike,
+    reference: float | None = None,
+    title: str | None = None,
+    comm: MPI.Comm | None = None,
+) -> Path | None:
+    """J_h per level with its interval [J_low, J_high] as error bar, against cells (log x).
+
+    Args:
+        runs: Label -> table rows with ``J_h``, ``J_low``, ``J_high`` and ``num_cells``.
+        path: The PNG to write.
+        reference: A reference or exact value of J, drawn as a grey line.
+        title: Figure title.
+        comm: If given, only its rank 0 draws and writes.
+
+    Returns:
+        The path written, or ``None`` on ranks other than 0 of ``comm``.
+    """
+    if not _writer(comm):
+        return None
+    fig = new_figure((6.4, 4.4))
+    ax = fig.add_subplot()
+    for i, (label, rows) in enumerate(runs.items()):
+        xs, J_h = _column(rows, "num_cells"), _column(rows, "J_h")
+        lo, hi = _column(rows, "J_low"), _column(rows, "J_high")
+        ok = np.isfinite(xs) & np.isfinite(J_h) & np.isfinite(lo) & np.isfinite(hi)
+        if not ok.any():
+            continue
+        # Shift the runs apart a little along x so that their bars do not overlap.
+        shift = 1.0 + 0.04 * i
+        ax.errorbar(
+            xs[ok] * shift, J_h[ok], yerr=[J_h[ok] - np.minimum(lo[ok], J_h[ok]),
+                                           np.maximum(hi[ok] - J_h[ok], 0.0)],
+            fmt=_MARKERS[i % len(_MARKERS)] + "-", color=f"C{i}", markersize=4, capsize=3,
+            label=rf"{label}: $J(w_h)$ and $[J_{{low}}, J_{{high}}]$",
+        )
+    if reference is not None:
+        ax.axhline(reference, color="0.4", linewidth=1.0, linestyle="--", label="reference J")
+    ax.set_xscale("log")
+    ax.set_xlabel(r"cells $M_\Omega$ of $T_h$")
+    ax.set_ylabel(r"$J$")
     ax.grid(True, which="both", alpha=0.3)
     if title:
         ax.set_title(title)
