@@ -13,7 +13,7 @@ reference value of J obtained without any estimate:
   uncertainty is its distance to ``bar_reference.json``'s extrapolations plus their own;
 * ``obstacle``, ``indentation8``, ``indentation12``: example 5.3 from 1 x 4 x 4 boxes and the
   3D indentation of ``reference_3d.py`` from 8 x 8 x 4 and 12 x 12 x 6 boxes, against the
-  references of ``reference_3d.py`` (from J_h alone, stored with ``weights_3d.json``).
+  references of ``reference_3d.py`` (from J_h alone; ``reference_3d.stored_reference``).
 
 A level is judged when its error is at least 10 times the reference's uncertainty. Per level:
 J_h, the interval, whether it contains J_ref, its width over the error, the effectivity of its
@@ -38,7 +38,7 @@ from typing import Any
 from mpi4py import MPI
 
 from dolfinx.mesh import CellType
-from reference_3d import indentation_problem, total_force
+from reference_3d import indentation_problem, stored_reference, total_force
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
@@ -54,13 +54,6 @@ BAR_PAPER_J_REF = 5.934693870188204e-06
 
 def _force(u, lam, m):
     return lam * m.ds_contact
-
-
-def _reference_3d(name: str) -> tuple[float, float]:
-    """J_ref and its uncertainty from reference_3d.py, as stored in weights_3d.json."""
-    runs = json.loads((RESULTS / "weights_3d.json").read_text())["runs"]
-    run = runs[name]
-    return run["J_ref"], run["uncertainty"]
 
 
 def _bar_reference() -> tuple[float, float]:
@@ -92,15 +85,15 @@ def problems(comm: MPI.Comm, quick: bool) -> dict[str, dict[str, Any]]:
             levels=4 if quick else 9, uniform=False),
         "obstacle": dict(
             build=lambda: ex.obstacle_problem(comm, (1, 4, 4)), goal=ex.goal_obstacle(),
-            reference=lambda: _reference_3d("example 5.3, 1 x 4 x 4"),
+            reference=lambda: stored_reference("obstacle"),
             levels=3 if quick else 8, uniform=True),
         "indentation8": dict(
             build=lambda: indentation_problem(comm, 8), goal=total_force,
-            reference=lambda: _reference_3d("indentation, 8 x 8 x 4"),
+            reference=lambda: stored_reference("indentation"),
             levels=2 if quick else 6, uniform=True),
         "indentation12": dict(
             build=lambda: indentation_problem(comm, 12), goal=total_force,
-            reference=lambda: _reference_3d("indentation, 12 x 12 x 6"),
+            reference=lambda: stored_reference("indentation"),
             levels=2 if quick else 5, uniform=True),
     }
 
@@ -156,8 +149,13 @@ def print_table(name: str, J_ref: float, U: float, runs: dict[str, list[dict]]) 
 def plot(name: str, result: dict[str, Any]) -> None:
     """J_h and its interval per level against the reference: ``interval_<name>.png``."""
     path = RESULTS / f"interval_{name}.png"
+    # The range of the levels after the first, whose intervals would flatten the others.
+    later = [r for rows in result["runs"].values() for r in rows[1:]]
+    lo = min([r["J_low"] for r in later] + [result["J_ref"]])
+    hi = max([r["J_high"] for r in later] + [result["J_ref"]])
     plot_interval(result["runs"], path, reference=result["J_ref"],
-                  title=f"{name}: J(w_h) and the interval [J_low, J_high]")
+                  title=f"{name}: J(w_h) and the interval [J_low, J_high]",
+                  ylim=(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)) if later else None)
     print(f"wrote {path}")
 
 

@@ -1,11 +1,13 @@
 """Where adaptivity pays in 3D: error against cumulative wall-clock time, adaptive and uniform.
 
 For the 3D indentation of ``reference_3d.py`` (goal: the total contact force) and the paper's
-example 5.3, a uniform run to about 300k fine cells and adaptive runs (estimator eta,
-``refinement_rule="edges"``, ``growth=2``: the macro mesh doubles per level), all with the
-package's default linear solver (``method=None``). The error of every level is measured against
-the reference value of ``benchmarks/results/reference_3d.json`` (from J_h alone, with its
-uncertainty U; written by ``reference_3d.py``, run that first). The script prints, per problem:
+example 5.3, a uniform run to about 300k fine cells and adaptive runs, all with
+``solve_adaptive``'s defaults (in 3D: ``growth=2``, the macro mesh doubles per level;
+``weights="auto"``) and the default linear solver (``method=None``). The error of every level
+is measured against the reference value of ``reference_3d.py`` (from J_h alone, with its
+uncertainty U; :func:`reference_3d.stored_reference`). The package's answer on a level is J_h,
+with the interval [J_low, J_high]; the table gives its width over the error. The script prints,
+per problem:
 
 * a table per level: cells, DoFs, J_h, J_ref - J_h, the level's time and the cumulative time;
 * the target: the error of the uniform run's finest level; the first level of each adaptive run
@@ -35,7 +37,7 @@ from typing import Any
 
 from mpi4py import MPI
 
-from reference_3d import indentation_problem, total_force
+from reference_3d import indentation_problem, stored_reference, total_force
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
@@ -45,7 +47,8 @@ RESULTS = Path("benchmarks/results")
 
 def setups(comm: MPI.Comm) -> dict[str, dict[str, Any]]:
     """Per problem: the goal and the runs, each (macro mesh builder, solve_adaptive options)."""
-    adaptive = {"refinement": "adaptive", "refinement_rule": "edges", "growth": 2.0}
+    # solve_adaptive's defaults: in 3D growth 2 (edges of the marked cells), weights "auto"
+    adaptive = {"refinement": "adaptive"}
     return {
         "indentation": {
             "goal": total_force,
@@ -82,6 +85,8 @@ def run(build: Callable[[], ds.SignoriniProblem], goal: Any, options: dict[str, 
             cumulative += r.time["total"]
             rows.append({"level": r.level, "cells": r.num_cells, "dofs": r.num_dofs,
                          "J_h": r.J_h, "estimate": r.estimate, "error": J_ref - r.J_h,
+                         "J_low": r.J_low, "J_high": r.J_high, "weights": r.weights,
+                         "width_over_error": (r.J_high - r.J_low) / abs(J_ref - r.J_h),
                          "time_level": r.time["total"], "time_cumulative": cumulative,
                          "converged": res.converged})
     return rows
@@ -103,7 +108,8 @@ def payoff(runs: dict[str, list[dict[str, Any]]], U: float) -> dict[str, Any]:
         if r is None:
             return None
         return {"level": r["level"], "cells": r["cells"], "time": r["time_cumulative"],
-                "time_ratio": r["time_cumulative"] / t_uniform}
+                "time_ratio": r["time_cumulative"] / t_uniform,
+                "width_over_error": r.get("width_over_error")}
 
     for name, rows in runs.items():
         if not name.startswith("uniform"):
@@ -119,12 +125,13 @@ def report(name: str, J_ref: float, U: float, runs: dict[str, list[dict[str, Any
            result: dict[str, Any]) -> None:
     print(f"\n{name}: J_ref = {J_ref:.6g} +- {U:.2g}")
     print(f"{'run':>24} {'L':>2} {'cells':>9} {'DoFs':>8} {'J_h':>12} {'J_ref - J_h':>12} "
-          f"{'t_level':>8} {'t_cum':>8}")
+          f"{'J_low':>12} {'J_high':>12} {'w/e':>6} {'t_level':>8} {'t_cum':>8}")
     for run_name, rows in runs.items():
         for r in rows:
             print(f"{run_name:>24} {r['level']:2d} {r['cells']:9d} {r['dofs']:8d} "
-                  f"{r['J_h']:12.6g} {r['error']:12.4g} {r['time_level']:8.2f} "
-                  f"{r['time_cumulative']:8.2f}")
+                  f"{r['J_h']:12.6g} {r['error']:12.4g} {r.get('J_low', math.nan):12.6g} "
+                  f"{r.get('J_high', math.nan):12.6g} {r.get('width_over_error', math.nan):6.2f} "
+                  f"{r['time_level']:8.2f} {r['time_cumulative']:8.2f}")
     print(f"target: |J_ref - J_h| = {result['target_error']:.4g} of the uniform level of "
           f"{result['uniform_cells']:,} cells, reached after {result['uniform_time']:.1f} s")
     for run_name, a in result["adaptive"].items():
@@ -132,7 +139,8 @@ def report(name: str, J_ref: float, U: float, runs: dict[str, list[dict[str, Any
             r = a[kind]
             if r is not None:
                 print(f"  {run_name}, {kind}: level {r['level']} ({r['cells']:,} cells) after "
-                      f"{r['time']:.1f} s, {r['time_ratio']:.2f} of the uniform run's time")
+                      f"{r['time']:.1f} s, {r['time_ratio']:.2f} of the uniform run's time, "
+                      f"interval {r.get('width_over_error') or math.nan:.2f} x its error wide")
             else:
                 print(f"  {run_name}, {kind}: not reached within the run")
 
@@ -163,7 +171,6 @@ def plot(results: dict[str, Any], path: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", default="indentation,obstacle")
-    parser.add_argument("--reference", type=Path, default=RESULTS / "reference_3d.json")
     parser.add_argument("--output", type=Path, default=RESULTS)
     parser.add_argument("--tables-from", type=Path, default=None,
                         help="print the tables and redraw the plot from the JSON of a run")
@@ -179,15 +186,10 @@ def main() -> None:
         if comm.rank == 0:
             plot(results, args.tables_from.with_suffix(".png"))
         return
-    if not args.reference.exists():
-        raise SystemExit(f"{args.reference} is missing: run benchmarks/reference_3d.py first "
-                         "(the errors are measured against its reference values)")
-    references = json.loads(args.reference.read_text())
     results: dict[str, Any] = {}
     for name in args.problems.split(","):
         setup = setups(comm)[name]
-        J_ref = references[name]["J_ref"]
-        U = references[name]["uncertainty"]
+        J_ref, U = stored_reference(name)
         # JIT compilation, untimed: one level of the first run's problem
         build, _ = next(iter(setup["runs"].values()))
         ds.solve_adaptive(build(), setup["goal"], max_levels=1, verbose=False).destroy()

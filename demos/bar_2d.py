@@ -190,14 +190,16 @@ rows_out = []
 for refinement, res in results.items():
     cumulative = plotting.cumulative_time(res.rows())
     print0(f"\n{refinement}: {len(res.levels)} levels in {wall[refinement]:.1f} s")
-    head = (f"{'M_Omega':>8} {'L':>2} {'M_C':>4} {'J_h':>13} {'E_rel':>11} {'Ieff(eta)':>9} "
+    head = (f"{'M_Omega':>8} {'L':>2} {'M_C':>4} {'J_h':>13} {'J in [J_low, J_high]':>29} "
+            f"{'E_rel':>11} {'Ieff(eta)':>9} "
             f"{'Ieff(eta_p)':>11} {'time [s]':>8}")
     if refinement == "adaptive":
         head += f" | paper: {'M_Omega':>7} {'E_rel':>11} {'Ieff':>7}"
     print0(head)
     for r, t in zip(res.levels, cumulative, strict=True):
         line = (f"{r.num_cells:8d} {r.level:2d} {r.num_contact_elements:4d} {r.J_h:13.6e} "
-                f"{fmt(r.rel_error, '11.5e')} {fmt(r.ieff, '9.5f')} {fmt(r.ieff_p, '11.5f')} "
+                f"[{r.J_low:.6e}, {r.J_high:.6e}] {fmt(r.rel_error, '11.5e')} "
+                f"{fmt(r.ieff, '9.5f')} {fmt(r.ieff_p, '11.5f')} "
                 f"{t:8.2f}")
         if refinement == "adaptive" and r.level < len(PAPER_TABLE_3):
             m, _, e, i = PAPER_TABLE_3[r.level]
@@ -205,7 +207,8 @@ for refinement, res in results.items():
         print0(line)
         rows_out.append({
             "refinement": refinement, "M_Omega": r.num_cells, "L": r.level,
-            "M_C": r.num_contact_elements, "J_h": r.J_h, "E_rel": r.rel_error,
+            "M_C": r.num_contact_elements, "J_h": r.J_h, "J_low": r.J_low, "J_high": r.J_high,
+            "E_rel": r.rel_error,
             "ieff": r.ieff, "ieff_p": r.ieff_p, "estimate": r.estimate,
             "time_cumulative": float(t),
         })

@@ -268,6 +268,7 @@ def plot_interval(
     reference: float | None = None,
     title: str | None = None,
     comm: MPI.Comm | None = None,
+    ylim: tuple[float, float] | None = None,
 ) -> Path | None:
     """J_h per level with its interval [J_low, J_high] as error bar, against cells (log x).
 
@@ -276,6 +277,7 @@ def plot_interval(
         path: The PNG to write.
         reference: A reference or exact value of J, drawn as a grey line.
         title: Figure title.
+        ylim: The range of J shown (bars of wider intervals leave the picture); default: all.
         comm: If given, only its rank 0 draws and writes.
 
     Returns:
@@ -301,6 +303,8 @@ def plot_interval(
         )
     if reference is not None:
         ax.axhline(reference, color="0.4", linewidth=1.0, linestyle="--", label="reference J")
+    if ylim is not None:
+        ax.set_ylim(*ylim)
     ax.set_xscale("log")
     ax.set_xlabel(r"cells $M_\Omega$ of $T_h$")
     ax.set_ylabel(r"$J$")
