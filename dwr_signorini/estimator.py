@@ -176,27 +176,32 @@ def _higher_order_solutions(
     return z2, w2
 
 
-def _weights(
-    sol: Solution,
-    goal_forms: GoalForms,
-    z: DualSolution,
-    rec: Reconstructor,
-    weights: str,
-    want_eta: bool,
-    petsc_options: Any,
-) -> tuple[Any, Any, Any, Any, Any]:
+@dataclass
+class _Inputs:
+    """What every kind of weights starts from: w_h, J's forms, z_h, the reconstructions."""
+
+    sol: Solution
+    goal_forms: GoalForms
+    z: DualSolution
+    rec: Reconstructor
+    want_eta: bool
+    petsc_options: Any
+
+
+def _weights(inp: _Inputs, weights: str) -> tuple[Any, Any, Any, Any, Any]:
     """The weights of the estimators: w_y = A y_h - y_h, xi^+, u^+, w_u = A u_h - u_h, lambda^+.
 
     ``"patch"``: the paper's reconstructions of z_h and w_h; otherwise the P2 solutions of the
     final active set (hierarchical or factored; the multipliers reconstructed patch-wise from
     them). Without eta the P2 primal is not solved and w_h is reconstructed patch-wise.
     """
+    sol, z, rec, want_eta = inp.sol, inp.z, inp.rec, inp.want_eta
     if weights == "patch":
         z2, w2 = z, None
     elif weights == "hierarchical":
-        z2, w2 = hierarchical_solutions(sol, goal_forms, z, rec.V2h, want_eta)
+        z2, w2 = hierarchical_solutions(sol, inp.goal_forms, z, rec.V2h, want_eta)
     else:
-        z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
+        z2, w2 = _higher_order_solutions(sol, inp.goal_forms, rec, want_eta, inp.petsc_options)
     with timed("reconstruct"):
         w_y = rec.patch_weight(z.y) if weights == "patch" else rec.weight(z2.y, z.y)
         xi_plus = rec.patch_linear_multiplier(z2.xi)
@@ -234,21 +239,12 @@ class _Terms:
 
 
 def _terms(
-    sol: Solution,
-    goal_forms: GoalForms,
-    z: DualSolution,
-    rec: Reconstructor,
-    weights: str,
-    want_eta: bool,
-    petsc_options: Any,
-    quadrature_degree: int | None,
-    DG0: fem.FunctionSpace,
+    inp: _Inputs, weights: str, quadrature_degree: int | None, DG0: fem.FunctionSpace
 ) -> _Terms:
     """rho(w_h)(A z_h - z_h), rho*(w_h, z_h)(A w_h - w_h), C(w_h)(xi_H) and R_A, eq. (13), (15)."""
+    sol, z, want_eta = inp.sol, inp.z, inp.want_eta
     disc = sol.disc
-    w_y, xi_plus, u_plus, w_u, lam_plus = _weights(
-        sol, goal_forms, z, rec, weights, want_eta, petsc_options
-    )
+    w_y, xi_plus, u_plus, w_u, lam_plus = _weights(inp, weights)
     w_xi = xi_plus - z.xi
     gap, m = disc.problem.gap_expr(disc.m.x), disc.m
     c = ncp_scale_function(sol)
@@ -258,7 +254,7 @@ def _terms(
         active_set_remainder(sol, u_plus, lam_plus, xi_plus, c),
     ]
     if want_eta:
-        forms.append(dual_residual(sol, goal_forms, z, w_u, lam_plus - sol.lam, c))
+        forms.append(dual_residual(sol, inp.goal_forms, z, w_u, lam_plus - sol.lam, c))
     ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
     ind_star = rest[0] if want_eta else None
 
@@ -333,12 +329,11 @@ def estimate(
     with timed("reconstruct"):
         rec = Reconstructor(disc)
     DG0 = fem.functionspace(disc.mesh, ("DG", 0))
-    args = (sol, goal_forms, z, rec)
-    rest = (want_eta, petsc_options, quadrature_degree, DG0)
-    terms = _terms(*args, "patch" if weights == "auto" else weights, *rest)
+    inp = _Inputs(sol, goal_forms, z, rec, want_eta, petsc_options)
+    terms = _terms(inp, "patch" if weights == "auto" else weights, quadrature_degree, DG0)
     resolved = contact_set_resolved(terms.value(estimator), terms.remainder, terms.contact)
     if weights == "auto" and not resolved:
-        terms = _terms(*args, "hierarchical", *rest)
+        terms = _terms(inp, "hierarchical", quadrature_degree, DG0)
 
     t_estimate = time.perf_counter() - tic - t_dual
     indicators = fem.Function(DG0, name="indicators")
