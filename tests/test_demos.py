@@ -155,7 +155,7 @@ def test_bar_serial(runs):
         rows = _csv(out / refinement / f"{refinement}.csv")
         res = ds.solve_adaptive(ex.bar_problem(MPI.COMM_SELF), ex.goal_bar(),
                                 refinement=refinement, max_levels=2, exact=ex.BAR_J_REF,
-                                verbose=False)
+                                weights="patch", verbose=False)  # the demo's --weights
         _compare_rows(rows, res.levels, 1e-10, f"bar {refinement}")
         for row, rec in zip(rows, res.levels, strict=True):
             assert _close(row["rel_error"], rec.rel_error, 1e-8)
@@ -189,9 +189,11 @@ def test_analytic_serial(runs):
                  ["a1_uniform", "a2_uniform"])
     rows = _csv(out / "a1_uniform" / "uniform.csv")
     problem = ex.analytic_problem(MPI.COMM_SELF, 12, 8)
-    # The demo uses the paper's c = 1 of the NCP (its --ncp-scale default).
+    # The demo uses the paper's c = 1 of the NCP and its patch weights (its --ncp-scale and
+    # --weights defaults).
     res = ds.solve_adaptive(problem, ex.goal_a(-0.5), refinement="uniform", max_levels=1,
-                            exact=ex.exact_J_a(-0.5), verbose=False, ncp_scale=1.0)
+                            exact=ex.exact_J_a(-0.5), verbose=False, ncp_scale=1.0,
+                            weights="patch")
     _compare_rows(rows[:1], res.levels, 1e-10, "analytic J_a1 level 0")
     # the table next to the paper's: our E_rel of J_a1 at L = 1 is the paper's (Table 1)
     tables = _csv(out / "tables.csv")
@@ -229,7 +231,7 @@ def test_obstacle_serial(runs):
     assert len(rows) == 2
     problem = ex.obstacle_problem(MPI.COMM_SELF, (1, 8, 8))
     res = ds.solve_adaptive(problem, ex.goal_obstacle(), refinement="adaptive", max_levels=1,
-                            verbose=False)
+                            weights="patch", verbose=False)  # the demo's --weights default
     _compare_rows(rows[:1], res.levels, 1e-10, "obstacle level 0")
     assert _close(rows[0]["contact_term"], res.levels[0].contact_term, 1e-8)
     # --max-cells 20000 stops the uniform run before its second level (24576 cells)
