@@ -197,6 +197,24 @@ def estimate(
         raise TypeError(
             f"estimate() takes the Solution returned by solve(), got {type(sol).__name__}"
         )
+    if getattr(sol.system, "ksp", None) is None:
+        raise ValueError(
+            "sol has been destroyed (Solution.destroy(), or the end of its `with` block): "
+            "estimate a Solution before releasing it"
+        )
+    if petsc_options is not None and not isinstance(petsc_options, dict):
+        raise TypeError(
+            "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
+            f"{type(petsc_options).__name__}"
+        )
+    if quadrature_degree is not None and (
+        isinstance(quadrature_degree, bool)
+        or not isinstance(quadrature_degree, int)
+        or not 0 <= quadrature_degree <= 30
+    ):
+        raise ValueError(
+            f"quadrature_degree must be an integer in [0, 30] or None, got {quadrature_degree!r}"
+        )
     disc = sol.disc
     comm: MPI.Comm = disc.comm
     goal_forms = GoalForms(goal, sol.u, sol.lam, disc)
@@ -206,70 +224,74 @@ def estimate(
     want_eta = estimator == "eta"
     with timed("reconstruct"):
         rec = Reconstructor(disc)
-    w2 = None
-    if weights == "patch":
-        with timed("reconstruct"):
-            w_y = rec.patch_weight(z.y)
-            xi_plus = rec.patch_linear_multiplier(z.xi)
-    else:
-        if weights == "hierarchical":
-            z2, w2 = hierarchical_solutions(sol, goal_forms, z, rec.V2h, want_eta)
+    try:  # on a failure the reconstruction's PETSc objects are released
+        w2 = None
+        if weights == "patch":
+            with timed("reconstruct"):
+                w_y = rec.patch_weight(z.y)
+                xi_plus = rec.patch_linear_multiplier(z.xi)
         else:
-            z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
+            if weights == "hierarchical":
+                z2, w2 = hierarchical_solutions(sol, goal_forms, z, rec.V2h, want_eta)
+            else:
+                z2, w2 = _higher_order_solutions(sol, goal_forms, rec, want_eta, petsc_options)
+            with timed("reconstruct"):
+                w_y = rec.weight(z2.y, z.y)
+                xi_plus = rec.patch_linear_multiplier(z2.xi)
+        w_xi = xi_plus - z.xi
+
+        gap, m = disc.problem.gap_expr(disc.m.x), disc.m
+        c = ncp_scale_function(sol)
+        rho_form = primal_residual(sol, w_y, w_xi, c)
+        c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c)
+
         with timed("reconstruct"):
-            w_y = rec.weight(z2.y, z.y)
-            xi_plus = rec.patch_linear_multiplier(z2.xi)
-    w_xi = xi_plus - z.xi
+            if w2 is None:
+                w_u = rec.patch_weight(sol.u)
+                u_plus = sol.u + w_u  # i_2h^(2) u_h
+                lam_plus = rec.patch_linear_multiplier(sol.lam)
+            else:
+                u_plus = w2[0]
+                w_u = rec.weight(u_plus, sol.u) if want_eta else None
+                lam_plus = rec.patch_linear_multiplier(w2[1])
+        forms = [rho_form, c_form, active_set_remainder(sol, u_plus, lam_plus, xi_plus, c)]
+        if want_eta:
+            w_lam = lam_plus - sol.lam
+            forms.append(dual_residual(sol, goal_forms, z, w_u, w_lam, c))
+        DG0 = fem.functionspace(disc.mesh, ("DG", 0))
+        ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
+        ind_star = rest[0] if want_eta else None
 
-    gap, m = disc.problem.gap_expr(disc.m.x), disc.m
-    c = ncp_scale_function(sol)
-    rho_form = primal_residual(sol, w_y, w_xi, c)
-    c_form = contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c)
+        def total(a: np.ndarray) -> float:
+            return comm.allreduce(float(a.sum()), op=MPI.SUM)
 
-    with timed("reconstruct"):
-        if w2 is None:
-            w_u = rec.patch_weight(sol.u)
-            u_plus = sol.u + w_u  # i_2h^(2) u_h
-            lam_plus = rec.patch_linear_multiplier(sol.lam)
-        else:
-            u_plus = w2[0]
-            w_u = rec.weight(u_plus, sol.u) if want_eta else None
-            lam_plus = rec.patch_linear_multiplier(w2[1])
-    forms = [rho_form, c_form, active_set_remainder(sol, u_plus, lam_plus, xi_plus, c)]
-    if want_eta:
-        w_lam = lam_plus - sol.lam
-        forms.append(dual_residual(sol, goal_forms, z, w_u, w_lam, c))
-    DG0 = fem.functionspace(disc.mesh, ("DG", 0))
-    ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
-    ind_star = rest[0] if want_eta else None
+        rho, contact = total(ind_rho), total(ind_c)
+        rho_star = None if ind_star is None else total(ind_star)
+        eta_p = rho - contact
+        eta = None if rho_star is None else 0.5 * rho + 0.5 * rho_star - contact
 
-    def total(a: np.ndarray) -> float:
-        return comm.allreduce(float(a.sum()), op=MPI.SUM)
-
-    rho, contact = total(ind_rho), total(ind_c)
-    rho_star = None if ind_star is None else total(ind_star)
-    eta_p = rho - contact
-    eta = None if rho_star is None else 0.5 * rho + 0.5 * rho_star - contact
-
-    t_estimate = time.perf_counter() - tic - t_dual
-    indicators = fem.Function(DG0, name="indicators")
-    n_local = DG0.dofmap.index_map.size_local
-    local = ind_rho - ind_c if not want_eta else 0.5 * ind_rho + 0.5 * ind_star - ind_c
-    indicators.x.array[:n_local] = local[:n_local]
-    indicators.x.scatter_forward()
-    return Estimate(
-        J_h=goal_forms.value(),
-        eta_p=eta_p,
-        eta=eta,
-        contact_term=contact,
-        active_set_remainder=total(ind_a),
-        rho=rho,
-        rho_star=rho_star,
-        estimator=estimator,
-        weights=weights,
-        indicators=indicators,
-        dual=z,
-        goal_is_linear=goal_forms.is_linear,
-        timings={"dual": t_dual, "estimate": t_estimate},
-        reconstructor=rec,
-    )
+        t_estimate = time.perf_counter() - tic - t_dual
+        indicators = fem.Function(DG0, name="indicators")
+        n_local = DG0.dofmap.index_map.size_local
+        local = ind_rho - ind_c if not want_eta else 0.5 * ind_rho + 0.5 * ind_star - ind_c
+        indicators.x.array[:n_local] = local[:n_local]
+        indicators.x.scatter_forward()
+        return Estimate(
+            J_h=goal_forms.value(),
+            eta_p=eta_p,
+            eta=eta,
+            contact_term=contact,
+            active_set_remainder=total(ind_a),
+            rho=rho,
+            rho_star=rho_star,
+            estimator=estimator,
+            weights=weights,
+            indicators=indicators,
+            dual=z,
+            goal_is_linear=goal_forms.is_linear,
+            timings={"dual": t_dual, "estimate": t_estimate},
+            reconstructor=rec,
+        )
+    except BaseException:
+        rec.destroy()
+        raise

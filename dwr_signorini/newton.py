@@ -34,6 +34,7 @@ import numpy as np
 from dolfinx import fem
 
 from .algebra import check_ncp_scale, distributed_norm
+from .collective import CollectiveError, collective
 from .lifetime import Releasable
 from .linalg import (
     LOOSE_RTOL,
@@ -473,13 +474,18 @@ def _semismooth_newton(
             seen[key] = it
 
             try:
-                system.solve_active(new)
+                # A failure that one rank sees first (after the solve's last collective) is
+                # raised on every rank (dwr_signorini.collective).
+                with collective(comm, f"Newton step {it}: the linear solve"):
+                    system.solve_active(new)
             except (LinearSolveError, PETSc.Error, np.linalg.LinAlgError) as err:
                 # LinAlgError: the Cholesky factorisation of S_AA (method="schur") failed.
                 reason = system.ksp.getConvergedReason()
                 names = vars(PETSc.KSP.ConvergedReason).items()
                 name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
-                if isinstance(err, PETSc.Error):
+                if isinstance(err, CollectiveError):
+                    name = str(err).splitlines()[0]
+                elif isinstance(err, PETSc.Error):
                     name = f"PETSc error {err.ierr}"
                 elif isinstance(err, np.linalg.LinAlgError):
                     name = str(err)

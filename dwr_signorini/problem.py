@@ -268,7 +268,7 @@ class SignoriniProblem(ProblemDataChecks):
 
     def _material(self, value: MaterialData, name: str, x: Any) -> Any:
         if callable(value):
-            return value(x)
+            return self.call_user(name, value, x)
         if not isinstance(value, Mapping):
             return value
         data = self._domain_data(x)
@@ -340,18 +340,22 @@ class SignoriniProblem(ProblemDataChecks):
         f = self.vector(self.body_force, m.x) if f is None else f
         form = ufl.inner(f, v) * (m.dx if dx is None else dx)
         for tag, t in self.traction.items():
-            form += ufl.inner(self.vector(t, m.x), v) * m.ds(tag)
+            form += ufl.inner(self.vector(t, m.x, f"traction[{tag}]"), v) * m.ds(tag)
         return form
 
-    def vector(self, value: VectorData, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
+    def vector(
+        self, value: VectorData, x: ufl.SpatialCoordinate, where: str = "body_force"
+    ) -> ufl.core.expr.Expr:
         """A load as a UFL vector on the mesh of ``x``; ``None`` is the zero vector.
+
+        ``where`` names the load in the error of a callable that raises (on any rank).
 
         Constant data (``None``, a sequence, a callable returning literal numbers) become a
         :class:`dolfinx.fem.Constant`: UFL simplifies a literal zero away, and
         ``inner(0, v) * dx`` would lose its test function and could not be assembled.
         """
         if callable(value):
-            return _nonzero_literal(ufl.as_vector(value(x)), x)
+            return _nonzero_literal(ufl.as_vector(self.call_user(where, value, x)), x)
         data = np.zeros(self.mesh.geometry.dim) if value is None else np.asarray(value, float)
         return fem.Constant(extract_unique_domain(x), data)
 
@@ -381,12 +385,12 @@ class SignoriniProblem(ProblemDataChecks):
             self._miss = 2.0 * (diameter + extra) + 1.0e-300
         return self._miss
 
-    def _gap_value(self, gap: Any, x: Any, n: Any) -> Any:
-        if isinstance(gap, Obstacle):
+    def _gap_value(self, gap: Any, x: Any, n: Any, where: str = "gap") -> Any:
+        if isinstance(gap, Obstacle):  # a Graph calls the user's psi
             n = ufl.FacetNormal(extract_unique_domain(x)) if n is None else n
-            return gap.gap(x, n, self.miss_gap)
+            return self.call_user(where, gap.gap, x, n, self.miss_gap)
         if callable(gap):
-            return ufl.as_ufl(gap(x))
+            return ufl.as_ufl(self.call_user(where, gap, x))
         return gap
 
     def gap_expr(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
@@ -403,7 +407,7 @@ class SignoriniProblem(ProblemDataChecks):
         entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
         """
         if isinstance(self.gap, Mapping):
-            values = {t: self._gap_value(g, x, n) for t, g in self.gap.items()}
+            values = {t: self._gap_value(g, x, n, f"gap[{t}]") for t, g in self.gap.items()}
             distinct = {id(g) for g in self.gap.values()}
             if len(distinct) == 1:
                 return self._as_expr(next(iter(values.values())), x)

@@ -224,7 +224,8 @@ class Discretization:
                     bcs.append(fem.dirichletbc(data, dofs, V))
                 else:
                     u_D = fem.Function(V, name=f"u_D_{tag}")
-                    expr = ufl.as_vector(value(ufl.SpatialCoordinate(self.mesh)))
+                    x = ufl.SpatialCoordinate(self.mesh)
+                    expr = ufl.as_vector(self.problem.call_user(f"dirichlet[{tag}]", value, x))
                     points = compat.interpolation_points(V.element)
                     u_D.interpolate(fem.Expression(expand_integer_powers(expr), points))
                     bcs.append(fem.dirichletbc(u_D, dofs))
