@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -132,6 +133,8 @@ def _validate(
     callback: Any,
     refinement_rule: Any = "edges",
     growth: Any = None,
+    verbose: Any = True,
+    output_dir: Any = None,
 ) -> None:
     if not isinstance(problem, SignoriniProblem):
         raise TypeError(f"problem must be a SignoriniProblem, got {type(problem).__name__}")
@@ -149,7 +152,9 @@ def _validate(
         raise ValueError(f"fraction must be a number in (0, 1], got {fraction!r}")
     if isinstance(max_levels, bool) or not isinstance(max_levels, int) or max_levels < 1:
         raise ValueError(f"max_levels must be an integer >= 1, got {max_levels!r}")
-    if max_cells is not None and (not isinstance(max_cells, int) or max_cells < 1):
+    if max_cells is not None and (
+        isinstance(max_cells, bool) or not isinstance(max_cells, int) or max_cells < 1
+    ):
         raise ValueError(f"max_cells must be a positive integer or None, got {max_cells!r}")
     if tol is not None and (not isinstance(tol, (int, float)) or not tol > 0):
         raise ValueError(f"tol must be a positive number or None, got {tol!r}")
@@ -169,6 +174,12 @@ def _validate(
         raise ValueError(f"growth must be a number in (1, 1000) or None, got {growth!r}")
     if callback is not None and not callable(callback):
         raise TypeError(f"callback must be callable or None, got {callback!r}")
+    if not isinstance(verbose, bool):
+        raise TypeError(f"verbose must be True or False, got {verbose!r}")
+    if output_dir is not None and not isinstance(output_dir, (str, os.PathLike)):
+        raise TypeError(
+            f"output_dir must be a path (str or pathlib.Path) or None, got {output_dir!r}"
+        )
     simplex = problem.mesh.topology.cell_type in (
         dmesh.CellType.triangle,
         dmesh.CellType.tetrahedron,
@@ -269,6 +280,8 @@ def solve_adaptive(
         callback,
         refinement_rule,
         growth,
+        verbose,
+        output_dir,
     )
     comm = problem.mesh.comm
     meta = {

@@ -82,7 +82,8 @@ def _build(where: str, failures: list[tuple[int, type[BaseException], str]], siz
     rank, error_type, message = failures[0]
     ranks = tuple(r for r, _, _ in failures)
     where_ranks = f"rank {rank}" if len(ranks) == 1 else "ranks " + ", ".join(map(str, ranks))
-    text = f"{where} raised {error_type.__name__} on {where_ranks} of {size}: {message}"
+    on = f" on {where_ranks} of {size}" if size > 1 else ""
+    text = f"{where} raised {error_type.__name__}{on}: {message}"
     cls = _collective_class(error_type)
     try:
         # Bypass custom __init__s (e.g. ConvergenceError's history): the message is the text.

@@ -195,7 +195,7 @@ def estimate(
         raise ValueError(f"weights must be one of {WEIGHTS}, got {weights!r}")
     if not isinstance(sol, Solution):
         raise TypeError(
-            f"estimate() takes the Solution returned by solve(), got {type(sol).__name__}"
+            f"sol must be the Solution returned by solve(), got {type(sol).__name__}"
         )
     if getattr(sol.system, "ksp", None) is None:
         raise ValueError(

@@ -253,8 +253,8 @@ def solve(
         disc = problem_or_disc
     else:
         raise TypeError(
-            "solve() takes a SignoriniProblem or a Discretization, got "
-            f"{type(problem_or_disc).__name__}"
+            "problem must be a SignoriniProblem or a Discretization (the first argument of "
+            f"solve()), got {type(problem_or_disc).__name__}"
         )
     if (
         isinstance(max_iterations, bool)
@@ -278,6 +278,15 @@ def solve(
         raise TypeError(
             "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
             f"{type(petsc_options).__name__}"
+        )
+    if petsc_options_prefix is not None and (
+        not isinstance(petsc_options_prefix, str)
+        or not petsc_options_prefix
+        or not petsc_options_prefix.endswith("_")
+    ):
+        raise ValueError(
+            "petsc_options_prefix must be a non-empty string ending with '_' (e.g. 'contact_') "
+            f"or None, got {petsc_options_prefix!r}"
         )
     if initial_guess is not None:
         if not isinstance(initial_guess, (tuple, list)) or len(initial_guess) != 2:

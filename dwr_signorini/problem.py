@@ -170,6 +170,8 @@ class SignoriniProblem(ProblemDataChecks):
             raise ValueError(
                 "facet_tags index facets that `mesh` does not have: another mesh's tags?"
             )
+        if mesh.topology.index_map(tdim).size_global == 0:
+            raise ValueError("mesh has no cells: pass the macro mesh T_H of the body")
         if tdim not in (2, 3) or mesh.geometry.dim != tdim:
             raise ValueError("mesh must be a 2D mesh in the plane or a 3D volume mesh")
         if compat.geometry_cmap(mesh).degree != 1:
