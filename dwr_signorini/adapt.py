@@ -470,11 +470,11 @@ def _stop_line(
 ) -> str:
     """The one line that says why a run stopped (tol, max_levels or max_cells)."""
     last = result.levels[-1]
-    n = len(result.levels)
+    n = f"{len(result.levels)} level" + ("s" if len(result.levels) != 1 else "")
     criterion = abs(last.estimate) + abs(last.active_set_remainder)
     if result.converged:
         return (
-            f"converged after {n} levels: |estimate| + |active-set remainder| = "
+            f"converged after {n}: |estimate| + |active-set remainder| = "
             f"{criterion:.3e} <= tol = {tol:.3e}"
         )
     if result.stopped_by == "max_cells":
@@ -485,8 +485,8 @@ def _stop_line(
     else:
         limit = f"max_levels = {max_levels} reached"
     if tol is None:
-        return f"stopped after {n} levels: {limit}; no tol given, so no convergence test"
+        return f"stopped after {n}: {limit}; no tol given, so no convergence test"
     return (
         f"not converged: |estimate| + |active-set remainder| = {criterion:.3e} > tol = "
-        f"{tol:.3e} after {n} levels: {limit}"
+        f"{tol:.3e} after {n}: {limit}"
     )

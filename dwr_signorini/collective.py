@@ -65,6 +65,10 @@ class CollectiveError(Exception):
     error_type: str = ""
     error_message: str = ""
 
+    def __str__(self) -> str:
+        # The text, also where the original type formats its own fields (PETSc.Error's ierr).
+        return str(self.args[0]) if self.args else ""
+
 
 @functools.cache
 def _collective_class(base: type[BaseException]) -> type[CollectiveError]:
@@ -77,14 +81,16 @@ def _collective_class(base: type[BaseException]) -> type[CollectiveError]:
         return CollectiveError
 
 
-def _build(where: str, failures: list[tuple[int, type[BaseException], str]], size: int) -> Any:
-    """The exception for ``failures`` (rank, type, message), identical on every rank."""
-    rank, error_type, message = failures[0]
-    ranks = tuple(r for r, _, _ in failures)
+def _build(
+    where: str, failures: list[tuple[int, bytes | None, str, str]], size: int
+) -> CollectiveError:
+    """The exception for ``failures`` (rank, pickled type, type name, message), on every rank."""
+    rank, blob, type_name, message = failures[0]
+    ranks = tuple(f[0] for f in failures)
     where_ranks = f"rank {rank}" if len(ranks) == 1 else "ranks " + ", ".join(map(str, ranks))
     on = f" on {where_ranks} of {size}" if size > 1 else ""
-    text = f"{where} raised {error_type.__name__}{on}: {message}"
-    cls = _collective_class(error_type)
+    text = f"{where} raised {type_name}{on}: {message}"
+    cls = _collective_class(_load_type(blob))
     try:
         # Bypass custom __init__s (e.g. ConvergenceError's history): the message is the text.
         exc = cls.__new__(cls, text)
@@ -92,7 +98,7 @@ def _build(where: str, failures: list[tuple[int, type[BaseException], str]], siz
     except TypeError:
         exc = CollectiveError(text)
     exc.where, exc.ranks = where, ranks
-    exc.error_type, exc.error_message = error_type.__name__, message
+    exc.error_type, exc.error_message = type_name, message
     return exc
 
 
@@ -111,13 +117,16 @@ def agree(comm: MPI.Comm, where: str, error: Exception | None) -> None:
         raise error
     local = None if error is None else _describe(error)
     gathered = [local] if comm.size == 1 else comm.allgather(local)
-    failures = [(r, _load_type(g[0]), g[1]) for r, g in enumerate(gathered) if g is not None]
+    failures = [(r, *g) for r, g in enumerate(gathered) if g is not None]
     if failures:
         raise _build(where, failures, comm.size) from error
 
 
-def _describe(error: Exception) -> tuple[bytes | None, str]:
-    """The type (pickled, if it can be) and message of ``error``: sending them cannot fail."""
+def _describe(error: Exception) -> tuple[bytes | None, str, str]:
+    """The type (pickled, if it can be), its name and the message of ``error``.
+
+    Plain bytes and strings: sending them cannot fail (the type itself may not pickle).
+    """
     try:
         blob: bytes | None = pickle.dumps(type(error))
     except Exception:  # a local class, say: it arrives as RuntimeError
@@ -126,7 +135,7 @@ def _describe(error: Exception) -> tuple[bytes | None, str]:
         message = str(error)
     except Exception:
         message = object.__repr__(error)
-    return blob, message
+    return blob, type(error).__name__, message
 
 
 def _load_type(blob: bytes | None) -> type[BaseException]:
