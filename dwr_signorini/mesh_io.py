@@ -47,6 +47,19 @@ def _check_arguments(path_or_model: Any, comm: Any, rank: Any, gdim: Any) -> Non
         raise ValueError(f"gdim must be 2, 3 or None (the model's dimension), got {gdim!r}")
 
 
+def _check_model(model: Any) -> None:
+    """ValueError naming path_or_model if the gmsh model holds no mesh (on the reading rank)."""
+    try:
+        tags = model.mesh.getNodes()[0]
+    except Exception as err:
+        raise ValueError(f"path_or_model: the gmsh model cannot be read: {err}") from err
+    if len(tags) == 0:
+        raise ValueError(
+            "path_or_model: the gmsh model has no mesh; generate it first "
+            "(gmsh.model.mesh.generate(dim)) or pass a .msh file"
+        )
+
+
 def _open(comm: MPI.Comm, rank: int, path: str) -> None:
     """gmsh.open the file on ``rank``; its failure on every rank, naming path_or_model."""
     import gmsh
@@ -108,6 +121,7 @@ def read_mesh(
     try:
         if path is not None:
             _open(comm, rank, path)
+        on_root(comm, "read_mesh", _check_model, model, root=rank)
         if gdim is None:
             gdim = comm.bcast(
                 on_root(comm, "read_mesh", _model_dimension, model, root=rank), root=rank

@@ -300,6 +300,8 @@ CASES = [
      FileNotFoundError, r"read_mesh: no mesh file"),
     ("read_mesh-not-a-mesh", lambda d: ds.read_mesh(d.tmp / "not_a_mesh.msh", d.comm),
      ValueError, r"path_or_model .*could not be read as a gmsh mesh"),
+    ("read_mesh-model-without-mesh", lambda d: _read_unmeshed_model(d), ValueError,
+     r"path_or_model: the gmsh model has no mesh; generate it first"),
     ("read_mesh-type", lambda d: ds.read_mesh(42, d.comm), TypeError,
      r"path_or_model must be a path to a .msh file or a gmsh model"),
     ("read_mesh-comm", lambda d: ds.read_mesh(d.tmp / "missing.msh", "world"), TypeError,
@@ -313,6 +315,21 @@ CASES = [
 
 def _adaptive(d, **kwargs):
     return ds.solve_adaptive(d.problem, good_goal, **{"max_levels": 1, "verbose": False, **kwargs})
+
+
+def _read_unmeshed_model(d):
+    """read_mesh of a gmsh model with a geometry and no mesh."""
+    import gmsh
+
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("unmeshed")
+        gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+        gmsh.model.occ.synchronize()
+        return ds.read_mesh(gmsh.model, d.comm)
+    finally:
+        gmsh.finalize()
 
 
 def _empty_mesh(d):
