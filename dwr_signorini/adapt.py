@@ -433,19 +433,14 @@ def _record(
     exact: float | None,
 ) -> LevelRecord:
     """The table row of a finished level (``times``: setup, solve, refine)."""
+    sizes = ("num_cells", "num_macro_cells", "num_contact_elements", "num_dofs")
+    values = ("J_h", "eta_p", "eta", "contact_term", "active_set_remainder")
     record = LevelRecord(
         level=level,
-        num_cells=disc.num_cells,
-        num_macro_cells=disc.num_macro_cells,
-        num_contact_elements=disc.num_contact_elements,
-        num_dofs=disc.num_dofs,
-        num_active=sol.num_active,
-        J_h=est.J_h,
-        eta_p=est.eta_p,
-        eta=est.eta,
+        **{name: getattr(disc, name) for name in sizes},
+        **{name: getattr(est, name) for name in values},
         estimate=est.value,
-        contact_term=est.contact_term,
-        active_set_remainder=est.active_set_remainder,
+        num_active=sol.num_active,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
         time={
