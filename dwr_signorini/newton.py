@@ -493,7 +493,9 @@ def _semismooth_newton(
                 names = vars(PETSc.KSP.ConvergedReason).items()
                 name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
                 if isinstance(err, CollectiveError):
-                    name = str(err).splitlines()[0]
+                    ranks = ", ".join(map(str, err.ranks))
+                    on = f" on rank(s) {ranks} of {comm.size}" if comm.size > 1 else ""
+                    name = f"{err.error_type}{on}: {err.error_message.splitlines()[0]}"
                 elif isinstance(err, PETSc.Error):
                     name = f"PETSc error {err.ierr}"
                 elif isinstance(err, np.linalg.LinAlgError):
