@@ -29,7 +29,7 @@ original exception is its ``__cause__``.
 Rules for a guarded region (why the regions are small): it must contain no collective
 operation (no assembly, no JIT compilation, no reduction), since a rank that failed early would
 leave the others inside it; and every rank of the communicator must reach it, in the same
-order. Nested guards are safe: the error of an inner guard is already on every rank, and passes
+order. Nested guards are safe: the error of an inner guard, the same on every rank, passes
 through the outer guard unchanged. ``KeyboardInterrupt`` and other ``BaseException`` classes that
 are not ``Exception`` classes are not intercepted: a signal reaches every rank of an ``mpirun``
 anyway.
@@ -45,7 +45,7 @@ from typing import Any, TypeVar
 
 from mpi4py import MPI
 
-__all__ = ["CollectiveError", "call_collectively", "collective", "on_root"]
+__all__ = ["CollectiveError", "agree", "call_collectively", "collective", "on_root"]
 
 T = TypeVar("T")
 
@@ -105,18 +105,18 @@ def _build(
 def agree(comm: MPI.Comm, where: str, error: Exception | None) -> None:
     """Raise the same :class:`CollectiveError` on every rank if ``error`` is set on any.
 
-    Collective. An ``error`` that is already a :class:`CollectiveError` is on every rank: it is
-    raised again unchanged (a nested guard).
+    Collective. If every rank has the same :class:`CollectiveError` (that of a nested guard on
+    the same communicator), it is raised again unchanged.
 
     Args:
         comm: The communicator whose ranks must agree.
         where: What the error came from, for the message.
         error: This rank's exception, or ``None``.
     """
-    if isinstance(error, CollectiveError):
-        raise error
     local = None if error is None else _describe(error)
     gathered = [local] if comm.size == 1 else comm.allgather(local)
+    if isinstance(error, CollectiveError) and all(g == local for g in gathered):
+        raise error
     failures = [(r, *g) for r, g in enumerate(gathered) if g is not None]
     if failures:
         raise _build(where, failures, comm.size) from error

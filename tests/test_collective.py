@@ -87,6 +87,16 @@ def test_error_on_one_rank_is_raised_on_every_rank():
 
 
 @pytest.mark.mpi
+def test_nested_guards_raise_the_inner_error_unchanged():
+    def inner():
+        call_collectively(COMM, "inner", fail_on_last_rank, "inner")
+
+    with pytest.raises(ValueError, match=r"^inner raised ValueError") as info:
+        call_collectively(COMM, "outer", inner)
+    assert info.value.where == "inner"
+
+
+@pytest.mark.mpi
 def test_an_exception_type_that_cannot_be_pickled_keeps_its_name():
     class LocalError(Exception):
         pass
