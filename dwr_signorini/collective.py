@@ -26,13 +26,14 @@ The exception is also an instance of the original type when that is possible (a
 ``ValueError``), so ``except ValueError`` still catches it; on the rank that raised, the
 original exception is its ``__cause__``.
 
-Rules for a guarded region (why the regions are small): it must contain no collective
-operation (no assembly, no JIT compilation, no reduction), since a rank that failed early would
-leave the others inside it; and every rank of the communicator must reach it, in the same
-order. Nested guards are safe: the error of an inner guard, the same on every rank, passes
-through the outer guard unchanged. ``KeyboardInterrupt`` and other ``BaseException`` classes that
-are not ``Exception`` classes are not intercepted: a signal reaches every rank of an ``mpirun``
-anyway.
+Rules for a guarded region (why the regions are small): it must contain no collective operation
+(no assembly, no JIT compilation, no reduction), since a rank that failed early would leave the
+others inside it; and every rank of the communicator must reach it, in the same order. A guard
+inside a guard (the user's ``E`` called through ``m.sigma(u)`` inside the goal) does not
+communicate: only the outermost guard agrees, so that a rank that fails before it reaches the
+inner guard cannot pair that guard's exchange with the outer one of another rank.
+``KeyboardInterrupt`` and other ``BaseException`` classes that are not ``Exception`` classes are
+not intercepted: a signal reaches every rank of an ``mpirun`` anyway.
 """
 
 from __future__ import annotations
@@ -48,6 +49,9 @@ from mpi4py import MPI
 __all__ = ["CollectiveError", "agree", "call_collectively", "collective", "on_root"]
 
 T = TypeVar("T")
+
+#: How many guards the running code is inside of: only the outermost one communicates.
+_depth = 0
 
 
 class CollectiveError(Exception):
@@ -166,13 +170,9 @@ def call_collectively(
     Raises:
         CollectiveError: On every rank, if ``function`` raised on any.
     """
-    error: Exception | None = None
     result: Any = None
-    try:
+    with collective(comm, where):
         result = function(*args, **kwargs)
-    except Exception as err:
-        error = err
-    agree(comm, where, error)
     return result
 
 
@@ -189,11 +189,18 @@ def collective(comm: MPI.Comm, where: str) -> Iterator[None]:
     Raises:
         CollectiveError: On every rank, if the block raised on any.
     """
+    global _depth
+    if _depth > 0:  # inside another guard: that one agrees
+        yield
+        return
     error: Exception | None = None
+    _depth += 1
     try:
         yield
     except Exception as err:
         error = err
+    finally:
+        _depth -= 1
     agree(comm, where, error)
 
 

@@ -387,12 +387,13 @@ class SignoriniProblem(ProblemDataChecks):
             self._miss = 2.0 * (diameter + extra) + 1.0e-300
         return self._miss
 
-    def _gap_value(self, gap: Any, x: Any, n: Any, where: str = "gap") -> Any:
-        if isinstance(gap, Obstacle):  # a Graph calls the user's psi
+    def _gap_value(self, gap: Any, x: Any, n: Any) -> Any:
+        """One gap's value at ``x`` (local: calls the user's callable or a Graph's psi)."""
+        if isinstance(gap, Obstacle):
             n = ufl.FacetNormal(extract_unique_domain(x)) if n is None else n
-            return self.call_user(where, gap.gap, x, n, self.miss_gap)
+            return gap.gap(x, n, self.miss_gap)
         if callable(gap):
-            return ufl.as_ufl(self.call_user(where, gap, x))
+            return ufl.as_ufl(gap(x))
         return gap
 
     def gap_expr(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
@@ -409,7 +410,10 @@ class SignoriniProblem(ProblemDataChecks):
         entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
         """
         if isinstance(self.gap, Mapping):
-            values = {t: self._gap_value(g, x, n, f"gap[{t}]") for t, g in self.gap.items()}
+            values = {
+                t: self.call_user(f"gap[{t}]", self._gap_value, g, x, n)
+                for t, g in self.gap.items()
+            }
             distinct = {id(g) for g in self.gap.values()}
             if len(distinct) == 1:
                 return self._as_expr(next(iter(values.values())), x)
@@ -421,7 +425,7 @@ class SignoriniProblem(ProblemDataChecks):
                 )
             total = sum(indicators[t] * ufl.as_ufl(values[t]) for t in self.contact_tags)
             return total
-        return self._as_expr(self._gap_value(self.gap, x, n), x)
+        return self._as_expr(self.call_user("gap", self._gap_value, self.gap, x, n), x)
 
     @staticmethod
     def _as_expr(value: Any, x: Any) -> Any:

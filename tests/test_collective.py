@@ -87,13 +87,17 @@ def test_error_on_one_rank_is_raised_on_every_rank():
 
 
 @pytest.mark.mpi
-def test_nested_guards_raise_the_inner_error_unchanged():
-    def inner():
-        call_collectively(COMM, "inner", fail_on_last_rank, "inner")
+def test_only_the_outermost_guard_communicates():
+    """A rank that fails before an inner guard, which the other rank reaches: no mismatch."""
+    def outer():
+        fail_on_last_rank("outer")
+        return call_collectively(COMM, "inner", lambda: 1)
 
-    with pytest.raises(ValueError, match=r"^inner raised ValueError") as info:
-        call_collectively(COMM, "outer", inner)
-    assert info.value.where == "inner"
+    with pytest.raises(ValueError, match=r"^outer raised ValueError") as info:
+        call_collectively(COMM, "outer", outer)
+    assert info.value.where == "outer"
+    assert COMM.allreduce(1) == COMM.size  # the ranks are still in step
+    assert call_collectively(COMM, "outer", lambda: call_collectively(COMM, "inner", int)) == 0
 
 
 @pytest.mark.mpi
