@@ -290,7 +290,10 @@ def solve(
         )
     if initial_guess is not None:
         if not isinstance(initial_guess, (tuple, list)) or len(initial_guess) != 2:
-            raise TypeError("initial_guess must be a pair (u0, lam0) of dolfinx Functions")
+            raise TypeError(
+                "initial_guess must be a pair (u0, lam0) of dolfinx Functions, got "
+                f"{type(initial_guess).__name__}"
+            )
         u0, lam0 = initial_guess
         if (
             getattr(u0, "function_space", None) != disc.V
