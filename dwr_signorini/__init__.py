@@ -8,6 +8,7 @@ identities (13) and (15); adaptive refinement in parallel.
 
 from . import obstacles
 from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
+from .collective import CollectiveError
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .mesh_io import read_mesh
 from .newton import ConvergenceError, Solution, solve
@@ -20,6 +21,7 @@ __all__ = [
     "ESTIMATORS",
     "WEIGHTS",
     "AdaptiveResult",
+    "CollectiveError",
     "ConvergenceError",
     "Discretization",
     "Estimate",

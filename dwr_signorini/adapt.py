@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -22,6 +23,7 @@ import numpy as np
 from dolfinx import mesh as dmesh
 
 from .algebra import check_ncp_scale
+from .collective import call_collectively, on_root
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
@@ -86,6 +88,10 @@ class AdaptiveResult(Releasable):
         converged: Whether the run stopped on ``tol``: J_high - J_low <= 2 tol on the last
             level. False when it ended at ``max_levels`` or ``max_cells`` without that, and
             always without ``tol``.
+        stopped_by: Why the run stopped: ``"tol"`` (converged), ``"max_levels"`` or
+            ``"max_cells"``; with ``verbose`` one line on rank 0 says so.
+        next_cells: The fine cells of the level after the last one refined (what
+            ``max_cells`` was compared with).
     """
 
     levels: list[LevelRecord]
@@ -95,6 +101,8 @@ class AdaptiveResult(Releasable):
     meta: dict[str, Any] = field(default_factory=dict)
     comm: MPI.Comm = field(default_factory=lambda: MPI.COMM_WORLD, repr=False)
     converged: bool = False
+    stopped_by: str = ""
+    next_cells: int = 0
 
     def destroy(self) -> None:
         """Release the last level's solution and estimate (collective; idempotent)."""
@@ -109,14 +117,13 @@ class AdaptiveResult(Releasable):
         return [r.as_dict() for r in self.levels]
 
     def to_csv(self, path: str | Path) -> None:
-        """Write the table as CSV (rank 0 of the mesh communicator writes)."""
-        if self.comm.rank == 0:
-            write_csv(path, self.rows())
+        """Write the table as CSV (rank 0 of the mesh communicator writes; collective)."""
+        on_root(self.comm, f"to_csv({str(path)!r})", write_csv, path, self.rows())
 
     def to_json(self, path: str | Path) -> None:
-        """Write the table and the run's settings as JSON (rank 0 of the mesh communicator)."""
-        if self.comm.rank == 0:
-            write_json(path, {"meta": self.meta, "levels": self.rows()})
+        """Write the table and the run's settings as JSON (rank 0 writes; collective)."""
+        data = {"meta": self.meta, "levels": self.rows()}
+        on_root(self.comm, f"to_json({str(path)!r})", write_json, path, data)
 
 
 def _validate(
@@ -135,6 +142,8 @@ def _validate(
     callback: Any,
     refinement_rule: Any = "edges",
     growth: Any = None,
+    verbose: Any = True,
+    output_dir: Any = None,
 ) -> None:
     if not isinstance(problem, SignoriniProblem):
         raise TypeError(f"problem must be a SignoriniProblem, got {type(problem).__name__}")
@@ -156,7 +165,9 @@ def _validate(
         )
     if isinstance(max_levels, bool) or not isinstance(max_levels, int) or max_levels < 1:
         raise ValueError(f"max_levels must be an integer >= 1, got {max_levels!r}")
-    if max_cells is not None and (not isinstance(max_cells, int) or max_cells < 1):
+    if max_cells is not None and (
+        isinstance(max_cells, bool) or not isinstance(max_cells, int) or max_cells < 1
+    ):
         raise ValueError(f"max_cells must be a positive integer or None, got {max_cells!r}")
     if tol is not None and (not isinstance(tol, (int, float)) or not tol > 0):
         raise ValueError(f"tol must be a positive number or None, got {tol!r}")
@@ -176,6 +187,12 @@ def _validate(
         raise ValueError(f"growth must be a number in (1, 1000) or None, got {growth!r}")
     if callback is not None and not callable(callback):
         raise TypeError(f"callback must be callable or None, got {callback!r}")
+    if not isinstance(verbose, bool):
+        raise TypeError(f"verbose must be True or False, got {verbose!r}")
+    if output_dir is not None and not isinstance(output_dir, (str, os.PathLike)):
+        raise TypeError(
+            f"output_dir must be a path (str or pathlib.Path) or None, got {output_dir!r}"
+        )
     simplex = problem.mesh.topology.cell_type in (
         dmesh.CellType.triangle,
         dmesh.CellType.tetrahedron,
@@ -223,73 +240,6 @@ def marking_defaults(
     return DEFAULT_FRACTION, None
 
 
-def _next_level(
-    current: SignoriniProblem,
-    disc: Any,
-    est: Estimate,
-    refinement: str,
-    strategy: str,
-    fraction: float | None,
-    growth: float | None,
-    refinement_rule: str,
-) -> tuple[np.ndarray, SignoriniProblem, Any]:
-    """Mark (adaptive runs) and refine: the marked macro cells, the next problem, its parents."""
-    marked = np.zeros(0, dtype=np.int32)
-    if refinement == "adaptive" and growth is not None:
-        with timed("mark"):
-            marked, next_problem, macro_parent, _ = mark_for_growth(
-                disc, current, est.indicators.x.array, strategy, growth, refinement_rule
-            )
-        return marked, next_problem, macro_parent
-    if refinement == "adaptive":
-        with timed("mark"):
-            marked = mark(disc, est.indicators.x.array, strategy, fraction)
-        with timed("refine"):
-            next_problem, macro_parent = refine_marked(current, marked, refinement_rule)
-        return marked, next_problem, macro_parent
-    with timed("refine"):
-        if current.boundary_projection:  # refine again, projecting the new vertices
-            next_problem, macro_parent = refine_marked(current, None)
-        else:  # T_h, the uniform refinement of T_H, is the next macro mesh
-            next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
-            macro_parent = disc.parent_cell
-    return marked, next_problem, macro_parent
-
-
-def _record(
-    level: int, disc: Any, sol: Solution, est: Estimate, exact: float | None, num_marked: int
-) -> LevelRecord:
-    """The level's row of the table (its times are filled in by the loop)."""
-    J_low, J_high = est.interval
-    record = LevelRecord(
-        level=level,
-        num_cells=disc.num_cells,
-        num_macro_cells=disc.num_macro_cells,
-        num_contact_elements=disc.num_contact_elements,
-        num_dofs=disc.num_dofs,
-        num_active=sol.num_active,
-        J_h=est.J_h,
-        eta_p=est.eta_p,
-        eta=est.eta,
-        estimate=est.value,
-        contact_term=est.contact_term,
-        active_set_remainder=est.active_set_remainder,
-        newton_iterations=sol.newton_iterations,
-        num_marked=num_marked,
-        J_low=J_low,
-        J_high=J_high,
-        weights=est.weights,
-        resolved=est.resolved,
-    )
-    if exact is not None:
-        err = exact - est.J_h
-        record.rel_error = abs(err) / abs(exact) if exact != 0 else abs(err)
-        record.ieff_p = err / est.eta_p if est.eta_p != 0 else math.inf
-        if est.eta is not None:
-            record.ieff = err / est.eta if est.eta != 0 else math.inf
-    return record
-
-
 def solve_adaptive(
     problem: SignoriniProblem,
     goal: Goal,
@@ -334,11 +284,14 @@ def solve_adaptive(
             :func:`~dwr_signorini.estimate`).
         exact: The exact J(w), if known: fills rel_error and the effectivity indices.
         output_dir: Where to write the table (CSV, JSON, after every level) and fields (XDMF).
-        callback: Called as ``callback(record, solution, estimate)`` after every level.
+        callback: Called as ``callback(record, solution, estimate)`` after every level, on
+            every rank; an exception it raises on any rank is raised on every rank
+            (:mod:`dwr_signorini.collective`).
         petsc_options: Linear solver options.
         method: Linear algebra of the Newton steps, ``"block"``, ``"schur"`` or ``None`` (the
             default: chosen per level, see :func:`~dwr_signorini.solve`).
-        verbose: Print a progress line per level on rank 0.
+        verbose: Print a progress line per level on rank 0, and at the end one line that says
+            why the run stopped (``tol``, ``max_levels`` or ``max_cells``).
         ncp_scale: c of the NCP function, for the Newton method and the estimator (see
             :func:`~dwr_signorini.solve`): ``"physical"`` (E / H per macro contact facet) or a
             number (1.0 reproduces the paper's Tables 1-2).
@@ -369,6 +322,8 @@ def solve_adaptive(
         callback,
         refinement_rule,
         growth,
+        verbose,
+        output_dir,
     )
     comm = problem.mesh.comm
     if refinement == "adaptive":
@@ -394,82 +349,183 @@ def solve_adaptive(
     result = AdaptiveResult(levels=[], meta=meta, comm=comm)
     previous: Solution | None = None
     previous_rec = None
+    sol: Solution | None = None
+    est: Estimate | None = None
     macro_parent = None
     current = problem
-    for level in range(max_levels):
-        t_start = time.perf_counter()
-        with timed("discretize"):
-            disc = discretize(current)
-        with timed("transfer"):
-            guess = (
-                None
-                if previous is None
-                else transfer_solution(previous, disc, previous_rec, macro_parent)
-            )
-        if previous is not None:
-            # PETSc destruction is collective: free the last level's solver and reconstruction
-            # on all ranks here, as soon as the warm start no longer needs them.
-            previous.destroy()
-            previous_rec.destroy()
-        t_setup = time.perf_counter() - t_start
+    try:
+        for level in range(max_levels):
+            t_start = time.perf_counter()
+            with timed("discretize"):
+                disc = discretize(current)
+            with timed("transfer"):
+                guess = (
+                    None
+                    if previous is None
+                    else transfer_solution(previous, disc, previous_rec, macro_parent)
+                )
+            if previous is not None:
+                # PETSc destruction is collective: free the last level's solver and
+                # reconstruction on all ranks here, as soon as the warm start no longer needs them.
+                previous.destroy()
+                previous_rec.destroy()
+            t_setup = time.perf_counter() - t_start
 
-        tic = time.perf_counter()
-        sol = solve(
-            disc,
-            petsc_options=petsc_options,
-            initial_guess=guess,
-            method=method,
-            ncp_scale=ncp_scale,
-        )
-        t_solve = time.perf_counter() - tic
-        est = estimate(sol, goal, estimator=estimator, weights=weights, petsc_options=petsc_options)
-
-        J_low, J_high = est.interval
-        result.converged = tol is not None and J_high - J_low <= 2 * tol
-        stop = result.converged or level == max_levels - 1
-        marked, t_refine = np.zeros(0, dtype=np.int32), 0.0
-        if not stop:
             tic = time.perf_counter()
-            marked, next_problem, macro_parent = _next_level(
-                current, disc, est, refinement, strategy, fraction, growth, refinement_rule
+            sol = est = None
+            sol = solve(
+                disc,
+                petsc_options=petsc_options,
+                initial_guess=guess,
+                method=method,
+                ncp_scale=ncp_scale,
             )
-            t_refine = time.perf_counter() - tic
-            next_cells = (
-                next_problem.mesh.topology.index_map(next_problem.mesh.topology.dim).size_global
-                * 2**next_problem.mesh.topology.dim
+            t_solve = time.perf_counter() - tic
+            est = estimate(
+                sol, goal, estimator=estimator, weights=weights, petsc_options=petsc_options
             )
-            if max_cells is not None and next_cells > max_cells:
-                stop = True
+            # Converged: the interval for J at most 2 tol wide.
+            J_low, J_high = est.interval
+            result.converged = tol is not None and J_high - J_low <= 2 * tol
+            result.stopped_by = "tol" if result.converged else "max_levels"
+            stop = result.converged or level == max_levels - 1
+            marked = np.zeros(0, dtype=np.int32)
+            tic = time.perf_counter()
+            if not stop:
+                marked, next_problem, macro_parent = _refine(
+                    disc, current, est, refinement, strategy, fraction, growth, refinement_rule
+                )
+                result.next_cells = _fine_cells(next_problem)
+                if max_cells is not None and result.next_cells > max_cells:
+                    stop, result.stopped_by = True, "max_cells"
+            times = {"setup": t_setup, "solve": t_solve, "refine": time.perf_counter() - tic}
+            record = _record(level, disc, sol, est, marked, times, exact)
+            record.time["total"] = time.perf_counter() - t_start
+            result.levels.append(record)
+            if out is not None:
+                with timed("output"):  # the fields first: a level in the table has its fields
+                    fields = [sol.u, est.indicators, est.dual.y]
+                    out.write_fields(level, fields, [sol.lam, est.dual.xi])
+                    out.append(record.as_dict(), meta)
+            if verbose:
+                _progress(comm, record)
+            if callback is not None:
+                call_collectively(comm, "callback", callback, record, sol, est)
+            result.solution, result.estimate, result.problem = sol, est, current
+            if stop:
+                break
+            previous, previous_rec, current = sol, est.reconstructor, next_problem
+    except Exception:
+        # Every rank raises (the package's errors are collective, dwr_signorini.collective):
+        # release this level's and the last level's PETSc objects and options on all ranks.
+        for obj in (est, sol, previous_rec, previous):
+            if obj is not None:
+                obj.destroy()
+        raise
+    if verbose and comm.rank == 0:
+        print(_stop_line(result, tol, max_levels, max_cells), flush=True)
+    return result
 
-        record = _record(level, disc, sol, est, exact, comm.allreduce(len(marked), op=MPI.SUM))
-        record.time = {
-            "setup": t_setup,
-            "solve": t_solve,
+
+def _refine(
+    disc: Any,
+    current: SignoriniProblem,
+    est: Estimate,
+    refinement: str,
+    strategy: str,
+    fraction: float | None,
+    growth: float | None,
+    refinement_rule: str,
+) -> tuple[np.ndarray, SignoriniProblem, Any]:
+    """Mark and refine: the marked macro cells, the next level's problem and parent cells."""
+    marked = np.zeros(0, dtype=np.int32)
+    indicators = est.indicators.x.array
+    if refinement == "adaptive" and growth is not None:
+        with timed("mark"):
+            marked, next_problem, macro_parent, _ = mark_for_growth(
+                disc, current, indicators, strategy, growth, refinement_rule
+            )
+        return marked, next_problem, macro_parent
+    if refinement == "adaptive":
+        with timed("mark"):
+            marked = mark(disc, indicators, strategy, fraction)
+    with timed("refine"):
+        if refinement == "adaptive":
+            next_problem, macro_parent = refine_marked(current, marked, refinement_rule)
+        elif current.boundary_projection:  # refine again, projecting the new vertices
+            next_problem, macro_parent = refine_marked(current, None)
+        else:  # T_h, the uniform refinement of T_H, is the next macro mesh
+            next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
+            macro_parent = disc.parent_cell
+    return marked, next_problem, macro_parent
+
+
+def _fine_cells(problem: SignoriniProblem) -> int:
+    """The cells of the fine mesh T_h of ``problem`` (2^d per macro cell)."""
+    tdim = problem.mesh.topology.dim
+    return problem.mesh.topology.index_map(tdim).size_global * 2**tdim
+
+
+def _record(
+    level: int,
+    disc: Any,
+    sol: Solution,
+    est: Estimate,
+    marked: np.ndarray,
+    times: dict[str, float],
+    exact: float | None,
+) -> LevelRecord:
+    """The table row of a finished level (``times``: setup, solve, refine)."""
+    sizes = ("num_cells", "num_macro_cells", "num_contact_elements", "num_dofs")
+    values = ("J_h", "eta_p", "eta", "contact_term", "active_set_remainder", "weights",
+              "resolved")
+    J_low, J_high = est.interval
+    record = LevelRecord(
+        level=level,
+        **{name: getattr(disc, name) for name in sizes},
+        **{name: getattr(est, name) for name in values},
+        estimate=est.value,
+        J_low=J_low,
+        J_high=J_high,
+        num_active=sol.num_active,
+        newton_iterations=sol.newton_iterations,
+        num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
+        time={
+            "setup": times["setup"],
+            "solve": times["solve"],
             "dual": est.timings["dual"],
             "estimate": est.timings["estimate"],
-            "refine": t_refine,
-            "total": time.perf_counter() - t_start,
-        }
-        result.levels.append(record)
-        if out is not None:
-            with timed("output"):
-                out.append(record.as_dict(), meta)
-                fields = [sol.u, est.indicators, est.dual.y]
-                out.write_fields(level, fields, [sol.lam, est.dual.xi])
-        if verbose:
-            _progress(comm, record)
-        if callback is not None:
-            callback(record, sol, est)
-        result.solution, result.estimate, result.problem = sol, est, current
-        if stop:
-            break
-        previous, previous_rec, current = sol, est.reconstructor, next_problem
-    if verbose and tol is not None and not result.converged and comm.rank == 0:
-        last = result.levels[-1]
-        print(
-            f"not converged: J_high - J_low = {last.J_high - last.J_low:.3e} > 2 tol = "
-            f"{2 * tol:.3e} after {len(result.levels)} levels (max_levels = {max_levels}, "
-            f"max_cells = {max_cells})",
-            flush=True,
+            "refine": times["refine"],
+        },
+    )
+    if exact is not None:
+        err = exact - est.J_h
+        record.rel_error = abs(err) / abs(exact) if exact != 0 else abs(err)
+        record.ieff_p = err / est.eta_p if est.eta_p != 0 else math.inf
+        if est.eta is not None:
+            record.ieff = err / est.eta if est.eta != 0 else math.inf
+    return record
+
+
+def _stop_line(
+    result: AdaptiveResult, tol: float | None, max_levels: int, max_cells: int | None
+) -> str:
+    """The one line that says why a run stopped (tol, max_levels or max_cells)."""
+    last = result.levels[-1]
+    n = f"{len(result.levels)} level" + ("s" if len(result.levels) != 1 else "")
+    width = last.J_high - last.J_low
+    if result.converged:
+        return f"converged after {n}: J_high - J_low = {width:.3e} <= 2 tol = {2 * tol:.3e}"
+    if result.stopped_by == "max_cells":
+        limit = (
+            f"max_cells = {max_cells} reached (the next level would have "
+            f"{result.next_cells} cells)"
         )
-    return result
+    else:
+        limit = f"max_levels = {max_levels} reached"
+    if tol is None:
+        return f"stopped after {n}: {limit}; no tol given, so no convergence test"
+    return (
+        f"not converged: J_high - J_low = {width:.3e} > 2 tol = {2 * tol:.3e} after {n}: "
+        f"{limit}"
+    )

@@ -139,7 +139,20 @@ class ContactAlgebra:
         else:
             self.bcs = disc.dirichlet_bcs(V)
             self.prescribed_bcs = disc.dirichlet_bcs(V, homogeneous=False)
-        lift = not problem.homogeneous_dirichlet
+        try:  # on a failure (e.g. data that raise), what was assembled is destroyed
+            self._assemble(forms, problem.homogeneous_dirichlet, ncp_scale, form, mu)
+        except BaseException:
+            self.destroy()
+            raise
+        self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        self.n_lam = Q.dofmap.index_map.size_local
+
+    def _assemble(
+        self, forms: dict[str, fem.Form], homogeneous: bool, ncp_scale: Any, form: Any, mu: Any
+    ) -> None:
+        """K, N, N^T, f, M, g and c_n from the compiled ``forms`` (see the class)."""
+        disc = self.disc
+        lift = not homogeneous
         with timed("assemble"):
             self.K = self._matrix(forms["a"])
             self.N = self._matrix(forms["N"])
@@ -159,8 +172,6 @@ class ContactAlgebra:
             self.c_n = self._facet_modulus(form, mu) / size
         else:
             self.c_n = np.full(len(self.M.array), self.ncp_scale)
-        self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-        self.n_lam = Q.dofmap.index_map.size_local
 
     def _matrix(self, form: fem.Form) -> PETSc.Mat:
         A = fem_petsc.assemble_matrix(form, bcs=self.bcs)

@@ -36,6 +36,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
 from .algebra import ContactAlgebra
+from .collective import collective
 from .goal import GoalForms
 from .linalg import NewtonLinearSystem
 from .timing import timed
@@ -90,9 +91,20 @@ def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:
         raise RuntimeError("the Newton system has not been solved: no matrix to transpose")
     rhs = system.x.duplicate()
     z = system.x.duplicate()
+    try:
+        return _solve_dual(system, goal, rhs, z)
+    finally:
+        rhs.destroy()
+        z.destroy()
+
+
+def _solve_dual(
+    system: NewtonLinearSystem, goal: GoalForms, rhs: PETSc.Vec, z: PETSc.Vec
+) -> DualSolution:
+    """:func:`solve_dual` into the work vectors ``rhs`` and ``z`` (the caller destroys them)."""
     with timed("goal"):
         dual_rhs(system, goal, rhs)
-    with timed("dual solve"):
+    with timed("dual solve"), collective(system.disc.comm, "the dual solve"):
         system.solve_transpose(rhs, z)
     y = fem.Function(system.V, name="y")
     xi = fem.Function(system.disc.Q, name="xi")
@@ -106,6 +118,4 @@ def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:
     finite = bool(np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi.x.array)))
     if not system.disc.comm.allreduce(finite, op=MPI.LAND):
         raise RuntimeError("NaN or Inf in the dual solution")
-    rhs.destroy()
-    z.destroy()
     return DualSolution(y=y, xi=xi)

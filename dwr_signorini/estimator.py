@@ -318,7 +318,25 @@ def estimate(
         raise ValueError(f"weights must be one of {WEIGHTS}, got {weights!r}")
     if not isinstance(sol, Solution):
         raise TypeError(
-            f"estimate() takes the Solution returned by solve(), got {type(sol).__name__}"
+            f"sol must be the Solution returned by solve(), got {type(sol).__name__}"
+        )
+    if getattr(sol.system, "ksp", None) is None:
+        raise ValueError(
+            "sol has been destroyed (Solution.destroy(), or the end of its `with` block): "
+            "estimate a Solution before releasing it"
+        )
+    if petsc_options is not None and not isinstance(petsc_options, dict):
+        raise TypeError(
+            "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
+            f"{type(petsc_options).__name__}"
+        )
+    if quadrature_degree is not None and (
+        isinstance(quadrature_degree, bool)
+        or not isinstance(quadrature_degree, int)
+        or not 0 <= quadrature_degree <= 30
+    ):
+        raise ValueError(
+            f"quadrature_degree must be an integer in [0, 30] or None, got {quadrature_degree!r}"
         )
     disc = sol.disc
     goal_forms = GoalForms(goal, sol.u, sol.lam, disc)
@@ -328,32 +346,36 @@ def estimate(
     want_eta = estimator == "eta"
     with timed("reconstruct"):
         rec = Reconstructor(disc)
-    DG0 = fem.functionspace(disc.mesh, ("DG", 0))
-    inp = _Inputs(sol, goal_forms, z, rec, want_eta, petsc_options)
-    terms = _terms(inp, "patch" if weights == "auto" else weights, quadrature_degree, DG0)
-    resolved = contact_set_resolved(terms.value(estimator), terms.remainder, terms.contact)
-    if weights == "auto" and not resolved:
-        terms = _terms(inp, "hierarchical", quadrature_degree, DG0)
+    try:  # on a failure the reconstruction's PETSc objects are released
+        DG0 = fem.functionspace(disc.mesh, ("DG", 0))
+        inp = _Inputs(sol, goal_forms, z, rec, want_eta, petsc_options)
+        terms = _terms(inp, "patch" if weights == "auto" else weights, quadrature_degree, DG0)
+        resolved = contact_set_resolved(terms.value(estimator), terms.remainder, terms.contact)
+        if weights == "auto" and not resolved:
+            terms = _terms(inp, "hierarchical", quadrature_degree, DG0)
 
-    t_estimate = time.perf_counter() - tic - t_dual
-    indicators = fem.Function(DG0, name="indicators")
-    n_local = DG0.dofmap.index_map.size_local
-    indicators.x.array[:n_local] = terms.indicators[:n_local]
-    indicators.x.scatter_forward()
-    return Estimate(
-        J_h=goal_forms.value(),
-        eta_p=terms.eta_p,
-        eta=terms.eta,
-        contact_term=terms.contact,
-        active_set_remainder=terms.remainder,
-        rho=terms.rho,
-        rho_star=terms.rho_star,
-        estimator=estimator,
-        weights=terms.weights,
-        indicators=indicators,
-        dual=z,
-        goal_is_linear=goal_forms.is_linear,
-        timings={"dual": t_dual, "estimate": t_estimate},
-        reconstructor=rec,
-        resolved=resolved,
-    )
+        t_estimate = time.perf_counter() - tic - t_dual
+        indicators = fem.Function(DG0, name="indicators")
+        n_local = DG0.dofmap.index_map.size_local
+        indicators.x.array[:n_local] = terms.indicators[:n_local]
+        indicators.x.scatter_forward()
+        return Estimate(
+            J_h=goal_forms.value(),
+            eta_p=terms.eta_p,
+            eta=terms.eta,
+            contact_term=terms.contact,
+            active_set_remainder=terms.remainder,
+            rho=terms.rho,
+            rho_star=terms.rho_star,
+            estimator=estimator,
+            weights=terms.weights,
+            indicators=indicators,
+            dual=z,
+            goal_is_linear=goal_forms.is_linear,
+            timings={"dual": t_dual, "estimate": t_estimate},
+            reconstructor=rec,
+            resolved=resolved,
+        )
+    except BaseException:
+        rec.destroy()
+        raise

@@ -17,6 +17,7 @@ import ufl
 from dolfinx import fem
 from ufl.algorithms import expand_derivatives
 
+from .collective import call_collectively
 from .spaces import Discretization
 from .timing import timed
 
@@ -53,6 +54,7 @@ class GoalForms:
         disc: The discretisation.
 
     Raises:
+        CollectiveError: ``goal`` raised, on any rank (then on every rank, naming ``goal``).
         TypeError: ``goal`` is not callable or does not return a UFL form.
         ValueError: The form is not scalar, lives on another mesh, or integrates lambda
             outside Gamma_C.
@@ -61,7 +63,7 @@ class GoalForms:
     def __init__(self, goal: Goal, u: fem.Function, lam: fem.Function, disc: Discretization):
         if not callable(goal):
             raise TypeError(f"goal must be a callable goal(u, lam, m) -> ufl.Form, got {goal!r}")
-        J = goal(u, lam, disc.m)
+        J = call_collectively(disc.comm, "goal", goal, u, lam, disc.m)
         if not isinstance(J, ufl.Form):
             raise TypeError(
                 "goal(u, lam, m) must return a UFL form such as `ufl.inner(u, u) * m.dx`, got "

@@ -2,7 +2,10 @@
 
 Every row is written as soon as its level ends, so a run that is interrupted later keeps every
 finished level: the CSV is appended and flushed, the JSON is rewritten atomically (temporary file
-and rename), and each level's fields go to their own XDMF files.
+and rename), and each level's fields go to their own XDMF files, written before its row (a level
+in the table has its fields on disk). Rank 0 writes the tables; an error there (a full disk, a
+directory removed meanwhile) is raised on every rank (:func:`~dwr_signorini.collective.on_root`),
+so the other ranks do not wait for it in the next collective.
 """
 
 from __future__ import annotations
@@ -19,6 +22,8 @@ from typing import Any
 from mpi4py import MPI
 
 from dolfinx import io
+
+from .collective import on_root
 
 __all__ = ["OutputDirectory", "check_output_dir", "write_csv", "write_json"]
 
@@ -106,11 +111,12 @@ class OutputDirectory:
     def _create(self) -> None:
         if self._created:
             return
-        if self.comm.rank == 0:
-            self.path.mkdir(parents=True, exist_ok=True)
-            self.csv_path.unlink(missing_ok=True)
-        self.comm.Barrier()
+        on_root(self.comm, f"output_dir {str(self.path)!r}", self._make)
         self._created = True
+
+    def _make(self) -> None:
+        self.path.mkdir(parents=True, exist_ok=True)
+        self.csv_path.unlink(missing_ok=True)
 
     @property
     def csv_path(self) -> Path:
@@ -126,18 +132,19 @@ class OutputDirectory:
         """Append a finished level's row to the CSV and rewrite the JSON (rank 0)."""
         self._create()
         self.rows.append(row)
-        if self.comm.rank == 0:
-            flat = _flatten(row)
-            new = not self.csv_path.exists()
-            with open(self.csv_path, "a", newline="") as fh:
-                writer = csv.DictWriter(fh, fieldnames=list(flat))
-                if new:
-                    writer.writeheader()
-                writer.writerow(flat)
-                fh.flush()
-                os.fsync(fh.fileno())
-            write_json(self.json_path, {"meta": meta or {}, "levels": self.rows})
-        self.comm.Barrier()
+        on_root(self.comm, f"writing {self.csv_path.name}", self._write_row, row, meta)
+
+    def _write_row(self, row: dict[str, Any], meta: dict[str, Any] | None) -> None:
+        flat = _flatten(row)
+        new = not self.csv_path.exists()
+        with open(self.csv_path, "a", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(flat))
+            if new:
+                writer.writeheader()
+            writer.writerow(flat)
+            fh.flush()
+            os.fsync(fh.fileno())
+        write_json(self.json_path, {"meta": meta or {}, "levels": self.rows})
 
     def write_fields(
         self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]

@@ -34,6 +34,7 @@ import numpy as np
 from dolfinx import fem
 
 from .algebra import check_ncp_scale, distributed_norm
+from .collective import CollectiveError, collective
 from .lifetime import Releasable
 from .linalg import (
     LOOSE_RTOL,
@@ -252,8 +253,8 @@ def solve(
         disc = problem_or_disc
     else:
         raise TypeError(
-            "solve() takes a SignoriniProblem or a Discretization, got "
-            f"{type(problem_or_disc).__name__}"
+            "problem must be a SignoriniProblem or a Discretization (the first argument of "
+            f"solve()), got {type(problem_or_disc).__name__}"
         )
     if (
         isinstance(max_iterations, bool)
@@ -278,9 +279,21 @@ def solve(
             "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
             f"{type(petsc_options).__name__}"
         )
+    if petsc_options_prefix is not None and (
+        not isinstance(petsc_options_prefix, str)
+        or not petsc_options_prefix
+        or not petsc_options_prefix.endswith("_")
+    ):
+        raise ValueError(
+            "petsc_options_prefix must be a non-empty string ending with '_' (e.g. 'contact_') "
+            f"or None, got {petsc_options_prefix!r}"
+        )
     if initial_guess is not None:
         if not isinstance(initial_guess, (tuple, list)) or len(initial_guess) != 2:
-            raise TypeError("initial_guess must be a pair (u0, lam0) of dolfinx Functions")
+            raise TypeError(
+                "initial_guess must be a pair (u0, lam0) of dolfinx Functions, got "
+                f"{type(initial_guess).__name__}"
+            )
         u0, lam0 = initial_guess
         if (
             getattr(u0, "function_space", None) != disc.V
@@ -473,13 +486,20 @@ def _semismooth_newton(
             seen[key] = it
 
             try:
-                system.solve_active(new)
+                # A failure that one rank sees first (after the solve's last collective) is
+                # raised on every rank (dwr_signorini.collective).
+                with collective(comm, f"Newton step {it}: the linear solve"):
+                    system.solve_active(new)
             except (LinearSolveError, PETSc.Error, np.linalg.LinAlgError) as err:
                 # LinAlgError: the Cholesky factorisation of S_AA (method="schur") failed.
                 reason = system.ksp.getConvergedReason()
                 names = vars(PETSc.KSP.ConvergedReason).items()
                 name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
-                if isinstance(err, PETSc.Error):
+                if isinstance(err, CollectiveError):
+                    ranks = ", ".join(map(str, err.ranks))
+                    on = f" on rank(s) {ranks} of {comm.size}" if comm.size > 1 else ""
+                    name = f"{err.error_type}{on}: {err.error_message.splitlines()[0]}"
+                elif isinstance(err, PETSc.Error):
                     name = f"PETSc error {err.ierr}"
                 elif isinstance(err, np.linalg.LinAlgError):
                     name = str(err)

@@ -170,6 +170,8 @@ class SignoriniProblem(ProblemDataChecks):
             raise ValueError(
                 "facet_tags index facets that `mesh` does not have: another mesh's tags?"
             )
+        if mesh.topology.index_map(tdim).size_global == 0:
+            raise ValueError("mesh has no cells: pass the macro mesh T_H of the body")
         if tdim not in (2, 3) or mesh.geometry.dim != tdim:
             raise ValueError("mesh must be a 2D mesh in the plane or a 3D volume mesh")
         if compat.geometry_cmap(mesh).degree != 1:
@@ -268,7 +270,7 @@ class SignoriniProblem(ProblemDataChecks):
 
     def _material(self, value: MaterialData, name: str, x: Any) -> Any:
         if callable(value):
-            return value(x)
+            return self.call_user(name, value, x)
         if not isinstance(value, Mapping):
             return value
         data = self._domain_data(x)
@@ -340,18 +342,22 @@ class SignoriniProblem(ProblemDataChecks):
         f = self.vector(self.body_force, m.x) if f is None else f
         form = ufl.inner(f, v) * (m.dx if dx is None else dx)
         for tag, t in self.traction.items():
-            form += ufl.inner(self.vector(t, m.x), v) * m.ds(tag)
+            form += ufl.inner(self.vector(t, m.x, f"traction[{tag}]"), v) * m.ds(tag)
         return form
 
-    def vector(self, value: VectorData, x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
+    def vector(
+        self, value: VectorData, x: ufl.SpatialCoordinate, where: str = "body_force"
+    ) -> ufl.core.expr.Expr:
         """A load as a UFL vector on the mesh of ``x``; ``None`` is the zero vector.
+
+        ``where`` names the load in the error of a callable that raises (on any rank).
 
         Constant data (``None``, a sequence, a callable returning literal numbers) become a
         :class:`dolfinx.fem.Constant`: UFL simplifies a literal zero away, and
         ``inner(0, v) * dx`` would lose its test function and could not be assembled.
         """
         if callable(value):
-            return _nonzero_literal(ufl.as_vector(value(x)), x)
+            return _nonzero_literal(ufl.as_vector(self.call_user(where, value, x)), x)
         data = np.zeros(self.mesh.geometry.dim) if value is None else np.asarray(value, float)
         return fem.Constant(extract_unique_domain(x), data)
 
@@ -382,6 +388,7 @@ class SignoriniProblem(ProblemDataChecks):
         return self._miss
 
     def _gap_value(self, gap: Any, x: Any, n: Any) -> Any:
+        """One gap's value at ``x`` (local: calls the user's callable or a Graph's psi)."""
         if isinstance(gap, Obstacle):
             n = ufl.FacetNormal(extract_unique_domain(x)) if n is None else n
             return gap.gap(x, n, self.miss_gap)
@@ -403,7 +410,10 @@ class SignoriniProblem(ProblemDataChecks):
         entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
         """
         if isinstance(self.gap, Mapping):
-            values = {t: self._gap_value(g, x, n) for t, g in self.gap.items()}
+            values = {
+                t: self.call_user(f"gap[{t}]", self._gap_value, g, x, n)
+                for t, g in self.gap.items()
+            }
             distinct = {id(g) for g in self.gap.values()}
             if len(distinct) == 1:
                 return self._as_expr(next(iter(values.values())), x)
@@ -415,7 +425,7 @@ class SignoriniProblem(ProblemDataChecks):
                 )
             total = sum(indicators[t] * ufl.as_ufl(values[t]) for t in self.contact_tags)
             return total
-        return self._as_expr(self._gap_value(self.gap, x, n), x)
+        return self._as_expr(self.call_user("gap", self._gap_value, self.gap, x, n), x)
 
     @staticmethod
     def _as_expr(value: Any, x: Any) -> Any:

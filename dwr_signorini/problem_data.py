@@ -21,6 +21,7 @@ from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
 from . import compat
+from .collective import call_collectively
 from .obstacles import Graph, Obstacle
 
 __all__ = ["DirichletData", "DirichletValue", "GapData", "MaterialData", "ProblemDataChecks",
@@ -222,11 +223,14 @@ class ProblemDataChecks:
         self, value: Callable[..., Any], name: str, low: float, high: float
     ) -> None:
         """``low < value(x) < high`` at the degree-8 quadrature points of the mesh (collective)."""
-        space, _ = _macro_cell_measure(self.mesh)
-        f = fem.Function(space)
-        expr = ufl.as_ufl(value(ufl.SpatialCoordinate(self.mesh)))
-        f.interpolate(fem.Expression(expr, compat.interpolation_points(space.element)))
-        vals = f.x.array
+        expr = ufl.as_ufl(self.call_user(name, value, ufl.SpatialCoordinate(self.mesh)))
+        if extract_unique_domain(expr) is None:  # a constant, e.g. 0.6 + 0 * x[0] = 0.6
+            vals = np.array([float(expr)])
+        else:
+            space, _ = _macro_cell_measure(self.mesh)
+            f = fem.Function(space)
+            f.interpolate(fem.Expression(expr, compat.interpolation_points(space.element)))
+            vals = f.x.array
         comm = self.mesh.comm
         lo = comm.allreduce(float(np.min(vals, initial=np.inf)), op=MPI.MIN)
         hi = comm.allreduce(float(np.max(vals, initial=-np.inf)), op=MPI.MAX)
@@ -319,7 +323,7 @@ class ProblemDataChecks:
         """Call ``value`` with the mesh's SpatialCoordinate once: a UFL expression of ``shape``?"""
         what = "scalar" if not shape else f"vector with {shape[0]} components"
         try:
-            expr = value(ufl.SpatialCoordinate(self.mesh))
+            expr = self.call_user(name, value, ufl.SpatialCoordinate(self.mesh))
             expr = ufl.as_vector(expr) if isinstance(expr, (list, tuple)) else ufl.as_ufl(expr)
         except Exception as err:
             raise TypeError(
@@ -328,6 +332,14 @@ class ProblemDataChecks:
             ) from err
         if ufl.shape(expr) != shape:
             raise ValueError(f"{name} must return a UFL {what}, got shape {ufl.shape(expr)}")
+
+    def call_user(self, where: str, function: Callable[..., Any], *args: Any) -> Any:
+        """``function(*args)``, the user's, evaluated collectively on the mesh's communicator.
+
+        An exception on any rank raises a :class:`~dwr_signorini.collective.CollectiveError`
+        naming ``where`` on every rank (:func:`~dwr_signorini.collective.call_collectively`).
+        """
+        return call_collectively(self.mesh.comm, where, function, *args)
 
     def _check_tags(self) -> None:
         """Every tag used marks a boundary facet somewhere, contact tags no common facet."""

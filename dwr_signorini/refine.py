@@ -28,6 +28,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
 from . import compat
+from .collective import collective
 from .problem import SignoriniProblem
 
 __all__ = [
@@ -208,6 +209,21 @@ def _corner_jacobians(msh: dmesh.Mesh) -> npt.NDArray[np.float64]:
     return np.stack(dets, axis=1)
 
 
+def _projected(
+    f: Callable[[np.ndarray], np.ndarray], points: np.ndarray, tag: int, gdim: int
+) -> np.ndarray:
+    """``f(points)`` as a checked array of shape (gdim or 3, n) (local; ValueError naming it)."""
+    new = np.asarray(f(points), dtype=float)
+    if new.ndim != 2 or new.shape[1] != points.shape[1] or new.shape[0] not in (gdim, 3):
+        raise ValueError(
+            f"boundary_projection[{tag}] must return an array of shape (3, n) or "
+            f"({gdim}, n) for points of shape (3, n), got {new.shape}"
+        )
+    if not np.all(np.isfinite(new)):
+        raise ValueError(f"boundary_projection[{tag}] returned NaN or Inf")
+    return new
+
+
 def project_boundary(
     msh: dmesh.Mesh,
     facet_tags: dmesh.MeshTags,
@@ -228,7 +244,9 @@ def project_boundary(
     Raises:
         RuntimeError: If a move would invert or flatten a cell (the mesh is then unchanged):
             the macro mesh is too coarse near that curved boundary for its refinement.
-        ValueError: If a projection returns an array of the wrong shape or non-finite values.
+        ValueError: If a projection returns an array of the wrong shape or non-finite values
+            (on any rank: then on every rank, as a ``CollectiveValueError`` naming it; an
+            exception the callable raises likewise, :mod:`dwr_signorini.collective`).
     """
     fdim = msh.topology.dim - 1
     gdim = msh.geometry.dim
@@ -238,16 +256,13 @@ def project_boundary(
     for tag, f in projection.items():
         facets = facet_tags.find(tag).astype(np.int32)
         nodes = np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False))
-        if nodes.size:
-            new = np.asarray(f(x[nodes].T.copy()), dtype=float)
-            if new.ndim != 2 or new.shape[1] != nodes.size or new.shape[0] not in (gdim, 3):
-                raise ValueError(
-                    f"boundary_projection[{tag}] must return an array of shape (3, n) or "
-                    f"({gdim}, n) for points of shape (3, n), got {new.shape}"
-                )
-            if not np.all(np.isfinite(new)):
-                raise ValueError(f"boundary_projection[{tag}] returned NaN or Inf")
-            x[nodes, :gdim] = new[:gdim].T
+        try:  # the user's f on this rank's points; its error, or a bad result, on every rank
+            with collective(msh.comm, f"boundary_projection[{tag}]"):
+                if nodes.size:
+                    x[nodes, :gdim] = _projected(f, x[nodes].T.copy(), tag, gdim)[:gdim].T
+        except Exception:
+            x[:] = saved
+            raise
         after = _corner_jacobians(msh)
         bad = (np.sign(after) != np.sign(before)) | (np.abs(after) < 1e-10 * np.abs(before))
         count = msh.comm.allreduce(int(bad.any(axis=1).sum()), op=MPI.SUM)

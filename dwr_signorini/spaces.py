@@ -25,6 +25,7 @@ from dolfinx import mesh as dmesh
 
 from . import compat
 from .problem import SignoriniProblem
+from .problem_data import _nonzero_literal
 from .quadrature import DATA_QUADRATURE_DEGREE, expand_integer_powers, is_polynomial
 from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
     cell_tags_on_fine,
@@ -224,7 +225,9 @@ class Discretization:
                     bcs.append(fem.dirichletbc(data, dofs, V))
                 else:
                     u_D = fem.Function(V, name=f"u_D_{tag}")
-                    expr = ufl.as_vector(value(ufl.SpatialCoordinate(self.mesh)))
+                    x = ufl.SpatialCoordinate(self.mesh)
+                    expr = ufl.as_vector(self.problem.call_user(f"dirichlet[{tag}]", value, x))
+                    expr = _nonzero_literal(expr, x)  # constant values: a Constant on the mesh
                     points = compat.interpolation_points(V.element)
                     u_D.interpolate(fem.Expression(expand_integer_powers(expr), points))
                     bcs.append(fem.dirichletbc(u_D, dofs))

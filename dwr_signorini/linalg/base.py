@@ -84,20 +84,22 @@ class NewtonLinearSystem:
     ) -> None:
         self.disc = disc
         self.prefix = unique_prefix() if prefix is None else prefix
-        self.algebra = ContactAlgebra(disc, V, ncp_scale, compile_options)
-        self._scope = OptionsScope(
-            self.prefix, _defaults_for(disc.mesh.topology.dim, petsc_options), petsc_options
-        )
-        self.options = self._scope.options
-        self.ksp = PETSc.KSP().create(disc.comm)
-        self._scope.apply(self.ksp)
-        n = self.algebra.n_u + self.algebra.n_lam
-        self.x = PETSc.Vec().createMPI((n, None), comm=disc.comm)
-        self.active = np.zeros(self.algebra.n_lam, dtype=bool)
+        self.algebra: ContactAlgebra | None = None
+        self._scope: OptionsScope | None = None
         self.solved = False
-        try:
+        try:  # on any failure, what exists so far is destroyed and its options removed
+            self.algebra = ContactAlgebra(disc, V, ncp_scale, compile_options)
+            self._scope = OptionsScope(
+                self.prefix, _defaults_for(disc.mesh.topology.dim, petsc_options), petsc_options
+            )
+            self.options = self._scope.options
+            self.ksp = PETSc.KSP().create(disc.comm)
+            self._scope.apply(self.ksp)
+            n = self.algebra.n_u + self.algebra.n_lam
+            self.x = PETSc.Vec().createMPI((n, None), comm=disc.comm)
+            self.active = np.zeros(self.algebra.n_lam, dtype=bool)
             self._setup()
-        except Exception:
+        except BaseException:
             self.destroy()
             raise
 
@@ -219,5 +221,7 @@ class NewtonLinearSystem:
     def destroy(self) -> None:
         """Destroy the PETSc objects and remove the options (collective; idempotent)."""
         destroy_attributes(self, self._petsc_objects)
-        self.algebra.destroy()
-        self._scope.destroy()
+        if self.algebra is not None:
+            self.algebra.destroy()
+        if self._scope is not None:
+            self._scope.destroy()

@@ -207,9 +207,24 @@ class OptionsScope:
             _owners[name] += 1
 
     def apply(self, obj: Any) -> None:
-        """Give ``obj`` (a KSP, PC or Mat) this prefix and let it read its options."""
+        """Give ``obj`` (a KSP, PC or Mat) this prefix and let it read its options.
+
+        Raises:
+            ValueError: PETSc rejected an option (e.g. a misspelt ``pc_type``), naming
+                ``petsc_options`` and the options in effect. The caller destroys the scope.
+        """
         obj.setOptionsPrefix(self.prefix)
-        obj.setFromOptions()
+        try:
+            obj.setFromOptions()
+        except PETSc.Error as err:
+            # PETSc's message without the stack: "Unable to find requested PC type lux".
+            lines = [line.split("] ", 1)[-1] for line in str(err).splitlines()[1:]]
+            detail = "; ".join(line for line in lines if line and "() at " not in line)
+            raise ValueError(
+                f"petsc_options (prefix {self.prefix!r}): PETSc rejected the options "
+                f"{self.options} (PETSc error {err.ierr}: {detail}); expected the "
+                "names and values of PETSc's options database, e.g. {'pc_type': 'lu'}"
+            ) from err
 
     def options_under(self, sub: str) -> dict[str, Any]:
         """The options in effect that start with ``sub``, with ``sub`` removed."""

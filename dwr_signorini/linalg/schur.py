@@ -273,6 +273,15 @@ class KrylovSchurComplement:
     """
 
     def __init__(self, algebra: ContactAlgebra, ksp: PETSc.KSP, prefix: str) -> None:
+        self._scope: OptionsScope | None = None
+        try:  # on a failure (a rejected schur_ option), what exists is destroyed
+            self._set_up(algebra, ksp, prefix)
+        except BaseException:
+            self.destroy()
+            raise
+
+    def _set_up(self, algebra: ContactAlgebra, ksp: PETSc.KSP, prefix: str) -> None:
+        """The preconditioner's S_hat, the python matrix S, the CG and its options."""
         self.ksp_K = ksp
         comm = algebra.comm
         inv_diag = algebra.K.getDiagonal()
@@ -351,7 +360,8 @@ class KrylovSchurComplement:
     def destroy(self) -> None:
         """Destroy the PETSc objects and remove the options (collective)."""
         destroy_attributes(self, ("ksp", "S", "P", "S_hat", "_y"))
-        self._scope.destroy()
+        if self._scope is not None:
+            self._scope.destroy()
 
 
 class SchurNewtonSystem(NewtonLinearSystem):

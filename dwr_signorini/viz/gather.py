@@ -28,6 +28,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
 from .. import compat
+from ..collective import collective
 
 __all__ = [
     "MeshSnapshot",
@@ -124,7 +125,8 @@ def _contact_obstacle(sol: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     facet_tag = tags.values[np.searchsorted(tags.indices, facets)]
     x = _cell_vertices(msh, msh.topology.dim - 1, facets)
     n = _outward_normals(msh, facets)
-    g = _gap_at(disc.problem, msh.geometry.dim, facet_tag, x, n)
+    with collective(msh.comm, "gap"):  # the user's gap at this rank's points
+        g = _gap_at(disc.problem, msh.geometry.dim, facet_tag, x, n)
     return x, n, g
 
 
