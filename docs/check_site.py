@@ -13,10 +13,15 @@ Used by ``make docs-check`` and ``tests/test_docs.py``.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import shutil
 import subprocess
 import sys
+import threading
+from collections.abc import Iterator
 from html.parser import HTMLParser
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
@@ -112,11 +117,39 @@ def chromium() -> str:
     raise FileNotFoundError("chromium not found: run `make docs-env` (env/docs-packages.txt)")
 
 
-def screenshot(page: Path, png: Path, width: int, height: int) -> None:
-    """Render ``page`` with headless Chromium to the PNG ``png`` (``width`` x ``height``).
+class _QuietHandler(SimpleHTTPRequestHandler):
+    def log_message(self, format: str, *args: object) -> None:  # noqa: A002
+        pass
+
+
+@contextlib.contextmanager
+def serve(root: Path) -> Iterator[str]:
+    """Serve ``root`` over HTTP on a free port of 127.0.0.1 while the context lasts.
+
+    Pages are shown as a reader's browser shows a published site: over ``file://`` Chromium
+    refuses the theme's JavaScript modules.
 
     Args:
-        page: The HTML file.
+        root: The directory to serve.
+
+    Yields:
+        The base URL, ending in ``/``.
+    """
+    handler = functools.partial(_QuietHandler, directory=str(root))
+    with ThreadingHTTPServer(("127.0.0.1", 0), handler) as server:
+        thread = threading.Thread(target=server.serve_forever, daemon=True)
+        thread.start()
+        try:
+            yield f"http://127.0.0.1:{server.server_address[1]}/"
+        finally:
+            server.shutdown()
+
+
+def screenshot(url: str, png: Path, width: int, height: int) -> None:
+    """Render the page at ``url`` with headless Chromium to the PNG ``png`` (``width`` x ``height``).
+
+    Args:
+        url: The page.
         png: The PNG to write.
         width: Window width in pixels.
         height: Window height in pixels.
@@ -129,11 +162,11 @@ def screenshot(page: Path, png: Path, width: int, height: int) -> None:
     command = [
         chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
         "--no-first-run", "--force-device-scale-factor=1", f"--window-size={width},{height}",
-        "--virtual-time-budget=20000", f"--screenshot={png.resolve()}", page.resolve().as_uri(),
+        "--virtual-time-budget=20000", f"--screenshot={png.resolve()}", url,
     ]
     done = subprocess.run(command, capture_output=True, text=True, timeout=180, check=False)
     if done.returncode != 0 or not png.is_file() or png.stat().st_size == 0:
-        raise RuntimeError(f"chromium failed ({done.returncode}) on {page}:\n{done.stderr[-2000:]}")
+        raise RuntimeError(f"chromium failed ({done.returncode}) on {url}:\n{done.stderr[-2000:]}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -149,9 +182,10 @@ def main(argv: list[str] | None = None) -> int:
     if problems:
         return 1
     if args.screenshots:
-        for page, png, width, height in SCREENSHOTS:
-            screenshot(args.site / page, args.screenshots / png, width, height)
-            print(f"screenshot of {page}: {args.screenshots / png}")
+        with serve(args.site) as base:
+            for page, png, width, height in SCREENSHOTS:
+                screenshot(base + page, args.screenshots / png, width, height)
+                print(f"screenshot of {page}: {args.screenshots / png}")
     return 0
 
 

@@ -31,6 +31,8 @@ extensions = [
 source_suffix = {".md": "markdown"}
 exclude_patterns = ["_build", "screenshots", "README.md"]
 root_doc = "index"
+# Untagged code blocks (shell lines in the demos' comments, logs) are shown as they are.
+highlight_language = "text"
 
 myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence"]
 myst_heading_anchors = 4
@@ -63,6 +65,17 @@ MATHJAX_PARTS = [
     "fonts/HTML-CSS/TeX/woff",
 ]
 mathjax_path = "mathjax/MathJax.js?config=TeX-AMS_CHTML"
+# MathJax 2 is configured by MathJax.Hub.Config, not by the window.MathJax object of MathJax 3 that
+# MyST would write: typeset the elements of Sphinx's class "math" only.
+myst_update_mathjax = False
+mathjax3_config = None
+mathjax2_config = {
+    "tex2jax": {"inlineMath": [["\\(", "\\)"]], "displayMath": [["\\[", "\\]"]],
+                "processEscapes": True, "ignoreClass": "document", "processClass": "math"},
+    "CommonHTML": {"linebreaks": {"automatic": True}},
+    "showMathMenu": False,
+    "messageStyle": "none",
+}
 
 # The demos, rendered from demos/*.py (docs/_ext/demo_pages.py), with the pictures of a run.
 demo_pages_source = "../demos"

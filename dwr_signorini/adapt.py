@@ -74,8 +74,8 @@ class AdaptiveResult(Releasable):
     """The levels of a run and the last solution and estimate.
 
     Attributes:
-        converged: Whether the run stopped on ``tol``: |estimate| + |active-set remainder| <=
-            tol on the last level. False when it ended at ``max_levels`` or ``max_cells``
+        converged: Whether the run stopped on ``tol``: ``|estimate| + |active-set remainder|
+            <= tol`` on the last level. False when it ended at ``max_levels`` or ``max_cells``
             without that, and always without ``tol``.
     """
 
@@ -216,7 +216,7 @@ def solve_adaptive(
         strategy: ``"fixed_fraction"`` or ``"doerfler"``.
         max_levels: Number of levels (solves) at most.
         max_cells: Stop before a level whose fine mesh would exceed this many cells.
-        tol: Stop when |estimate| + |active-set remainder| <= tol (the remainder R_A of
+        tol: Stop when ``|estimate| + |active-set remainder| <= tol`` (the remainder R_A of
             Proposition 4, :attr:`~dwr_signorini.Estimate.active_set_remainder`, which is large
             while the contact set is not resolved); ``AdaptiveResult.converged`` tells whether
             that happened, and with ``verbose`` a line says so when it did not.

@@ -176,7 +176,7 @@ def solve(
     the previous iterate, with two safeguards:
 
     * *Round-off.* In the test (M lam + c_n (N u - g))_i > 0 each part counts as zero below its
-      round-off level (``1e-10`` relative to M_i max|u| + |g_i| and to max_j |(M lam)_j|).
+      round-off level (``1e-10`` relative to ``M_i max|u| + |g_i|`` and to ``max_j |(M lam)_j|``).
       Without it a bi-active index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g.
       grazing contact) would change sides on round-off noise and the iteration could cycle; and
       the decisions stay independent of c_n.
@@ -207,9 +207,9 @@ def solve(
         initial_guess: ``(u0, lam0)`` on this discretisation's V and Q (warm start).
         max_iterations: Most Newton steps before giving up.
         rtol: Tolerance at convergence on the equilibrium residual, relative to the size of
-            its terms (max of ||K|| ||u||, ||N^T lam||, ||f||: a backward error, which does not
+            its terms (max of ``||K|| ||u||``, ``||N^T lam||``, ``||f||``: a backward error, which does not
             grow with lambda/mu or mesh grading), and on the NCP residual (20), entry by entry
-            relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|).
+            relative to ``|M lam|_i + c_n,i (M_i max|u| + |g_i|)``.
         ncp_scale: c of the NCP function (20), the same for the Newton method, the dual
             problem and the estimator (:mod:`dwr_signorini.residuals`): ``"physical"`` (default,
             c_n,i = E / H_i on macro contact facet i, invariant under a change of units) or a
