@@ -58,11 +58,12 @@ lint:
 	@command -v ruff >/dev/null 2>&1 || python3 -m pip install --quiet ruff
 	ruff check .
 
-# The README's pictures: run the three demos at their defaults and copy the PNGs to docs/img.
+# The site's pictures (docs/img): run the three demos at their defaults and copy the PNGs to docs/img.
 figures:
 	$(FENICSX) mpirun -n $(NP) python3 demos/bar_2d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/analytic_2d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/obstacle_3d.py
+	$(FENICSX) mpirun -n $(NP) python3 demos/hertz.py --dim 2
 	mkdir -p docs/img
 	cp results/bar_2d/convergence_cells.png docs/img/bar_convergence_cells.png
 	cp results/bar_2d/convergence_time.png docs/img/bar_convergence_time.png
@@ -71,6 +72,8 @@ figures:
 	cp results/analytic_2d/effectivity.png docs/img/analytic_effectivity.png
 	cp results/analytic_2d/sweep.png docs/img/analytic_sweep.png
 	cp results/obstacle_3d/solution.png docs/img/obstacle_solution.png
+	cp results/hertz_2d/pressure_profile.png docs/img/hertz_pressure_profile.png
+	cp results/hertz_2d/errors_dofs.png docs/img/hertz_errors_dofs.png
 
 # Optional peer codes for benchmarks/peers.py (env/peer-packages.txt: GetFEM), never a dependency
 # of the package. `make peer-env` runs apt-get through $(FENICSX), so the packages go where every

@@ -118,7 +118,7 @@ def chromium() -> str:
 
 
 class _QuietHandler(SimpleHTTPRequestHandler):
-    def log_message(self, format: str, *args: object) -> None:  # noqa: A002
+    def log_message(self, format: str, *args: object) -> None:
         pass
 
 
@@ -146,7 +146,7 @@ def serve(root: Path) -> Iterator[str]:
 
 
 def screenshot(url: str, png: Path, width: int, height: int) -> None:
-    """Render the page at ``url`` with headless Chromium to the PNG ``png`` (``width`` x ``height``).
+    """Render the page at ``url`` with headless Chromium to the PNG ``png``.
 
     Args:
         url: The page.

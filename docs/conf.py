@@ -87,13 +87,16 @@ demo_pages = {
         ("bar_solution.png", "The deformed bar, coloured by the von Mises stress."),
     ],
     "analytic_2d": [
-        ("analytic_effectivity.png", "Effectivity of eta_p and eta against the paper's Tables 1-2."),
+        ("analytic_effectivity.png", "Effectivity of eta_p and eta beside the paper's Tables 1-2."),
         ("analytic_sweep.png", "Effectivity against the midpoint m of the goal (Figure 4)."),
     ],
     "obstacle_3d": [
         ("obstacle_solution.png", "The 3D body and its contact zone on the finest adaptive mesh."),
     ],
-    "hertz": [],
+    "hertz": [
+        ("hertz_pressure_profile.png", "2D: the contact force of the last level, and Hertz's."),
+        ("hertz_errors_dofs.png", "2D: the estimate and the errors against Hertz's formulas."),
+    ],
 }
 
 

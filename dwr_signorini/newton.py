@@ -207,8 +207,9 @@ def solve(
         initial_guess: ``(u0, lam0)`` on this discretisation's V and Q (warm start).
         max_iterations: Most Newton steps before giving up.
         rtol: Tolerance at convergence on the equilibrium residual, relative to the size of
-            its terms (max of ``||K|| ||u||``, ``||N^T lam||``, ``||f||``: a backward error, which does not
-            grow with lambda/mu or mesh grading), and on the NCP residual (20), entry by entry
+            its terms (max of ``||K|| ||u||``, ``||N^T lam||``, ``||f||``: a backward error,
+            which does not grow with lambda/mu or mesh grading), and on the NCP residual (20),
+            entry by entry
             relative to ``|M lam|_i + c_n,i (M_i max|u| + |g_i|)``.
         ncp_scale: c of the NCP function (20), the same for the Newton method, the dual
             problem and the estimator (:mod:`dwr_signorini.residuals`): ``"physical"`` (default,

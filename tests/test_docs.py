@@ -54,7 +54,8 @@ print(x)
 def test_demo_markdown():
     demo_pages = _load("demo_pages", DOCS / "_ext" / "demo_pages.py")
     page = demo_pages.demo_markdown(LIGHT_SCRIPT, "example", [("pic.png", "A picture.")])
-    assert page.startswith("# A title\n\nText with $a^2$ and\n\n$$\nJ(u) = \\int_\\Omega u \\, dx\n$$")
+    maths = "$$\nJ(u) = \\int_\\Omega u \\, dx\n$$"
+    assert page.startswith("# A title\n\nText with $a^2$ and\n\n" + maths)
     assert "```python\nimport math\n\nx = math.pi\n```" in page
     assert "## Next\n\nMore text." in page
     assert "```python\nprint(x)\n```" in page

@@ -54,7 +54,9 @@ def demo_markdown(text: str, name: str, pictures=()) -> str:
     if pictures:
         output[-1] += " The pictures are from a run with its default options."
     for picture, caption in pictures:
-        output.append(f"```{{figure}} ../img/{picture}\n:alt: {caption}\n:width: 100%\n\n{caption}\n```")
+        output.append(
+            f"```{{figure}} ../img/{picture}\n:alt: {caption}\n:width: 100%\n\n{caption}\n```"
+        )
     return "\n\n".join(parts + output) + "\n"
 
 
