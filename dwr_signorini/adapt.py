@@ -43,7 +43,28 @@ REFINEMENTS = ("adaptive", "uniform")
 
 @dataclass
 class LevelRecord:
-    """One row of the table of an adaptive or uniform run (the paper's Tables 1-3)."""
+    """One row of the table of an adaptive or uniform run (the paper's Tables 1-3).
+
+    Attributes:
+        level: The level, from 0.
+        num_cells: M_Omega, cells of T_h.
+        num_macro_cells: Cells of T_H.
+        num_contact_elements: M_C, macro contact facets (multipliers).
+        num_dofs: Displacement DoFs.
+        num_active: Active multipliers at convergence.
+        J_h: J(w_h).
+        eta_p: The primal estimator.
+        eta: The primal-dual estimator, or ``None`` when only eta_p was asked for.
+        estimate: The estimator that drove the run (eta or eta_p).
+        contact_term: C(w_h)(xi_H).
+        active_set_remainder: R_A (:attr:`Estimate.active_set_remainder`).
+        newton_iterations: Newton steps of this level.
+        num_marked: Macro cells marked on this level for the next (over all ranks).
+        time: Seconds per phase (``solve``, ``dual``, ``estimate``, ``refine``, ..., ``total``).
+        rel_error: E_rel against the ``exact`` of :func:`solve_adaptive`, else ``None``.
+        ieff_p: Ieff of eta_p against ``exact``, else ``None``.
+        ieff: Ieff of eta against ``exact``, else ``None``.
+    """
 
     level: int
     num_cells: int
@@ -65,7 +86,11 @@ class LevelRecord:
     ieff: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        """The record as a plain dict (timings nested under ``time``)."""
+        """The record as a plain dict.
+
+        Returns:
+            The fields by name, the timings nested under ``time``.
+        """
         return asdict(self)
 
 
@@ -73,7 +98,16 @@ class LevelRecord:
 class AdaptiveResult(Releasable):
     """The levels of a run and the last solution and estimate.
 
+    Owns the last level's solution and estimate: release them with :meth:`destroy`
+    (collective), or use the result as a context manager.
+
     Attributes:
+        levels: One :class:`LevelRecord` per level.
+        solution: The last level's :class:`~dwr_signorini.Solution`.
+        estimate: The last level's :class:`~dwr_signorini.Estimate`.
+        problem: The problem on the last level's macro mesh.
+        meta: The run's settings (written by :meth:`to_json`).
+        comm: The mesh communicator.
         converged: Whether the run stopped on ``tol``: ``|estimate| + |active-set remainder|
             <= tol`` on the last level. False when it ended at ``max_levels`` or ``max_cells``
             without that, and always without ``tol``.
@@ -96,16 +130,28 @@ class AdaptiveResult(Releasable):
 
 
     def rows(self) -> list[dict[str, Any]]:
-        """The table as a list of dicts."""
+        """The table as a list of dicts.
+
+        Returns:
+            One :meth:`LevelRecord.as_dict` per level.
+        """
         return [r.as_dict() for r in self.levels]
 
     def to_csv(self, path: str | Path) -> None:
-        """Write the table as CSV (rank 0 of the mesh communicator writes)."""
+        """Write the table as CSV (rank 0 of the mesh communicator writes).
+
+        Args:
+            path: The CSV file, in an existing directory.
+        """
         if self.comm.rank == 0:
             write_csv(path, self.rows())
 
     def to_json(self, path: str | Path) -> None:
-        """Write the table and the run's settings as JSON (rank 0 of the mesh communicator)."""
+        """Write the table and the run's settings as JSON (rank 0 of the mesh communicator).
+
+        Args:
+            path: The JSON file, in an existing directory (written atomically).
+        """
         if self.comm.rank == 0:
             write_json(path, {"meta": self.meta, "levels": self.rows()})
 
@@ -242,7 +288,15 @@ def solve_adaptive(
             (:func:`~dwr_signorini.marking.mark_for_growth`).
 
     Returns:
-        The :class:`AdaptiveResult` with one :class:`LevelRecord` per level.
+        The :class:`AdaptiveResult` with one :class:`LevelRecord` per level (collective;
+        release it with ``destroy()`` or ``with``).
+
+    Raises:
+        TypeError, ValueError: Arguments of the wrong type or value, naming the argument
+            (checked before the first solve), or an ``output_dir`` that cannot be written.
+        ConvergenceError: As :func:`~dwr_signorini.solve`, on any level; the levels before it
+            are in ``output_dir`` if given.
+        RuntimeError: As :func:`~dwr_signorini.estimate`.
     """
     _validate(
         problem,

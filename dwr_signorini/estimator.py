@@ -50,7 +50,12 @@ __all__ = [
     "primal_residual",
 ]
 
+#: The ``estimator`` choices of :func:`estimate` and ``solve_adaptive``: ``"eta"`` (primal and
+#: dual residual, eq. 15) and ``"eta_p"`` (primal residual, eq. 13).
 ESTIMATORS = ("eta", "eta_p")
+#: The ``weights`` choices of :func:`estimate` and ``solve_adaptive``: the paper's patch-wise
+#: reconstructions, P2 solutions by a factorisation, or the same P2 solutions by FGMRES with the
+#: Newton factorisation as coarse level.
 WEIGHTS = ("patch", "higher_order", "hierarchical")
 
 
@@ -187,7 +192,15 @@ def estimate(
             On example 5.1 degrees 4, 6, 8 and UFL's estimate give the same Ieff to 6 digits.
 
     Returns:
-        The :class:`Estimate`.
+        The :class:`Estimate` (collective; release it with ``destroy()`` or ``with``).
+
+    Raises:
+        TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution`, or ``goal`` is not
+            callable or does not return a UFL form.
+        ValueError: For an unknown ``estimator`` or ``weights``, or a goal that is not a scalar
+            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``.
+        RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
+            the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
     if estimator not in ESTIMATORS:
         raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")

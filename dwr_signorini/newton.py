@@ -81,6 +81,13 @@ logger = logging.getLogger(__name__)
 class ConvergenceError(RuntimeError):
     """The semi-smooth Newton method did not converge.
 
+    The message ends with the iteration history, one line per step.
+
+    Args:
+        message: What failed.
+        history: One dict per iteration: ``iteration``, ``num_active``, ``num_changed``,
+            ``residual_equilibrium``, ``residual_ncp`` (and ``safeguard``, ``nonfinite``).
+
     Attributes:
         history: One dict per iteration: iteration, active-set size, changes, residuals.
     """
@@ -140,7 +147,15 @@ class Solution(Releasable):
         self.system.destroy()
 
     def multiplier_function(self, values: Any, name: str) -> fem.Function:
-        """A function on Lambda_H from values on the owned multipliers (ghosts updated)."""
+        """A function on Lambda_H from values on the owned multipliers (ghosts updated).
+
+        Args:
+            values: One value per owned multiplier (an array of length ``system.n_lam``).
+            name: The function's name.
+
+        Returns:
+            A new DG0 function on Lambda_H.
+        """
         out = fem.Function(self.disc.Q, name=name)
         out.x.array[: self.system.n_lam] = values
         out.x.scatter_forward()

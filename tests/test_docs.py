@@ -1,4 +1,5 @@
-"""The documentation site: the demo pages' converter, the site checker, and the built site.
+"""The documentation site: the demo pages' converter, the site checker, the built site, and the
+docstrings of everything the API reference shows.
 
 `test_site` builds the whole site as `make docs-check` does (warnings are errors, every page
 read anew) into a temporary directory, then checks that every internal link, anchor and image
@@ -6,9 +7,15 @@ resolves, that the demo pages carry their code, maths and pictures, and that the
 shows the public names. It takes about 10 s.
 """
 
+import ast
+import dataclasses
+import importlib
 import importlib.util
+import inspect
+import re
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -113,8 +120,99 @@ def test_site(tmp_path):
 
     for name in dwr_signorini.__all__:
         if name not in ("__version__", "obstacles"):
-            assert f'id="dwr_signorini.{name}"' in api, name
+            # ds.NAME, or where it is defined, for data whose doc comment is there
+            assert re.search(rf'id="dwr_signorini\.(\w+\.)?{name}"', api), name
     for name in dwr_signorini.obstacles.__all__:
         assert f'id="dwr_signorini.obstacles.{name}"' in api, name
     guide = (out / "guide" / "estimate.html").read_text()
     assert 'id="how-far-can-i-trust-the-number"' in guide
+
+
+API_DIRECTIVE = re.compile(r"^\.\. auto(\w+):: (\S+)\n((?:   :.*\n)*)", re.M)
+
+
+def _sections(doc):
+    return set(re.findall(r"^(Args|Returns|Yields|Raises|Attributes):$", doc or "", re.M))
+
+
+def _raises(func):
+    """Whether the function's own body (not nested functions) has a raise statement."""
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(func)))
+    except (OSError, TypeError):
+        return False
+    top = tree.body[0]
+    return any(
+        isinstance(node, ast.Raise)
+        for node in ast.walk(top)
+        if not any(node in ast.walk(f) for f in ast.walk(top)
+                   if isinstance(f, ast.FunctionDef) and f is not top)
+    )
+
+
+def _missing(func, doc, *, returns=True):
+    missing = []
+    signature = inspect.signature(func)
+    if [p for p in signature.parameters if p not in ("self", "cls")] and "Args" not in doc:
+        missing.append("Args")
+    annotation = signature.return_annotation
+    if returns and annotation not in (None, "None", inspect.Signature.empty) and not (
+        {"Returns", "Yields"} & doc
+    ):
+        missing.append("Returns")
+    if _raises(func) and "Raises" not in doc:
+        missing.append("Raises")
+    return missing
+
+
+def _api_objects():
+    """(name, object, members) for every autodoc directive of docs/api.md."""
+    text = (DOCS / "api.md").read_text()
+    for kind, name, options in API_DIRECTIVE.findall(text):
+        module, _, attr = name.rpartition(".")
+        obj = importlib.import_module(name) if kind == "module" else getattr(
+            importlib.import_module(module), attr)
+        listed = re.search(r":members:(.*)", options)
+        members = None if listed is None else [m.strip() for m in listed.group(1).split(",")
+                                               if m.strip()]
+        if kind == "module":
+            for sub in obj.__all__:
+                yield f"{name}.{sub}", getattr(obj, sub), members
+        else:
+            yield name, obj, members
+
+
+def test_api_docstrings_complete():
+    """Every function, class and method the API reference shows documents its arguments, what
+    it returns and what it raises (Google style: Args, Returns, Raises; Attributes for data)."""
+    problems = []
+    for name, obj, members in _api_objects():
+        if inspect.isfunction(obj):
+            problems += [f"{name}: {m}" for m in _missing(obj, _sections(inspect.getdoc(obj)))]
+        if not inspect.isclass(obj):
+            continue
+        doc = _sections(inspect.getdoc(obj))
+        if "__init__" in vars(obj):
+            init = vars(obj)["__init__"]
+            missing = _missing(init, doc, returns=False)
+            if "Args" in missing and "Attributes" in doc and dataclasses.is_dataclass(obj):
+                missing.remove("Args")
+            problems += [f"{name}: {m}" for m in missing]
+        elif dataclasses.is_dataclass(obj) and "Attributes" not in doc:
+            problems.append(f"{name}: Attributes")
+        if members is None:
+            continue
+        fields = {f.name for f in dataclasses.fields(obj)} if dataclasses.is_dataclass(obj) else ()
+        names = members or [n for n in vars(obj) if not n.startswith("_") and n not in fields]
+        for member in names:
+            value = inspect.getattr_static(obj, member)
+            if isinstance(value, property):
+                if not inspect.getdoc(getattr(obj, member, None)) and not (
+                        inspect.getdoc(value)):
+                    problems.append(f"{name}.{member}: no docstring")
+                elif _raises(value.fget) and "Raises" not in _sections(inspect.getdoc(value)):
+                    problems.append(f"{name}.{member}: Raises")
+            elif inspect.isfunction(value):
+                doc = _sections(inspect.getdoc(getattr(obj, member)))
+                problems += [f"{name}.{member}: {m}" for m in _missing(value, doc)]
+    assert problems == [], "\n".join(problems)
