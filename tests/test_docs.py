@@ -69,7 +69,8 @@ def test_demo_markdown():
     assert "# +" not in page and "# -" not in page
     assert page.index("A title") < page.index("import math") < page.index("## Next")
     assert page.index("print(x)") < page.index("## Output")
-    assert "```{figure} ../img/pic.png" in page and "`demos/example.py`" in page
+    assert "```{figure} ../img/pic.png\n:alt: A picture.\n:width: 80%" in page
+    assert "`demos/example.py`" in page
 
 
 def _site(tmp_path, pages):

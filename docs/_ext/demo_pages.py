@@ -17,6 +17,7 @@ them into notebooks.
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import jupytext
@@ -30,7 +31,8 @@ def demo_markdown(text: str, name: str, pictures=()) -> str:
     Args:
         text: The script.
         name: The script's name without ``.py`` (for the note on the source).
-        pictures: ``(file name under docs/img, caption)`` pairs shown after the script.
+        pictures: ``(file name under docs/img, caption)`` or ``(file name, caption, width)``
+            tuples shown after the script; the width is a CSS width (default ``80%``).
 
     Returns:
         The page: Markdown cells as they are, code cells as fenced ``python`` blocks, then a
@@ -53,11 +55,25 @@ def demo_markdown(text: str, name: str, pictures=()) -> str:
     ]
     if pictures:
         output[-1] += " The pictures are from a run with its default options."
-    for picture, caption in pictures:
+    for picture, caption, *width in pictures:
         output.append(
-            f"```{{figure}} ../img/{picture}\n:alt: {caption}\n:width: 100%\n\n{caption}\n```"
+            f"```{{figure}} ../img/{picture}\n:alt: {caption}\n:width: {(width or ['80%'])[0]}"
+            f"\n\n{caption}\n```"
         )
     return "\n\n".join(parts + output) + "\n"
+
+
+def picture_width(path: Path) -> str:
+    """A CSS width for a PNG on a page: narrower for portrait pictures, so they fit a screen.
+
+    Args:
+        path: The PNG file.
+
+    Returns:
+        ``"30%"`` for a picture taller than wide, else ``"80%"``.
+    """
+    width, height = struct.unpack(">II", path.read_bytes()[16:24])
+    return "30%" if height > width else "80%"
 
 
 def write_if_changed(path: Path, text: str) -> None:
@@ -74,7 +90,8 @@ def generate(app, config) -> None:
     outdir.mkdir(exist_ok=True)
     for name, pictures in config.demo_pages.items():
         text = (scripts / f"{name}.py").read_text()
-        write_if_changed(outdir / f"{name}.md", demo_markdown(text, name, pictures))
+        sized = [(png, caption, picture_width(srcdir / "img" / png)) for png, caption in pictures]
+        write_if_changed(outdir / f"{name}.md", demo_markdown(text, name, sized))
 
 
 def setup(app):
