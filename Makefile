@@ -8,7 +8,8 @@ NP ?= 2
 PYTEST := python3 -m pytest -q
 DEMO_ARGS ?=
 
-.PHONY: test test-serial test-mpi test-slow demo env lint figures test-current env-current compare-versions
+.PHONY: test test-serial test-mpi test-slow demo env lint figures test-current env-current compare-versions \
+	docs docs-check docs-env
 
 test: test-serial test-mpi
 
@@ -47,15 +48,22 @@ compare-versions:
 	DWR_SIGNORINI_SUITE=$(CURRENT_SUITE) $(FENICSX) python3 benchmarks/compare_versions.py run $(COMPARE_DIR)/$(CURRENT_SUITE).json
 	$(FENICSX) python3 benchmarks/compare_versions.py compare $(COMPARE_DIR)/trixie.json $(COMPARE_DIR)/$(CURRENT_SUITE).json
 
+# The documentation site, from docs/ (Sphinx, MyST, furo: Debian packages of env/apt-packages.txt),
+# in the environment of the tests (autodoc imports dwr_signorini), offline. HTML in docs/_build/html.
+SPHINX := python3 -m sphinx -q -j 1
+docs:
+	$(FENICSX) $(SPHINX) -b html docs docs/_build/html
+
 lint:
 	@command -v ruff >/dev/null 2>&1 || python3 -m pip install --quiet ruff
 	ruff check .
 
-# The README's pictures: run the three demos at their defaults and copy the PNGs to docs/img.
+# The site's pictures (docs/img): run the three demos at their defaults and copy the PNGs to docs/img.
 figures:
 	$(FENICSX) mpirun -n $(NP) python3 demos/bar_2d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/analytic_2d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/obstacle_3d.py
+	$(FENICSX) mpirun -n $(NP) python3 demos/hertz.py --dim 2
 	mkdir -p docs/img
 	cp results/bar_2d/convergence_cells.png docs/img/bar_convergence_cells.png
 	cp results/bar_2d/convergence_time.png docs/img/bar_convergence_time.png
@@ -64,6 +72,8 @@ figures:
 	cp results/analytic_2d/effectivity.png docs/img/analytic_effectivity.png
 	cp results/analytic_2d/sweep.png docs/img/analytic_sweep.png
 	cp results/obstacle_3d/solution.png docs/img/obstacle_solution.png
+	cp results/hertz_2d/pressure_profile.png docs/img/hertz_pressure_profile.png
+	cp results/hertz_2d/errors_dofs.png docs/img/hertz_errors_dofs.png
 
 # Optional peer codes for benchmarks/peers.py (env/peer-packages.txt: GetFEM), never a dependency
 # of the package. `make peer-env` runs apt-get through $(FENICSX), so the packages go where every
@@ -73,37 +83,52 @@ figures:
 # rebuilt from a changed list lacks the peer until `make peer-env` runs again. Only new packages
 # are added: if apt would upgrade or remove an installed package, nothing is installed; afterwards
 # the BLAS/LAPACK alternatives must be the ones they were. Ends with `peers.py --check`.
+# ENV_ADD_SH NAME LIST [CHECK...]: add the packages of LIST so, then run CHECK (docs-env uses it too).
 PEER_PACKAGES := env/peer-packages.txt
-define PEER_ENV_SH
+define ENV_ADD_SH
 pkgs=$$(sed -e 's/#.*//' "$$1" | tr -s '[:space:]' ' ')
-command -v apt-get >/dev/null 2>&1 || { echo "peer-env: no apt-get in this environment: install$$pkgs by other means" >&2; exit 2; }
-[ "$$(id -u)" = 0 ] || { echo "peer-env: apt-get install needs root" >&2; exit 2; }
+command -v apt-get >/dev/null 2>&1 || { echo "$$0: no apt-get in this environment: install$$pkgs by other means" >&2; exit 2; }
+[ "$$(id -u)" = 0 ] || { echo "$$0: apt-get install needs root" >&2; exit 2; }
 missing=""
 for p in $$pkgs; do
     dpkg-query -W -f='$${Status}' "$$p" 2>/dev/null | grep -q ' installed$$' || missing="$$missing $$p"
 done
 if [ -z "$$missing" ]; then
-    echo "peer-env: already installed:$$pkgs"
+    echo "$$0: already installed:$$pkgs"
 else
     blas() { for a in /etc/alternatives/libblas* /etc/alternatives/liblapack*; do
         [ -e "$$a" ] && echo "$$a -> $$(readlink -f "$$a")"; done; true; }
     before=$$(blas)
-    echo "peer-env: apt-get install$$missing"
+    echo "$$0: apt-get install$$missing"
     apt-get update -qq
     changes=$$(apt-get install -s --no-install-recommends $$missing | grep -E '^(Inst [^ ]+ \[|Remv )' || true)
     if [ -n "$$changes" ]; then
-        echo "peer-env: not installing: apt would change packages already in the environment:" >&2
+        echo "$$0: not installing: apt would change packages already in the environment:" >&2
         echo "$$changes" >&2; exit 1
     fi
     DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null
     apt-get clean
     if [ -f /.dwr-signorini-complete ]; then rm -f /var/lib/apt/lists/*_Packages; fi
-    [ "$$(blas)" = "$$before" ] || { echo "peer-env: the BLAS/LAPACK alternatives changed:" >&2; blas >&2; exit 1; }
+    [ "$$(blas)" = "$$before" ] || { echo "$$0: the BLAS/LAPACK alternatives changed:" >&2; blas >&2; exit 1; }
 fi
-python3 benchmarks/peers.py --check
+shift
+[ $$# -eq 0 ] || "$$@"
 endef
-export PEER_ENV_SH
+export ENV_ADD_SH
 
 .PHONY: peer-env
 peer-env:
-	$(FENICSX) sh -ec "$$PEER_ENV_SH" peer-env $(PEER_PACKAGES)
+	$(FENICSX) sh -ec "$$ENV_ADD_SH" peer-env $(PEER_PACKAGES) python3 benchmarks/peers.py --check
+
+# `make docs-check`: the site built anew with warnings as errors (-W, every page read again), every
+# internal link, anchor and image checked (docs/check_site.py), and the landing page and a demo page
+# rendered by headless Chromium to docs/screenshots/*.png. Chromium is not in the environment's
+# package list (it would weigh on every root and image): `make docs-env` adds the packages of
+# env/docs-packages.txt to the environment as `make peer-env` does, once.
+DOCS_PACKAGES := env/docs-packages.txt
+docs-env:
+	$(FENICSX) sh -ec "$$ENV_ADD_SH" docs-env $(DOCS_PACKAGES) chromium --version
+
+docs-check: docs-env
+	$(FENICSX) $(SPHINX) -E -W --keep-going -b html docs docs/_build/html
+	$(FENICSX) python3 docs/check_site.py docs/_build/html --screenshots docs/screenshots

@@ -47,9 +47,30 @@ REFINEMENTS = ("adaptive", "uniform")
 class LevelRecord:
     """One row of the table of an adaptive or uniform run (the paper's Tables 1-3).
 
-    ``J_low`` and ``J_high`` bound J(w) (:attr:`~dwr_signorini.Estimate.interval`, under the
-    assumptions of :mod:`~dwr_signorini.interval`); ``weights`` names the weights the level's
-    estimate used and ``resolved`` whether its contact set counted as resolved.
+    Attributes:
+        level: The level, from 0.
+        num_cells: M_Omega, cells of T_h.
+        num_macro_cells: Cells of T_H.
+        num_contact_elements: M_C, macro contact facets (multipliers).
+        num_dofs: Displacement DoFs.
+        num_active: Active multipliers at convergence.
+        J_h: J(w_h).
+        eta_p: The primal estimator.
+        eta: The primal-dual estimator, or ``None`` when only eta_p was asked for.
+        estimate: The estimator that drove the run (eta or eta_p).
+        contact_term: C(w_h)(xi_H).
+        active_set_remainder: R_A (:attr:`Estimate.active_set_remainder`).
+        newton_iterations: Newton steps of this level.
+        num_marked: Macro cells marked on this level for the next (over all ranks).
+        time: Seconds per phase (``solve``, ``dual``, ``estimate``, ``refine``, ..., ``total``).
+        rel_error: E_rel against the ``exact`` of :func:`solve_adaptive`, else ``None``.
+        ieff_p: Ieff of eta_p against ``exact``, else ``None``.
+        ieff: Ieff of eta against ``exact``, else ``None``.
+        J_low: The lower end of the interval for J(w) (:attr:`Estimate.interval`, under the
+            assumptions of :mod:`~dwr_signorini.interval`).
+        J_high: Its upper end.
+        weights: The weights the level's estimate used ("patch", "hierarchical", ...).
+        resolved: Whether the level's contact set counted as resolved.
     """
 
     level: int
@@ -76,7 +97,11 @@ class LevelRecord:
     resolved: bool = True
 
     def as_dict(self) -> dict[str, Any]:
-        """The record as a plain dict (timings nested under ``time``)."""
+        """The record as a plain dict.
+
+        Returns:
+            The fields by name, the timings nested under ``time``.
+        """
         return asdict(self)
 
 
@@ -84,7 +109,16 @@ class LevelRecord:
 class AdaptiveResult(Releasable):
     """The levels of a run and the last solution and estimate.
 
+    Owns the last level's solution and estimate: release them with :meth:`destroy`
+    (collective), or use the result as a context manager.
+
     Attributes:
+        levels: One :class:`LevelRecord` per level.
+        solution: The last level's :class:`~dwr_signorini.Solution`.
+        estimate: The last level's :class:`~dwr_signorini.Estimate`.
+        problem: The problem on the last level's macro mesh.
+        meta: The run's settings (written by :meth:`to_json`).
+        comm: The mesh communicator.
         converged: Whether the run stopped on ``tol``: J_high - J_low <= 2 tol on the last
             level. False when it ended at ``max_levels`` or ``max_cells`` without that, and
             always without ``tol``.
@@ -113,15 +147,27 @@ class AdaptiveResult(Releasable):
 
 
     def rows(self) -> list[dict[str, Any]]:
-        """The table as a list of dicts."""
+        """The table as a list of dicts.
+
+        Returns:
+            One :meth:`LevelRecord.as_dict` per level.
+        """
         return [r.as_dict() for r in self.levels]
 
     def to_csv(self, path: str | Path) -> None:
-        """Write the table as CSV (rank 0 of the mesh communicator writes; collective)."""
+        """Write the table as CSV (rank 0 of the mesh communicator writes; collective).
+
+        Args:
+            path: The CSV file, in an existing directory.
+        """
         on_root(self.comm, f"to_csv({str(path)!r})", write_csv, path, self.rows())
 
     def to_json(self, path: str | Path) -> None:
-        """Write the table and the run's settings as JSON (rank 0 writes; collective)."""
+        """Write the table and the run's settings as JSON (rank 0 writes; collective).
+
+        Args:
+            path: The JSON file, in an existing directory (written atomically).
+        """
         data = {"meta": self.meta, "levels": self.rows()}
         on_root(self.comm, f"to_json({str(path)!r})", write_json, path, data)
 
@@ -304,7 +350,15 @@ def solve_adaptive(
             (:func:`~dwr_signorini.marking.mark_for_growth`). Not with ``fraction``.
 
     Returns:
-        The :class:`AdaptiveResult` with one :class:`LevelRecord` per level.
+        The :class:`AdaptiveResult` with one :class:`LevelRecord` per level (collective;
+        release it with ``destroy()`` or ``with``).
+
+    Raises:
+        TypeError, ValueError: Arguments of the wrong type or value, naming the argument
+            (checked before the first solve), or an ``output_dir`` that cannot be written.
+        ConvergenceError: As :func:`~dwr_signorini.solve`, on any level; the levels before it
+            are in ``output_dir`` if given.
+        RuntimeError: As :func:`~dwr_signorini.estimate`.
     """
     _validate(
         problem,

@@ -51,7 +51,13 @@ __all__ = [
     "primal_residual",
 ]
 
+#: The ``estimator`` choices of :func:`estimate` and ``solve_adaptive``: ``"eta"`` (primal and
+#: dual residual, eq. 15) and ``"eta_p"`` (primal residual, eq. 13).
 ESTIMATORS = ("eta", "eta_p")
+#: The ``weights`` choices of :func:`estimate` and ``solve_adaptive``: ``"auto"`` (the patch
+#: weights, and the hierarchical P2 ones on a level whose contact set is not resolved), the
+#: paper's patch-wise reconstructions, P2 solutions by a factorisation, or the same P2 solutions
+#: by FGMRES with the Newton factorisation as coarse level.
 WEIGHTS = ("auto", "patch", "higher_order", "hierarchical")
 
 
@@ -75,7 +81,7 @@ class Estimate(Releasable):
         indicators: DG0 function on T_h of signed cell indicators; their sum is the estimate.
         dual: z_h = (y_h, xi_H).
         goal_is_linear: Whether J is linear in (u, lambda) (then R_J vanishes).
-        resolved: Whether the contact set counts as resolved (|R_A| + |C| <= |estimate| / 4
+        resolved: Whether the contact set counts as resolved (``|R_A| + |C| <= |estimate| / 4``
             with the weights first computed,
             :func:`~dwr_signorini.interval.contact_set_resolved`).
     """
@@ -111,7 +117,7 @@ class Estimate(Releasable):
         """``(J_low, J_high)``: the interval for J(w) of :mod:`~dwr_signorini.interval`.
 
         J_h + [1/(1 + b), 1/(1 - b)] x the estimate (b = 0.4 where the contact set is
-        resolved, 1/2 where not), widened by |eta - eta_p| + |R_A| on both sides (without the
+        resolved, 1/2 where not), widened by ``|eta - eta_p| + |R_A|`` on both sides (without the
         first term for ``estimator="eta_p"``).
         """
         eta = self.eta if self.estimator == "eta" else None
@@ -306,11 +312,16 @@ def estimate(
             On example 5.1 degrees 4, 6, 8 and UFL's estimate give the same Ieff to 6 digits.
 
     Returns:
-        The :class:`Estimate`; ``Estimate.weights`` names the weights it was computed with.
+        The :class:`Estimate` (collective; release it with ``destroy()`` or ``with``);
+        ``Estimate.weights`` names the weights it was computed with.
 
     Raises:
-        ValueError: For an unknown ``estimator`` or ``weights``.
-        TypeError: If ``sol`` is not a :class:`~dwr_signorini.newton.Solution`.
+        TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution`, or ``goal`` is not
+            callable or does not return a UFL form.
+        ValueError: For an unknown ``estimator`` or ``weights``, or a goal that is not a scalar
+            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``.
+        RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
+            the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
     if estimator not in ESTIMATORS:
         raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")

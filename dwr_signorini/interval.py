@@ -21,18 +21,18 @@ remainders. The interval bounds each left-out part by a computed quantity:
 3. **the active-set remainder R_A** by the magnitude of its value with reconstructed w and xi
    (:func:`~dwr_signorini.residuals.active_set_remainder`).
 
-So, with r = |eta - eta_p| + |R_A|,
+So, with ``r = |eta - eta_p| + |R_A|``,
 
     J(w) in [J_h + min(eta / (1 + b), eta / (1 - b)) - r,
              J_h + max(eta / (1 + b), eta / (1 - b)) + r].                             (*)
 
 With the primal estimator alone (``estimator="eta_p"``) eta_p takes the place of eta and r is
-|R_A|. The centre of (*) is J_h + eta / (1 - b^2) (1.19 eta resolved, 1.33 eta unresolved): an
+``|R_A|``. The centre of (*) is J_h + eta / (1 - b^2) (1.19 eta resolved, 1.33 eta unresolved): an
 estimate that satisfies the assumption can underestimate more than it can overestimate.
 
 **When it is a bound.** (*) contains J(w) whenever the three assumptions hold: the weights
 satisfy the saturation assumption, the computed R_A is not smaller in magnitude than the true
-one, and the quadratic remainders are not larger than |eta - eta_p|. None of them is checked on
+one, and the quadratic remainders are not larger than ``|eta - eta_p|``. None of them is checked on
 a level: they are assumptions, as the saturation assumption is, not theorems. Where an error is
 small by cancellation (J_h passing through J between two levels) the interval stays as wide as
 the neighbouring levels' errors. The package makes the first assumption hold where it fails
@@ -94,7 +94,7 @@ def contact_set_resolved(estimate: float, remainder: float, contact_term: float)
 
 
 def remainder_bound(eta: float | None, eta_p: float, remainder: float) -> float:
-    """The bound r = |eta - eta_p| + |R_A| (items 2 and 3 of the module docstring).
+    """The bound ``r = |eta - eta_p| + |R_A|`` (items 2 and 3 of the module docstring).
 
     Args:
         eta: The primal-dual estimate (15), or ``None`` when only eta_p was computed (then

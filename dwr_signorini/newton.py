@@ -82,6 +82,13 @@ logger = logging.getLogger(__name__)
 class ConvergenceError(RuntimeError):
     """The semi-smooth Newton method did not converge.
 
+    The message ends with the iteration history, one line per step.
+
+    Args:
+        message: What failed.
+        history: One dict per iteration: ``iteration``, ``num_active``, ``num_changed``,
+            ``residual_equilibrium``, ``residual_ncp`` (and ``safeguard``, ``nonfinite``).
+
     Attributes:
         history: One dict per iteration: iteration, active-set size, changes, residuals.
     """
@@ -141,7 +148,15 @@ class Solution(Releasable):
         self.system.destroy()
 
     def multiplier_function(self, values: Any, name: str) -> fem.Function:
-        """A function on Lambda_H from values on the owned multipliers (ghosts updated)."""
+        """A function on Lambda_H from values on the owned multipliers (ghosts updated).
+
+        Args:
+            values: One value per owned multiplier (an array of length ``system.n_lam``).
+            name: The function's name.
+
+        Returns:
+            A new DG0 function on Lambda_H.
+        """
         out = fem.Function(self.disc.Q, name=name)
         out.x.array[: self.system.n_lam] = values
         out.x.scatter_forward()
@@ -177,7 +192,7 @@ def solve(
     the previous iterate, with two safeguards:
 
     * *Round-off.* In the test (M lam + c_n (N u - g))_i > 0 each part counts as zero below its
-      round-off level (``1e-10`` relative to M_i max|u| + |g_i| and to max_j |(M lam)_j|).
+      round-off level (``1e-10`` relative to ``M_i max|u| + |g_i|`` and to ``max_j |(M lam)_j|``).
       Without it a bi-active index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g.
       grazing contact) would change sides on round-off noise and the iteration could cycle; and
       the decisions stay independent of c_n.
@@ -208,9 +223,10 @@ def solve(
         initial_guess: ``(u0, lam0)`` on this discretisation's V and Q (warm start).
         max_iterations: Most Newton steps before giving up.
         rtol: Tolerance at convergence on the equilibrium residual, relative to the size of
-            its terms (max of ||K|| ||u||, ||N^T lam||, ||f||: a backward error, which does not
-            grow with lambda/mu or mesh grading), and on the NCP residual (20), entry by entry
-            relative to |M lam|_i + c_n,i (M_i max|u| + |g_i|).
+            its terms (max of ``||K|| ||u||``, ``||N^T lam||``, ``||f||``: a backward error,
+            which does not grow with lambda/mu or mesh grading), and on the NCP residual (20),
+            entry by entry
+            relative to ``|M lam|_i + c_n,i (M_i max|u| + |g_i|)``.
         ncp_scale: c of the NCP function (20), the same for the Newton method, the dual
             problem and the estimator (:mod:`dwr_signorini.residuals`): ``"physical"`` (default,
             c_n,i = E / H_i on macro contact facet i, invariant under a change of units) or a

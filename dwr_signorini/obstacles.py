@@ -97,7 +97,11 @@ class Obstacle:
 
     @property
     def reference_point(self) -> np.ndarray:
-        """A point of the obstacle, for the ``miss`` value."""
+        """A point of the obstacle, for the ``miss`` value.
+
+        Raises:
+            NotImplementedError: On the base class; every obstacle defines it.
+        """
         raise NotImplementedError
 
     def gap(self, x: Expr, n: Expr, miss: float) -> Expr:
@@ -107,6 +111,12 @@ class Obstacle:
             x: The boundary point (``ufl.SpatialCoordinate``, or any UFL vector).
             n: The body's outward unit normal at ``x`` (``ufl.FacetNormal``, or a UFL vector).
             miss: The finite value where the ray misses the obstacle.
+
+        Returns:
+            The gap, a UFL scalar expression in ``x`` and ``n``.
+
+        Raises:
+            NotImplementedError: On the base class; every obstacle defines it.
         """
         raise NotImplementedError
 
@@ -120,6 +130,10 @@ class Plane(Obstacle):
     Args:
         point: A point of the plane.
         normal: The direction into the obstacle (normalised here).
+
+    Raises:
+        ValueError: If ``point`` or ``normal`` is not a finite vector of 2 or 3 components,
+            ``normal`` is zero, or the two differ in length.
     """
 
     def __init__(self, point: Sequence[float], normal: Sequence[float]) -> None:
@@ -155,6 +169,11 @@ class Sphere(Obstacle):
     Args:
         center: The center, 2 or 3 coordinates.
         radius: The radius, > 0.
+
+    Raises:
+        ValueError: If ``center`` is not a finite point of 2 or 3 coordinates, or ``radius`` is
+            not finite and positive.
+        TypeError: If ``radius`` is not a number.
     """
 
     def __init__(self, center: Sequence[float], radius: float) -> None:
@@ -189,6 +208,11 @@ class Cylinder(Obstacle):
         point: A point of the axis (3 coordinates).
         axis: The axis direction (normalised here).
         radius: The radius, > 0.
+
+    Raises:
+        ValueError: If ``point`` or ``axis`` is not a finite vector of 3 components, ``axis``
+            is zero, or ``radius`` is not finite and positive.
+        TypeError: If ``radius`` is not a number.
     """
 
     def __init__(self, point: Sequence[float], axis: Sequence[float], radius: float) -> None:
@@ -239,6 +263,9 @@ class Graph(Obstacle):
             full spatial coordinate and must not depend on ``x[axis]``.
         axis: The vertical direction (default the last coordinate).
         dim: The space dimension (2 or 3), checked against the mesh.
+
+    Raises:
+        TypeError: If ``psi`` is not callable or ``axis`` is not an integer.
     """
 
     def __init__(

@@ -399,15 +399,22 @@ class SignoriniProblem(ProblemDataChecks):
     def gap_expr(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
         """The gap g as UFL on the mesh of ``x`` (constants as a dolfinx Constant, see vector).
 
+        A gap per contact tag is the sum of each tag's gap times the indicator of its macro
+        facets (a function of Lambda_H, registered by the discretisation), so it needs the
+        entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
+
         Args:
             x: The spatial coordinate of the mesh of the form.
             n: The outward unit normal; obstacles need it, and ``None`` takes the
                 ``ufl.FacetNormal`` of that mesh (the same as ``m.n``), so the expression is
                 for facet integrals over Gamma_C.
 
-        A gap per contact tag is the sum of each tag's gap times the indicator of its macro
-        facets (a function of Lambda_H, registered by the discretisation), so it needs the
-        entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
+        Returns:
+            The gap, a UFL scalar expression.
+
+        Raises:
+            ValueError: If the gap is given per contact tag and ``x`` is not the coordinate of a
+                discretisation's mesh (no contact-tag indicators registered for it).
         """
         if isinstance(self.gap, Mapping):
             values = {
@@ -446,6 +453,12 @@ class SignoriniProblem(ProblemDataChecks):
             facet_tags: Its facet tags.
             cell_tags: Its cell tags; by default those registered for ``mesh`` (T_h of a
                 discretisation of this problem, see :meth:`register_mesh`).
+
+        Returns:
+            A new :class:`SignoriniProblem` with this problem's data on ``mesh``.
+
+        Raises:
+            ValueError: As the constructor, if the tags do not fit the new mesh.
         """
         if cell_tags is None:
             cell_tags = self._data(mesh).get("cell_tags")

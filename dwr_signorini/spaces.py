@@ -63,11 +63,25 @@ class Measures:
     problem: SignoriniProblem
 
     def sigma(self, u: Any) -> Any:
-        """Stress sigma(u) of the problem's material law."""
+        """Stress sigma(u) of the problem's material law.
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            The stress tensor (UFL), with the problem's E, nu and model.
+        """
         return self.problem.sigma(u)
 
     def epsilon(self, u: Any) -> Any:
-        """Strain eps(u) = sym(grad u)."""
+        """Strain eps(u) = sym(grad u).
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            The strain tensor (UFL).
+        """
         return self.problem.epsilon(u)
 
 
@@ -90,6 +104,14 @@ class Discretization:
         prescribed_bcs: The Dirichlet conditions with their prescribed values on V.
         cell_tags: Cell tags of T_h (those of the parent macro cells), or None.
         m: The :class:`Measures` on T_h.
+
+    Args:
+        problem: The problem; its mesh is the macro mesh T_H (collective: T_h is refined on
+            every rank).
+
+    Raises:
+        RuntimeError: If a fine contact facet has no parent macro contact facet (a refinement
+            that broke the parent maps; not expected from dolfinx's refinement).
     """
 
     def __init__(self, problem: SignoriniProblem) -> None:
@@ -183,6 +205,12 @@ class Discretization:
         mesh. Without ``pow`` calls, evaluating it inside each kernel costs less than storing
         its values at the quadrature points once (a quadrature space of 16 values per triangle
         to build, fill and pack into every kernel).
+
+        Args:
+            v: A test function or weight on T_h (UFL vector).
+
+        Returns:
+            The linear form of the body force and tractions against ``v``.
         """
         if self._body_force is None:
             with timed("assemble"):
@@ -268,11 +296,21 @@ class Discretization:
             expr: The form.
             options: Passed to ``dolfinx.fem.form`` (``form_compiler_options``,
                 ``jit_options``).
+
+        Returns:
+            The compiled ``dolfinx.fem.Form``.
         """
         return compat.form(expr, entity_maps=self.entity_maps, **options)
 
     def macro_form(self, expr: ufl.Form) -> fem.Form:
-        """Compile a form on T_H that may use functions of Q."""
+        """Compile a form on T_H that may use functions of Q.
+
+        Args:
+            expr: The form, on the macro mesh.
+
+        Returns:
+            The compiled ``dolfinx.fem.Form``.
+        """
         return compat.form(expr, entity_maps=self.macro_entity_maps)
 
 
@@ -282,5 +320,12 @@ def _find(tags: dmesh.MeshTags, values: tuple[int, ...]) -> np.ndarray:
 
 
 def discretize(problem: SignoriniProblem) -> Discretization:
-    """Build T_h, V_h and Lambda_H for ``problem`` (Section 4, H = 2h)."""
+    """Build T_h, V_h and Lambda_H for ``problem`` (Section 4, H = 2h).
+
+    Args:
+        problem: The problem; its mesh is the macro mesh T_H.
+
+    Returns:
+        The :class:`Discretization` (collective: T_h is refined on every rank).
+    """
     return Discretization(problem)

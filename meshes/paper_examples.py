@@ -1,6 +1,6 @@
 """The three meshes of the paper's examples (Section 5) as gmsh geometries with named groups.
 
-The demos keep the structured meshes of :mod:`dwr_signorini.examples` (the README's tables
+The demos keep the structured meshes of :mod:`dwr_signorini.examples` (the tables of docs/benchmarks
 depend on them); these are the same domains and tags for gmsh users (unstructured triangles /
 tetrahedra). Tags as in the examples: 1 ``dirichlet`` (clamped), 2 ``neumann`` (traction free),
 3 ``contact``; cells 1 ``body``.

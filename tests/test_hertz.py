@@ -198,7 +198,7 @@ def test_hertz_3d_adaptive_levels():
     the refined level's radius within 3 %, closer than the coarse one's (a facet of 0.02 is a
     fifth of a). The peak max lambda_H is not checked: on locally refined curved faces the
     macro-facet multiplier oscillates from facet to facet by tens of per cent while its means
-    converge (README, "Hertz contact")."""
+    converge (docs/benchmarks/index.md, "Hertz contact")."""
     rows = []
     ds.solve_adaptive(hertz_3d_problem(0.02), lambda u, lam, m: lam * m.ds_contact,
                       max_levels=2, fraction=0.2, verbose=False,
@@ -211,7 +211,7 @@ def test_hertz_3d_adaptive_levels():
 
 
 if __name__ == "__main__":
-    # The table of issue 21, part 3 (README, "Results beside the paper"):
+    # The table of issue 21, part 3 (docs/benchmarks/index.md, "Hertz contact"):
     # scripts/fenicsx python3 -m tests.test_hertz
     def print0(*args):
         if COMM.rank == 0:

@@ -43,11 +43,19 @@ def choose_method(tdim: int, num_dofs: int, num_multipliers: int) -> str:
 
     ``"schur"`` (K factored once, S = N K^-1 N^T dense) for 3D problems of at least
     :data:`AUTO_SCHUR_MIN_DOFS` DoFs with at most :data:`AUTO_SCHUR_MAX_MULTIPLIERS`
-    multipliers, ``"block"`` otherwise. Measured (README, Performance): on a uniform 3D level of
+    multipliers, ``"block"`` otherwise. Measured (docs, Performance): on a uniform 3D level of
     216k DoFs and 512 multipliers the Schur path took 0.64 of the block path's time on 1 rank
     and 0.61 on 2; on an adaptive 3D level with 1,510 multipliers computing S alone took
     42.9 s. In 2D (1-2 Newton steps per level) the Schur path was not measured to pay, and
     below 100k DoFs neither path was compared: there the block path, the reference, stays.
+
+    Args:
+        tdim: The topological dimension of the mesh.
+        num_dofs: The number of displacement DoFs (global).
+        num_multipliers: The number of contact multipliers (global).
+
+    Returns:
+        ``"schur"`` or ``"block"``.
     """
     large = num_dofs >= AUTO_SCHUR_MIN_DOFS
     if tdim == 3 and large and num_multipliers <= AUTO_SCHUR_MAX_MULTIPLIERS:

@@ -96,6 +96,9 @@ def iterative_petsc_options() -> dict[str, Any]:
     prefix ``<prefix>schur_``, defaults in :data:`SCHUR_KRYLOV_OPTIONS`), and no factorisation
     of the size of K is made. Pass it (or a variant) as ``petsc_options`` together with
     ``method="schur"``.
+
+    Returns:
+        A new dict of PETSc options (keys without prefix), the caller's to change.
     """
     return {
         "ksp_type": "cg",
@@ -120,6 +123,9 @@ def fieldsplit_petsc_options() -> dict[str, Any]:
     preconditioner; the outer tolerance decides the accuracy). Every application of the Schur
     complement costs an inner solve with K, and the multigrid is set up anew in every Newton
     step: for large meshes ``method="schur"`` with :func:`iterative_petsc_options` is faster.
+
+    Returns:
+        A new dict of PETSc options (keys without prefix), the caller's to change.
     """
     return {
         "ksp_type": "fgmres",
