@@ -1,15 +1,17 @@
 """dwr_signorini: goal-oriented adaptive finite elements for Signorini's contact problem.
 
-Signorini's problem (frictionless contact of a linear-elastic body with a rigid obstacle) in mixed
-form, solved by a semi-smooth Newton (primal-dual active set) method; the error in a user's quantity
-of interest J(u, lambda) estimated by the dual weighted residual method with the NCP-based error
-identities (13) and (15); adaptive refinement in parallel.
+Signorini's problem (contact of a linear-elastic body with a rigid obstacle, frictionless or with
+Tresca friction, :mod:`dwr_signorini.laws`) in mixed form, solved by a semi-smooth Newton
+(primal-dual active set) method; the error in a user's quantity of interest J(u, lambda) estimated
+by the dual weighted residual method with the NCP-based error identities (13) and (15); adaptive
+refinement in parallel.
 """
 
 from . import obstacles
 from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
 from .collective import CollectiveError
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
+from .laws import Frictionless, Tresca
 from .mesh_io import read_mesh
 from .newton import ConvergenceError, Solution, solve
 from .problem import SignoriniProblem
@@ -25,10 +27,12 @@ __all__ = [
     "ConvergenceError",
     "Discretization",
     "Estimate",
+    "Frictionless",
     "LevelRecord",
     "Measures",
     "SignoriniProblem",
     "Solution",
+    "Tresca",
     "__version__",
     "discretize",
     "estimate",

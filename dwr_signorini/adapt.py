@@ -71,6 +71,8 @@ class LevelRecord:
         J_high: Its upper end.
         weights: The weights the level's estimate used ("patch", "hierarchical", ...).
         resolved: Whether the level's contact set counted as resolved.
+        num_stick: With friction, macro contact facets in contact that stick, else None.
+        num_slip: With friction, macro contact facets in contact that slip, else None.
     """
 
     level: int
@@ -95,6 +97,8 @@ class LevelRecord:
     J_high: float | None = None
     weights: str = ""
     resolved: bool = True
+    num_stick: int | None = None
+    num_slip: int | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The record as a plain dict.
@@ -252,10 +256,14 @@ def _validate(
 
 def _progress(comm: MPI.Comm, record: LevelRecord) -> None:
     if comm.rank == 0:
+        friction = (
+            "" if record.num_stick is None
+            else f"stick/slip {record.num_stick:d}/{record.num_slip:d}  "
+        )
         print(
             f"level {record.level:2d}  cells {record.num_cells:8d}  dofs {record.num_dofs:8d}  "
             f"J_h {record.J_h: .6e}  J in [{record.J_low: .6e}, {record.J_high: .6e}]  "
-            f"estimate {record.estimate: .3e} ({record.weights})  "
+            f"estimate {record.estimate: .3e} ({record.weights})  {friction}"
             f"newton {record.newton_iterations:2d}  {record.time['total']:7.2f} s",
             flush=True,
         )
@@ -459,7 +467,7 @@ def solve_adaptive(
             if out is not None:
                 with timed("output"):  # the fields first: a level in the table has its fields
                     fields = [sol.u, est.indicators, est.dual.y]
-                    out.write_fields(level, fields, [sol.lam, est.dual.xi])
+                    out.write_fields(level, fields, [*sol.multipliers, *est.dual.multipliers])
                     out.append(record.as_dict(), meta)
             if verbose:
                 _progress(comm, record)
@@ -542,6 +550,8 @@ def _record(
         J_low=J_low,
         J_high=J_high,
         num_active=sol.num_active,
+        num_stick=sol.num_stick,
+        num_slip=sol.num_slip,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
         time={

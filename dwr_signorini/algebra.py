@@ -113,9 +113,9 @@ class ContactAlgebra:
         V = disc.V if V is None else V
         Q, m = disc.Q, disc.m
         self.V = V
+        self.components = problem.law.components(disc.mesh.topology.dim)
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         mu = ufl.TestFunction(Q)
-        coupling = ufl.inner(mu, ufl.dot(u, m.n)) * m.ds_contact
         options = {k: v for k, v in (compile_options or {}).items() if v is not None}
 
         def form(expr: ufl.Form) -> fem.Form:
@@ -126,52 +126,118 @@ class ContactAlgebra:
         a = problem.elastic_form(u, v, m.dx)
         if callable(problem.E) or callable(problem.nu):
             a = with_quadrature_degrees(a)
+        couplings = [
+            ufl.inner(mu, ufl.dot(u, comp.direction(m.n))) * m.ds_contact
+            for comp in self.components
+        ]
         forms = {
             "a": form(a),
             "L": form(with_quadrature_degrees(disc.load_form(v))),
-            "N": form(coupling),
-            "NT": form(ufl.adjoint(coupling)),
+            "N": [form(c) for c in couplings],
+            "NT": [form(ufl.adjoint(c)) for c in couplings],
             "M": form(mu * m.ds_contact),
             "g": form(with_quadrature_degrees(problem.gap_expr(m.x, m.n) * mu * m.ds_contact)),
         }
+        bound = problem.law.bound_expr(problem, m.x)
+        if bound is not None:
+            forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact))
         if V is disc.V:
             self.bcs, self.prescribed_bcs = disc.bcs, disc.prescribed_bcs
         else:
             self.bcs = disc.dirichlet_bcs(V)
             self.prescribed_bcs = disc.dirichlet_bcs(V, homogeneous=False)
+        self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        self.n_q = Q.dofmap.index_map.size_local
+        self.n_lam = self.n_q * len(self.components)
         try:  # on a failure (e.g. data that raise), what was assembled is destroyed
             self._assemble(forms, problem.homogeneous_dirichlet, ncp_scale, form, mu)
         except BaseException:
             self.destroy()
             raise
-        self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-        self.n_lam = Q.dofmap.index_map.size_local
 
     def _assemble(
-        self, forms: dict[str, fem.Form], homogeneous: bool, ncp_scale: Any, form: Any, mu: Any
+        self, forms: dict[str, Any], homogeneous: bool, ncp_scale: Any, form: Any, mu: Any
     ) -> None:
-        """K, N, N^T, f, M, g and c_n from the compiled ``forms`` (see the class)."""
+        """K, N, N^T, f, M, g and c_n from the compiled ``forms`` (see the class).
+
+        With several components (a frictional law) N, N^T, M, g and c_n stack the rows of the
+        components, per rank: the owned rows of the normal multiplier, then those of the next
+        component (:meth:`components_of`).
+        """
         disc = self.disc
         lift = not homogeneous
         with timed("assemble"):
             self.K = self._matrix(forms["a"])
-            self.N = self._matrix(forms["N"])
-            self.NT = self._matrix(forms["NT"])
+            N = [self._matrix(f) for f in forms["N"]]
+            NT = [self._matrix(f) for f in forms["NT"]]
+            self.N, self.NT = self._stacked(N, rows=True), self._stacked(NT, rows=False)
             # f: the lifting -K u_D on the free rows, u_D on the Dirichlet rows; g: g - N u_D,
             # so that N u - g (N without the Dirichlet columns) is the gap residual of u.
             self.f = self._vector(forms["L"], forms["a"] if lift else None, self.prescribed_bcs)
             for bc in self.prescribed_bcs:
                 bc.set(self.f.array_w)
-            self.M = self._vector(forms["M"])
-            self.g = self._vector(forms["g"], forms["N"] if lift else None, self.prescribed_bcs)
+            M = self._vector(forms["M"])
+            g = [self._vector(forms["g"], forms["N"][0] if lift else None, self.prescribed_bcs)]
+            g += [self._offset(forms["M"], forms["N"][k] if lift else None)
+                  for k in range(1, len(self.components))]
+            M_owned = M.array.copy()
+            self.M = self._stacked_vector([M] * len(self.components))
+            self.g = self._stacked_vector(g)
+            self.bounds: list[np.ndarray | None] = [None] * len(self.components)
+            if "bound" in forms:
+                b = self._vector(forms["bound"])
+                self.bounds = [None] + [b.array.copy() for _ in self.components[1:]]
+                b.destroy()
         self.ncp_scale = check_ncp_scale(ncp_scale)
         if self.ncp_scale == "physical":
             fdim = disc.mesh.topology.dim - 1
-            size = self.M.array.copy()
+            size = M_owned.copy()
             size = size if fdim == 1 else np.sqrt(size)
-            self.c_n = self._facet_modulus(form, mu) / size
+            c_n = self._facet_modulus(form, mu, M_owned) / size
         else:
-            self.c_n = np.full(len(self.M.array), self.ncp_scale)
+            c_n = np.full(len(M_owned), self.ncp_scale)
+        self.c_n = np.tile(c_n, len(self.components))
+
+    def _offset(self, layout: fem.Form, lifting: fem.Form | None) -> PETSc.Vec:
+        """g_k of a component without a gap: 0, and -B_k u_D with prescribed values.
+
+        Args:
+            layout: A linear form on Lambda_H (for the vector's layout, with ghosts).
+            lifting: The component's coupling form B_k, or None without prescribed values.
+        """
+        vec = fem_petsc.assemble_vector(layout)
+        with vec.localForm() as local:
+            local.set(0.0)
+        if lifting is not None:
+            fem_petsc.apply_lifting(vec, [lifting], bcs=[list(self.prescribed_bcs)])
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return vec
+
+    def _stacked(self, mats: list[PETSc.Mat], rows: bool) -> PETSc.Mat:
+        """One matrix of the components' blocks (rows of N, or columns of N^T), per rank."""
+        if len(mats) == 1:
+            return mats[0]
+        blocks = [[m] for m in mats] if rows else [mats]
+        nest = PETSc.Mat().createNest(blocks, comm=self.disc.comm)
+        out = PETSc.Mat()
+        nest.convert("aij", out=out)
+        for obj in (nest, *mats):
+            obj.destroy()
+        return out
+
+    def _stacked_vector(self, vecs: list[PETSc.Vec]) -> PETSc.Vec:
+        """One vector of the components' rows, per rank (the vectors are consumed)."""
+        if len(vecs) == 1:
+            return vecs[0]
+        out = PETSc.Vec().createMPI((self.n_lam, None), comm=self.disc.comm)
+        out.array_w[:] = np.concatenate([v.array for v in vecs])
+        for v in {id(v): v for v in vecs}.values():
+            v.destroy()
+        return out
+
+    def components_of(self, values: np.ndarray) -> list[np.ndarray]:
+        """The owned multiplier rows split into the components' rows (normal first)."""
+        return [values[r] for r in self._rows()]
 
     def _matrix(self, form: fem.Form) -> PETSc.Mat:
         A = fem_petsc.assemble_matrix(form, bcs=self.bcs)
@@ -189,7 +255,7 @@ class ContactAlgebra:
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return vec
 
-    def _facet_modulus(self, form: Any, mu: Any) -> np.ndarray | float:
+    def _facet_modulus(self, form: Any, mu: Any, M: np.ndarray) -> np.ndarray | float:
         """E on the owned macro contact facets (for c_n = E / H).
 
         The number E, or the facet mean of E from the adjacent cells: the local modulus of a
@@ -200,7 +266,7 @@ class ContactAlgebra:
             return problem.E
         E, _ = problem.material(m.x)
         vec = self._vector(form(with_quadrature_degrees(E * mu * m.ds_contact)))
-        out = vec.array / self.M.array
+        out = vec.array / M
         vec.destroy()
         return out
 
@@ -227,14 +293,56 @@ class ContactAlgebra:
         Nu.destroy()
         return out
 
-    def active_set(self, u: PETSc.Vec, lam: np.ndarray) -> np.ndarray:
-        """A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21), owned rows."""
-        return self.M.array * lam + self.c_n * self.gap_residual(u) > 0.0
-
     def ncp_residual(self, u: PETSc.Vec, lam: np.ndarray) -> np.ndarray:
-        """C_N(u, lam) of eq. (20), owned rows."""
+        """C(u, lam) of eq. (20), each component's rows with its NCP function, owned rows."""
         Mlam = self.M.array * lam
-        return Mlam - np.maximum(0.0, Mlam + self.c_n * self.gap_residual(u))
+        x = Mlam + self.c_n * self.gap_residual(u)
+        rows = self._rows()
+        active = x[rows[0]] > 0.0
+        out = []
+        for k, (comp, r) in enumerate(zip(self.components, rows, strict=True)):
+            bound = self.disc.problem.law.row_bound(self.bounds[k], active) if k else None
+            out.append(comp.ncp(Mlam[r], x[r], bound))
+        return np.concatenate(out)
+
+    def newton_sets(
+        self, u: PETSc.Vec, lam: np.ndarray, u_max: float, previous: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The set test of every component (eq. 21 and the law's analogue), owned rows.
+
+        Args:
+            u: The displacement iterate.
+            lam: The owned multiplier rows.
+            u_max: max |u| over all ranks.
+            previous: The constrained rows of the last step, or None: facets that come into
+                contact (normal rows active now, not then) start stuck, as the tangential
+                displacement of a facet out of contact says nothing about its friction.
+
+        Returns:
+            ``(constrained, free, ncp, size)`` as
+            :meth:`~dwr_signorini.laws.Component.newton_set`, the components' rows stacked.
+        """
+        Mlam = self.M.array * lam
+        residual = self.gap_residual(u)
+        M, g, c = self.M.array, self.g.array, self.c_n
+        parts: list[tuple[np.ndarray, ...]] = []
+        for k, (comp, r) in enumerate(zip(self.components, self._rows(), strict=True)):
+            bound = self.disc.problem.law.row_bound(self.bounds[k], parts[0][0]) if k else None
+            force_size = self.comm.allreduce(
+                float(np.max(np.abs(Mlam[r]), initial=0.0)), op=MPI.MAX
+            )
+            parts.append(
+                comp.newton_set(Mlam[r], residual[r], c[r], M[r], g[r], u_max, force_size, bound)
+            )
+            if k and previous is not None:  # facets that come into contact start stuck
+                new = parts[0][0] & ~previous[self._rows()[0]]
+                constrained, free, ncp, size = parts[k]
+                parts[k] = (constrained | new, np.where(new, 0.0, free), ncp, size)
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+
+    def _rows(self) -> list[slice]:
+        """The owned rows of each component (normal first)."""
+        return [slice(k * self.n_q, (k + 1) * self.n_q) for k in range(len(self.components))]
 
     def coupling_force(self, lam: np.ndarray) -> PETSc.Vec:
         """N^T lam for the owned multiplier values ``lam`` (a new vector; destroy it)."""

@@ -46,10 +46,16 @@ __all__ = ["DualSolution", "dual_rhs", "solve_dual"]
 
 @dataclass
 class DualSolution:
-    """z_h = (y_h, xi_H), the discrete dual solution."""
+    """z_h = (y_h, xi_H), the discrete dual solution (and xi_t with friction)."""
 
     y: fem.Function
     xi: fem.Function
+    xi_t: fem.Function | None = None
+
+    @property
+    def multipliers(self) -> tuple[fem.Function, ...]:
+        """The dual multipliers of the contact law's components: (xi,) or (xi, xi_t)."""
+        return (self.xi,) if self.xi_t is None else (self.xi, self.xi_t)
 
 
 def dual_rhs(
@@ -69,11 +75,14 @@ def dual_rhs(
         fem_petsc.set_bc(b, system.bcs)
         arr[: system.n_u] = b.array
         b.destroy()
-    if goal.has_lam:
-        b = fem_petsc.assemble_vector(disc.form(goal.dJ_lam))
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        arr[system.n_u :] = b.array
-        b.destroy()
+    algebra = system if isinstance(system, ContactAlgebra) else system.algebra
+    rows = algebra.components_of(arr[system.n_u :])
+    for k, dJ in enumerate(goal.dJ_multipliers):
+        if dJ is not None:
+            b = fem_petsc.assemble_vector(disc.form(dJ))
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            rows[k][:] = b.array
+            b.destroy()
     return out
 
 
@@ -107,15 +116,20 @@ def _solve_dual(
     with timed("dual solve"), collective(system.disc.comm, "the dual solve"):
         system.solve_transpose(rhs, z)
     y = fem.Function(system.V, name="y")
-    xi = fem.Function(system.disc.Q, name="xi")
     y.x.array[: system.n_u] = z.array_r[: system.n_u]
     y.x.scatter_forward()
-    # The transposed Newton matrix has the rows of N in its active block, i.e. c = 1 in b_h:
-    # xi = xi^(1) / c on the active facets (see dwr_signorini.residuals).
+    # The transposed Newton matrix has the rows of B in its constrained block, i.e. c = 1 in
+    # b_h: xi = xi^(1) / c on the constrained rows (see dwr_signorini.residuals).
     xi_1 = z.array_r[system.n_u :]
-    xi.x.array[: system.n_lam] = np.where(system.active, xi_1 / system.c_n, xi_1)
-    xi.x.scatter_forward()
-    finite = bool(np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi.x.array)))
+    xi_all = np.where(system.active, xi_1 / system.c_n, xi_1)
+    names = ("xi", "xi_t")
+    xis = []
+    for k, values in enumerate(system.algebra.components_of(xi_all)):
+        xi = fem.Function(system.disc.Q, name=names[k])
+        xi.x.array[: len(values)] = values
+        xi.x.scatter_forward()
+        xis.append(xi)
+    finite = bool(np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi_all)))
     if not system.disc.comm.allreduce(finite, op=MPI.LAND):
         raise RuntimeError("NaN or Inf in the dual solution")
-    return DualSolution(y=y, xi=xi)
+    return DualSolution(y, *xis)

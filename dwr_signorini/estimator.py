@@ -35,6 +35,7 @@ from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .residuals import (
     active_set_remainder,
+    contact_term,
     contact_violation,
     dual_residual,
     primal_residual,
@@ -128,7 +129,8 @@ class Estimate(Releasable):
 
 def ncp_scale_function(sol: Solution) -> fem.Function:
     """The c of the NCP function the solution was computed with, as a function on Lambda_H."""
-    return sol.multiplier_function(sol.system.c_n, "c")
+    # c is the same for every component of the law: the normal rows' values
+    return sol.multiplier_function(sol.system.algebra.components_of(sol.system.c_n)[0], "c")
 
 
 def _assemble_indicators(
@@ -154,7 +156,7 @@ def _assemble_indicators(
 
 def _higher_order_solutions(
     sol: Solution, goal: GoalForms, rec: Reconstructor, primal: bool, petsc_options: Any
-) -> tuple[DualSolution, tuple[fem.Function, fem.Function] | None]:
+) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
     """Dual (and primal) solved in P2 on T_h with Lambda_H and the final active set."""
     # The same kind of linear solver as the primal problem's (block or Schur complement), with
     # the options prefix <primal prefix>p2_.
@@ -168,7 +170,7 @@ def _higher_order_solutions(
         )
     try:
         with timed("higher-order solve"):
-            system2.solve_active(sol.active)
+            system2.solve_active(sol.system.active, sol.system.free)
             z2 = solve_dual(system2, goal)
         w2 = None
         if primal:
@@ -176,7 +178,7 @@ def _higher_order_solutions(
             u_arr, lam_arr = system2.split(system2.x)
             u2.x.array[: system2.n_u] = u_arr
             u2.x.scatter_forward()
-            w2 = (u2, sol.multiplier_function(lam_arr, "lambda2"))
+            w2 = (u2, sol.multiplier_functions(lam_arr, "lambda2"))
     finally:
         system2.destroy()
     return z2, w2
@@ -194,12 +196,13 @@ class _Inputs:
     petsc_options: Any
 
 
-def _weights(inp: _Inputs, weights: str) -> tuple[Any, Any, Any, Any, Any]:
+def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
     """The weights of the estimators: w_y = A y_h - y_h, xi^+, u^+, w_u = A u_h - u_h, lambda^+.
 
     ``"patch"``: the paper's reconstructions of z_h and w_h; otherwise the P2 solutions of the
     final active set (hierarchical or factored; the multipliers reconstructed patch-wise from
-    them). Without eta the P2 primal is not solved and w_h is reconstructed patch-wise.
+    them). Without eta the P2 primal is not solved and w_h is reconstructed patch-wise. The
+    multipliers' reconstructions xi^+ and lambda^+ are tuples, one per component of the law.
     """
     sol, z, rec, want_eta = inp.sol, inp.z, inp.rec, inp.want_eta
     if weights == "patch":
@@ -208,15 +211,19 @@ def _weights(inp: _Inputs, weights: str) -> tuple[Any, Any, Any, Any, Any]:
         z2, w2 = hierarchical_solutions(sol, inp.goal_forms, z, rec.V2h, want_eta)
     else:
         z2, w2 = _higher_order_solutions(sol, inp.goal_forms, rec, want_eta, inp.petsc_options)
+
+    def linear(functions: tuple[fem.Function, ...]) -> tuple:
+        return tuple(rec.patch_linear_multiplier(f) for f in functions)
+
     with timed("reconstruct"):
         w_y = rec.patch_weight(z.y) if weights == "patch" else rec.weight(z2.y, z.y)
-        xi_plus = rec.patch_linear_multiplier(z2.xi)
+        xi_plus = linear(z2.multipliers)
         if w2 is None:  # the patch reconstruction of w_h
             w_u = rec.patch_weight(sol.u)
-            return w_y, xi_plus, sol.u + w_u, w_u, rec.patch_linear_multiplier(sol.lam)
+            return w_y, xi_plus, sol.u + w_u, w_u, linear(sol.multipliers)
         u_plus = w2[0]
         w_u = rec.weight(u_plus, sol.u) if want_eta else None
-        return w_y, xi_plus, u_plus, w_u, rec.patch_linear_multiplier(w2[1])
+        return w_y, xi_plus, u_plus, w_u, linear(w2[1])
 
 
 @dataclass
@@ -251,16 +258,16 @@ def _terms(
     sol, z, want_eta = inp.sol, inp.z, inp.want_eta
     disc = sol.disc
     w_y, xi_plus, u_plus, w_u, lam_plus = _weights(inp, weights)
-    w_xi = xi_plus - z.xi
-    gap, m = disc.problem.gap_expr(disc.m.x), disc.m
+    w_xi = tuple(p - f for p, f in zip(xi_plus, z.multipliers, strict=True))
     c = ncp_scale_function(sol)
     forms = [
         primal_residual(sol, w_y, w_xi, c),
-        contact_violation(sol.u, sol.lam, z.xi, gap, m.n, m.ds_contact, c),
+        contact_term(sol, z.multipliers, c),
         active_set_remainder(sol, u_plus, lam_plus, xi_plus, c),
     ]
     if want_eta:
-        forms.append(dual_residual(sol, inp.goal_forms, z, w_u, lam_plus - sol.lam, c))
+        w_lam = tuple(p - f for p, f in zip(lam_plus, sol.multipliers, strict=True))
+        forms.append(dual_residual(sol, inp.goal_forms, z, w_u, w_lam, c))
     ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
     ind_star = rest[0] if want_eta else None
 
@@ -350,7 +357,7 @@ def estimate(
             f"quadrature_degree must be an integer in [0, 30] or None, got {quadrature_degree!r}"
         )
     disc = sol.disc
-    goal_forms = GoalForms(goal, sol.u, sol.lam, disc)
+    goal_forms = GoalForms(goal, sol.u, sol.lam, disc, sol.lam_t)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
     t_dual = time.perf_counter() - tic

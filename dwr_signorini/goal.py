@@ -2,12 +2,14 @@
 
 A goal is a function ``goal(u, lam, m) -> ufl.Form`` of the displacement ``u``, the normal contact
 force ``lam`` (on Gamma_C) and the measures ``m`` (:class:`~dwr_signorini.spaces.Measures`) of the
-fine mesh. Everything the estimators need (J'_u, J'_lambda for the dual problem (11)-(12),
-directional derivatives for the dual residual rho*) comes from ``ufl.derivative``.
+fine mesh; with friction it may take the tangential traction too, ``goal(u, lam, m, lam_t)``.
+Everything the estimators need (J'_u, J'_lambda for the dual problem (11)-(12), directional
+derivatives for the dual residual rho*) comes from ``ufl.derivative``.
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from typing import Any
 
@@ -23,7 +25,7 @@ from .timing import timed
 
 __all__ = ["Goal", "GoalForms", "localize"]
 
-Goal = Callable[[Any, Any, Any], ufl.Form]
+Goal = Callable[..., ufl.Form]
 
 
 def _is_empty(form: ufl.Form) -> bool:
@@ -44,26 +46,57 @@ def localize(form: ufl.Form, q: ufl.Argument) -> ufl.Form:
     return ufl.Form(integrals)
 
 
+def _takes_four(goal: Goal) -> bool:
+    """Whether ``goal`` takes a fourth positional argument (lam_t)."""
+    try:
+        params = inspect.signature(goal).parameters.values()
+    except (TypeError, ValueError):  # a builtin or C callable: assume three
+        return False
+    positional = [
+        p for p in params
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)
+    ]
+    required = [p for p in positional if p.default is p.empty]
+    if len(required) >= 4:
+        return True
+    return len(positional) >= 4 or any(p.kind == p.VAR_POSITIONAL for p in params)
+
+
 class GoalForms:
     """J and its derivatives for one discrete solution w_h = (u_h, lambda_H).
 
+    A goal takes ``(u, lam, m)``; with friction it may take ``(u, lam, m, lam_t)``, the
+    tangential traction (:attr:`~dwr_signorini.Solution.lam_t`).
+
     Args:
-        goal: The user's ``goal(u, lam, m)``.
+        goal: The user's ``goal(u, lam, m)`` or ``goal(u, lam, m, lam_t)``.
         u: u_h (a Function on V_h).
         lam: lambda_H (a Function on Lambda_H).
         disc: The discretisation.
+        lam_t: lambda_t,H with friction, else None.
 
     Raises:
         CollectiveError: ``goal`` raised, on any rank (then on every rank, naming ``goal``).
         TypeError: ``goal`` is not callable or does not return a UFL form.
-        ValueError: The form is not scalar, lives on another mesh, or integrates lambda
-            outside Gamma_C.
+        ValueError: The form is not scalar, lives on another mesh, or integrates lambda or
+            lambda_t outside Gamma_C; a goal that needs lam_t on a frictionless problem.
     """
 
-    def __init__(self, goal: Goal, u: fem.Function, lam: fem.Function, disc: Discretization):
+    def __init__(
+        self, goal: Goal, u: fem.Function, lam: fem.Function, disc: Discretization,
+        lam_t: fem.Function | None = None,
+    ):
         if not callable(goal):
             raise TypeError(f"goal must be a callable goal(u, lam, m) -> ufl.Form, got {goal!r}")
-        J = call_collectively(disc.comm, "goal", goal, u, lam, disc.m)
+        four = _takes_four(goal)
+        if lam_t is None and four and _requires_four(goal):
+            raise ValueError(
+                "goal takes four arguments goal(u, lam, m, lam_t), but the problem is "
+                "frictionless (no tangential traction lam_t): give the goal three arguments, "
+                "or a friction law (SignoriniProblem(..., friction=ds.Tresca(s)))"
+            )
+        args = (u, lam, disc.m, lam_t) if lam_t is not None and four else (u, lam, disc.m)
+        J = call_collectively(disc.comm, "goal", goal, *args)
         if not isinstance(J, ufl.Form):
             raise TypeError(
                 "goal(u, lam, m) must return a UFL form such as `ufl.inner(u, u) * m.dx`, got "
@@ -74,35 +107,47 @@ class GoalForms:
                 "goal(u, lam, m) must return a scalar functional (a form without test or trial "
                 f"functions); it has {len(J.arguments())} argument(s)"
             )
+        multipliers = (lam,) if lam_t is None else (lam, lam_t)
         for itg in J.integrals():
             if itg.ufl_domain() != disc.mesh.ufl_domain():
                 raise ValueError(
                     "goal uses a measure of another mesh: build it from the measures in `m` "
                     "(m.dx, m.ds_contact, m.ds(tag)) of the current mesh"
                 )
-            if lam in ufl.algorithms.extract_coefficients(itg.integrand()):
-                contact = disc.problem.contact_tags
-                ids = itg.subdomain_id()
-                ids = ids if isinstance(ids, tuple) else (ids,)
-                if itg.integral_type() != "exterior_facet" or any(i not in contact for i in ids):
-                    raise ValueError(
-                        "goal integrates lam outside Gamma_C: lambda lives on the contact "
-                        "boundary only, use it in integrals over m.ds_contact"
-                    )
+            used = ufl.algorithms.extract_coefficients(itg.integrand())
+            for name, f in zip(("lam", "lam_t"), multipliers, strict=False):
+                if f in used:
+                    contact = disc.problem.contact_tags
+                    ids = itg.subdomain_id()
+                    ids = ids if isinstance(ids, tuple) else (ids,)
+                    if itg.integral_type() != "exterior_facet" or any(
+                        i not in contact for i in ids
+                    ):
+                        raise ValueError(
+                            f"goal integrates {name} outside Gamma_C: the contact tractions "
+                            "live on the contact boundary only, use them in integrals over "
+                            "m.ds_contact"
+                        )
         self.goal = goal
         self.J = J
         self.u = u
         self.lam = lam
+        self.lam_t = lam_t
         self.disc = disc
         v = ufl.TestFunction(u.function_space)
-        mu = ufl.TestFunction(lam.function_space)
         self.dJ_u = ufl.derivative(J, u, v)
-        self.dJ_lam = ufl.derivative(J, lam, mu)
-        self.has_lam = not _is_empty(self.dJ_lam)
+        derivatives = [
+            ufl.derivative(J, f, ufl.TestFunction(f.function_space)) for f in multipliers
+        ]
+        #: J' in the direction of each multiplier of the contact law (None where J has none).
+        self.dJ_multipliers = [None if _is_empty(d) else d for d in derivatives]
+        self.dJ_lam = derivatives[0]
+        self.has_lam = self.dJ_multipliers[0] is not None
         self.has_u = not _is_empty(self.dJ_u)
-        second = [ufl.derivative(self.dJ_u, u), ufl.derivative(self.dJ_u, lam)]
-        if self.has_lam:
-            second += [ufl.derivative(self.dJ_lam, lam), ufl.derivative(self.dJ_lam, u)]
+        second = [ufl.derivative(self.dJ_u, f) for f in (u, *multipliers)]
+        for d in self.dJ_multipliers:
+            if d is not None:
+                second += [ufl.derivative(d, f) for f in (u, *multipliers)]
         self.is_linear = all(_is_empty(f) for f in second)
 
     def value(self) -> float:
@@ -111,10 +156,24 @@ class GoalForms:
             local = fem.assemble_scalar(self.disc.form(self.J))
         return self.disc.comm.allreduce(local, op=MPI.SUM)
 
-    def directional(self, du: Any, dlam: Any) -> ufl.Form:
-        """J'(w_h)(du, dlam) as a scalar form (``du``, ``dlam`` any UFL functions on T_h)."""
+    def directional(self, du: Any, *dlams: Any) -> ufl.Form:
+        """J'(w_h)(du, dlam[, dlam_t]) as a scalar form (any UFL functions on T_h)."""
         form = ufl.replace(self.dJ_u, {self.dJ_u.arguments()[0]: du}) if self.has_u else None
-        if self.has_lam:
-            lam_form = ufl.replace(self.dJ_lam, {self.dJ_lam.arguments()[0]: dlam})
-            form = lam_form if form is None else form + lam_form
+        for dJ, d in zip(self.dJ_multipliers, dlams, strict=False):
+            if dJ is not None:
+                part = ufl.replace(dJ, {dJ.arguments()[0]: d})
+                form = part if form is None else form + part
         return form
+
+
+def _requires_four(goal: Goal) -> bool:
+    """Whether ``goal`` cannot be called with three positional arguments."""
+    try:
+        params = inspect.signature(goal).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    required = [
+        p for p in params
+        if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty
+    ]
+    return len(required) >= 4

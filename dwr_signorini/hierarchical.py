@@ -271,16 +271,18 @@ def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution,
     dual_rhs(p2.algebra, goal, b)
     b_u, b_lam = b.array_r[: p2.n2].copy(), b.array_r[p2.n2 :].copy()
     b.destroy()
-    xi = z.xi.x.array[: system.n_lam]
+    xi = sol.stacked(z.multipliers)
     xi1 = np.where(system.active, xi * system.c_n, xi)
     y, xi1 = p2.solve(True, z.y, xi1, b_u, b_lam, rtol)
     _finite(sol, y, xi1)
     y.name = "y2"
-    xi2 = sol.multiplier_function(np.where(system.active, xi1 / system.c_n, xi1), "xi2")
-    return DualSolution(y=y, xi=xi2)
+    xi2 = sol.multiplier_functions(np.where(system.active, xi1 / system.c_n, xi1), "xi2")
+    return DualSolution(y, *xi2)
 
 
-def _primal(p2: _P2System, sol: Solution, rtol: float) -> tuple[fem.Function, fem.Function]:
+def _primal(
+    p2: _P2System, sol: Solution, rtol: float
+) -> tuple[fem.Function, tuple[fem.Function, ...]]:
     """w^(2) as the correction of w_h in the P2 Newton system of the final active set.
 
     A [u; lam] = [f_2; -D_A g], with the prescribed Dirichlet values lifted as in the P1 system
@@ -296,12 +298,14 @@ def _primal(p2: _P2System, sol: Solution, rtol: float) -> tuple[fem.Function, fe
     p2.P.mult(sol.u.x.petsc_vec, u.x.petsc_vec)  # w_h written in P2 (the coarse step's P)
     u.x.scatter_forward()
     start[: p2.n2] = u.x.array[: p2.n2]
-    start[p2.n2 :] = sol.lam.x.array[: system.n_lam]
+    start[p2.n2 :] = sol.stacked()
     p2.transpose = False
     residual = np.empty_like(start)
     p2.apply(start, residual)
     residual[: p2.n2] = algebra.f.array - residual[: p2.n2]
-    residual[p2.n2 :] = np.where(system.active, -algebra.g.array, 0.0) - residual[p2.n2 :]
+    # the constrained rows -(B u)_A = -g_A, the free ones M_I lam_I = M_I free_I (0 inactive)
+    rhs = np.where(system.active, -algebra.g.array, algebra.M.array * system.free)
+    residual[p2.n2 :] = rhs - residual[p2.n2 :]
     zero = np.zeros(p2.n_lam)
     rhs_norm = math.sqrt(sol.disc.comm.allreduce(
         float(algebra.f.array @ algebra.f.array + algebra.g.array[system.active] @
@@ -310,7 +314,7 @@ def _primal(p2: _P2System, sol: Solution, rtol: float) -> tuple[fem.Function, fe
                         residual[p2.n2 :], rtol, atol=ROUNDOFF * rhs_norm)
     _finite(sol, du, dlam)
     u.x.array[:] += du.x.array
-    return u, sol.multiplier_function(start[p2.n2 :] + dlam, "lambda2")
+    return u, sol.multiplier_functions(start[p2.n2 :] + dlam, "lambda2")
 
 
 def hierarchical_solutions(
@@ -320,7 +324,7 @@ def hierarchical_solutions(
     V2: fem.FunctionSpace,
     primal: bool,
     rtol: float | None = None,
-) -> tuple[DualSolution, tuple[fem.Function, fem.Function] | None]:
+) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
     """The P2 dual (and primal) of the final active set by the two-level solver (module docstring).
 
     Args:
@@ -332,7 +336,7 @@ def hierarchical_solutions(
         rtol: Relative residual to reach (default :data:`HIERARCHICAL_RTOL`).
 
     Returns:
-        z^(2) = (y, xi) with y in V2, and w^(2) = (u, lambda) or ``None``.
+        z^(2) = (y, xi) with y in V2, and w^(2) = (u, multipliers) or ``None``.
     """
     rtol = HIERARCHICAL_RTOL if rtol is None else rtol
     if not rtol > 0:

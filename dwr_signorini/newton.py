@@ -130,6 +130,10 @@ class Solution(Releasable):
             estimator uses the same (:attr:`system`'s ``c_n``).
         method: The linear solver of the Newton steps that was used (``"block"``,
             ``"schur"``).
+        lam_t: With friction, the tangential traction lambda_t (DG0 on the macro contact
+            facets, along t = (-n_2, n_1) in 2D); None without.
+        stick, slip: With friction, the macro contact facets in contact that stick
+            (|lambda_t| < s) and that slip (owned rows); None without.
     """
 
     u: fem.Function
@@ -142,42 +146,81 @@ class Solution(Releasable):
     num_active: int = 0
     ncp_scale: str | float = "physical"
     method: str = "block"
+    lam_t: fem.Function | None = None
+    stick: np.ndarray | None = None
+    slip: np.ndarray | None = None
+
+    @property
+    def multipliers(self) -> tuple[fem.Function, ...]:
+        """The contact law's multipliers: (lam,) or (lam, lam_t)."""
+        return (self.lam,) if self.lam_t is None else (self.lam, self.lam_t)
+
+    @property
+    def num_stick(self) -> int | None:
+        """Global number of sticking macro contact facets (None without friction)."""
+        return None if self.stick is None else self._count(self.stick)
+
+    @property
+    def num_slip(self) -> int | None:
+        """Global number of slipping macro contact facets (None without friction)."""
+        return None if self.slip is None else self._count(self.slip)
+
+    def _count(self, rows: np.ndarray) -> int:
+        return self.disc.comm.allreduce(int(rows.sum()), op=MPI.SUM)
 
     def destroy(self) -> None:
         """Release the Newton system's PETSc objects and options (collective; idempotent)."""
         self.system.destroy()
 
+    def stacked(self, functions: tuple[fem.Function, ...] | None = None) -> np.ndarray:
+        """The owned values of one function per component of the law, stacked.
+
+        Args:
+            functions: One function on Lambda_H per component (default: the multipliers).
+
+        Returns:
+            The owned values laid out as the Newton system's multiplier rows.
+        """
+        functions = self.multipliers if functions is None else functions
+        n_q = self.system.algebra.n_q
+        return np.concatenate([f.x.array[:n_q] for f in functions])
+
+    def multiplier_functions(self, values: np.ndarray, name: str) -> tuple[fem.Function, ...]:
+        """One function on Lambda_H per component from the stacked owned rows ``values``.
+
+        The functions are named ``name`` and ``name + "_t"``.
+        """
+        parts = self.system.algebra.components_of(values)
+        names = (name, name + "_t")
+        return tuple(self.multiplier_function(p, names[k]) for k, p in enumerate(parts))
+
     def multiplier_function(self, values: Any, name: str) -> fem.Function:
         """A function on Lambda_H from values on the owned multipliers (ghosts updated).
 
         Args:
-            values: One value per owned multiplier (an array of length ``system.n_lam``).
+            values: One value per owned macro contact facet (``system.algebra.n_q``).
             name: The function's name.
 
         Returns:
             A new DG0 function on Lambda_H.
         """
         out = fem.Function(self.disc.Q, name=name)
-        out.x.array[: self.system.n_lam] = values
+        out.x.array[: self.system.algebra.n_q] = values
         out.x.scatter_forward()
         return out
 
 
 
-def _global_key(comm: MPI.Comm, active: np.ndarray) -> tuple[bytes, ...]:
-    """The global active set, exactly (packed bits of every rank's owned rows), as a dict key."""
-    return tuple(comm.allgather(np.packbits(active).tobytes() + active.size.to_bytes(8, "little")))
-
-
-#: Relative round-off level of the two parts of the active-set test (21): (N u - g)_i below it
-#: times M_i max|u| + |g_i|, and (M lam)_i below it times max_j |(M lam)_j|, count as zero.
-_ROUNDOFF = 1e-10
+def _global_key(comm: MPI.Comm, *states: np.ndarray) -> tuple[bytes, ...]:
+    """The global sets, exactly (packed bits of every rank's owned rows), as a dict key."""
+    local = b"".join(np.packbits(a).tobytes() + a.size.to_bytes(8, "little") for a in states)
+    return tuple(comm.allgather(local))
 
 
 def solve(
     problem_or_disc: Any,
     petsc_options: dict[str, Any] | None = None,
-    initial_guess: tuple[fem.Function, fem.Function] | None = None,
+    initial_guess: tuple[fem.Function, ...] | None = None,
     max_iterations: int = 50,
     rtol: float = 1e-8,
     ncp_scale: str | float = "physical",
@@ -220,7 +263,8 @@ def solve(
             :func:`default_petsc_options`, under ``petsc_options_prefix``. They win over the
             command line for the same key; the command line wins over the defaults.
             They stay in PETSc's options database until :meth:`Solution.destroy`.
-        initial_guess: ``(u0, lam0)`` on this discretisation's V and Q (warm start).
+        initial_guess: ``(u0, lam0)`` (or ``(u0, lam0, lam_t0)`` with friction) on this
+            discretisation's V and Q (warm start).
         max_iterations: Most Newton steps before giving up.
         rtol: Tolerance at convergence on the equilibrium residual, relative to the size of
             its terms (max of ``||K|| ||u||``, ``||N^T lam||``, ``||f||``: a backward error,
@@ -305,15 +349,18 @@ def solve(
             f"or None, got {petsc_options_prefix!r}"
         )
     if initial_guess is not None:
-        if not isinstance(initial_guess, (tuple, list)) or len(initial_guess) != 2:
+        num = len(disc.problem.law.components(disc.mesh.topology.dim))
+        if not isinstance(initial_guess, (tuple, list)) or not 2 <= len(initial_guess) <= 1 + num:
+            pair = "(u0, lam0) or (u0, lam0, lam_t0)" if num > 1 else "(u0, lam0)"
             raise TypeError(
-                "initial_guess must be a pair (u0, lam0) of dolfinx Functions, got "
+                f"initial_guess must be a tuple {pair} of dolfinx Functions, got "
                 f"{type(initial_guess).__name__}"
+                + (f" of length {len(initial_guess)}" if isinstance(initial_guess, (tuple, list))
+                   else "")
             )
-        u0, lam0 = initial_guess
-        if (
-            getattr(u0, "function_space", None) != disc.V
-            or getattr(lam0, "function_space", None) != disc.Q
+        u0, *lam0 = initial_guess
+        if getattr(u0, "function_space", None) != disc.V or any(
+            getattr(f, "function_space", None) != disc.Q for f in lam0
         ):
             raise ValueError(
                 "initial_guess must be functions on this discretisation's V and Q "
@@ -347,223 +394,309 @@ def solve(
 
 def _semismooth_newton(
     system: NewtonLinearSystem,
-    initial_guess: tuple[fem.Function, fem.Function] | None,
+    initial_guess: tuple[fem.Function, ...] | None,
     max_iterations: int,
     rtol: float,
 ) -> Solution:
     """The loop of :func:`solve` on a set-up Newton system (see there)."""
     disc = system.disc
-    comm = disc.comm
-
-    def all_finite(*arrays: np.ndarray) -> bool:
-        ok = all(bool(np.all(np.isfinite(a))) for a in arrays)
-        return bool(comm.allreduce(ok, op=MPI.LAND))
-
-    if not all_finite(system.f.array, system.g.array):
+    if not _all_finite(disc.comm, system.f.array, system.g.array):
         raise ConvergenceError(
             "NaN or Inf in the assembled load vector f or gap vector g: body_force, traction "
             "and gap must be finite everywhere on the mesh",
             [],
         )
+    u, lams = _initial_iterate(system, initial_guess)
+    loop = _NewtonLoop(system, rtol, max_iterations)
+    try:
+        for it in range(max_iterations + 1):
+            lam_owned = np.concatenate([f.x.array[: system.algebra.n_q] for f in lams])
+            wanted, free = loop.measure(it, u, lam_owned)
+            if loop.finished(it):
+                break
+            new, new_free = loop.next_set(it, wanted, free)
+            loop.linear_solve(it, new, new_free)
+            u_new, lam_new = system.split(system.x)
+            if not _all_finite(disc.comm, u_new, lam_new):
+                loop.history[-1]["nonfinite"] = True
+                raise ConvergenceError(
+                    f"NaN or Inf in the Newton iterate of step {it} (singular or ill-posed "
+                    "linear system?)",
+                    loop.history,
+                )
+            u.x.array[: system.n_u] = u_new
+            u.x.scatter_forward()
+            for f, values in zip(lams, system.algebra.components_of(lam_new), strict=True):
+                f.x.array[: len(values)] = values
+                f.x.scatter_forward()
+    finally:
+        loop.destroy()
+    system.set_loose(False)  # the dual problem reuses the system: at full accuracy
+    return _solution(system, u, lams, loop.history)
 
-    n_u, n_lam = system.n_u, system.n_lam
-    M = system.M.array
+
+def _all_finite(comm: MPI.Comm, *arrays: np.ndarray) -> bool:
+    """Whether every entry of the arrays is finite on every rank (collective)."""
+    ok = all(bool(np.all(np.isfinite(a))) for a in arrays)
+    return bool(comm.allreduce(ok, op=MPI.LAND))
+
+
+def _initial_iterate(
+    system: NewtonLinearSystem, initial_guess: tuple[fem.Function, ...] | None
+) -> tuple[fem.Function, list[fem.Function]]:
+    """U and the law's multipliers (lambda, then lambda_t) to start from; u_D set in u."""
+    disc = system.disc
     u = fem.Function(disc.V, name="u")
-    lam = fem.Function(disc.Q, name="lambda")
+    names = ("lambda", "lambda_t")
+    lams = [fem.Function(disc.Q, name=names[k]) for k in range(len(system.algebra.components))]
     if initial_guess is not None:
         u.x.array[:] = initial_guess[0].x.array
-        lam.x.array[:] = initial_guess[1].x.array
-        if not all_finite(u.x.array, lam.x.array):
+        for f, guess in zip(lams, initial_guess[1:], strict=False):
+            f.x.array[:] = guess.x.array
+        if not _all_finite(disc.comm, u.x.array, *(f.x.array for f in lams)):
             raise ValueError("initial_guess contains NaN or Inf")
     system.algebra.set_prescribed(u.x.array)  # the iterates satisfy the Dirichlet values
-    q_start = disc.Q.dofmap.index_map.local_range[0]
+    return u, lams
 
-    def least_index(mask: np.ndarray) -> np.ndarray:
-        """Only the set entry with the smallest global index (on its owning rank)."""
+
+class _NewtonLoop:
+    """The semi-smooth Newton method's bookkeeping: residuals, history, sets, safeguards.
+
+    The sets of a step are the constrained rows of each component of the contact law (active,
+    stick) and the multiplier values on the free ones (0 inactive, +-s slip), from
+    :meth:`~dwr_signorini.algebra.ContactAlgebra.newton_sets` at the previous iterate.
+    """
+
+    def __init__(self, system: NewtonLinearSystem, rtol: float, max_iterations: int) -> None:
+        self.system, self.rtol, self.max_iterations = system, rtol, max_iterations
+        self.comm = system.disc.comm
+        self.lam_vec = system.N.createVecLeft()
+        self.nt_lam = system.f.duplicate()
+        self.norm_f = system.f.norm()
+        self.norm_K = system.algebra.stiffness_norm()
+        self.history: list[dict[str, Any]] = []
+        self.loose = system.set_loose(True)
+        self.seen: dict[tuple[bytes, ...], int] = {}
+        self.previous: np.ndarray | None = None
+        self.previous_free: np.ndarray | None = None
+        self.safeguard_since: int | None = None
+        self.violated: np.ndarray | None = None
+        self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
+
+    def destroy(self) -> None:
+        """Release the work vectors."""
+        self.lam_vec.destroy()
+        self.nt_lam.destroy()
+
+    def measure(
+        self, it: int, u: fem.Function, lam: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals of the iterate (a history record) and the sets the rule (21) wants.
+
+        Residuals as backward errors: the equilibrium residual relative to the size of the
+        terms K u, B^T lam, f; the NCP functions entry by entry relative to their terms' size.
+        """
+        system, comm = self.system, self.comm
+        u_vec = u.x.petsc_vec
+        u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
+        wanted, free, ncp, size = system.algebra.newton_sets(u_vec, lam, u_max, self.previous)
+        if self.previous is None:
+            violated = np.ones_like(wanted)
+        else:
+            violated = (wanted != self.previous) | (
+                ~wanted & ~self.previous & (free != self.previous_free)
+            )
+        self.violated = violated
+        self.lam_vec.array_w[:] = lam
+        system.NT.mult(self.lam_vec, self.nt_lam)
+        norm_Ku = self.norm_K * distributed_norm(comm, u.x.array[: system.n_u])
+        scale_eq = max(self.norm_f, self.nt_lam.norm(), norm_Ku, 1e-300)
+        res_eq = system.algebra.equilibrium_residual(u_vec, lam) / scale_eq
+        local_ncp = np.max(
+            np.divide(ncp, size, out=np.zeros_like(ncp), where=size > 0), initial=0.0
+        )
+        rel_ncp = comm.allreduce(float(local_ncp), op=MPI.MAX)
+        num_changed = comm.allreduce(int(violated.sum()), op=MPI.SUM)
+        record = {
+            "iteration": it,
+            "num_active": self._count(wanted, 0),
+            "num_changed": num_changed,
+            "residual_equilibrium": res_eq,
+            "residual_ncp": rel_ncp,
+            "ncp_scale": system.algebra.ncp_scale,
+            "safeguard": self.safeguard_since is not None,
+            "loose": self.loose,
+        }
+        if len(system.algebra.components) > 1:
+            record["num_stick"] = self._count(wanted, 1)
+        self.history.append(record)
+        logger.info(
+            "Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
+            it, record["num_active"], num_changed, res_eq, rel_ncp,
+        )
+        return wanted, free
+
+    def _count(self, rows: np.ndarray, component: int) -> int:
+        """Global number of set rows of one component."""
+        part = self.system.algebra.components_of(rows)[component]
+        return self.comm.allreduce(int(part.sum()), op=MPI.SUM)
+
+    def finished(self, it: int) -> bool:
+        """Converged (True), or one more step to take; raises when the method has failed."""
+        record = self.history[-1]
+        settled = self.previous is not None and record["num_changed"] == 0
+        self.resolve = settled and self.loose
+        if self.resolve:  # the sets have settled: solve their system again, accurately
+            self.loose = self.system.set_loose(False)
+        elif settled:
+            if record["residual_equilibrium"] <= self.rtol and record["residual_ncp"] <= self.rtol:
+                return True
+            raise ConvergenceError(
+                f"the active set is stationary but the residuals are not below rtol={self.rtol:g}: "
+                "the linear solves are inaccurate (check petsc_options; a direct solver is "
+                "the default)",
+                self.history,
+            )
+        if it == self.max_iterations:
+            extra = (
+                f" (least-index safeguard active since step {self.safeguard_since})"
+                if self.safeguard_since is not None
+                else ""
+            )
+            raise ConvergenceError(
+                f"no convergence in max_iterations={self.max_iterations} Newton steps{extra}; "
+                "raise max_iterations or warm-start from a nearby solution",
+                self.history,
+            )
+        return False
+
+    def next_set(
+        self, it: int, wanted: np.ndarray, free: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The sets of the next step: the rule's, with the cycling safeguard (see :func:`solve`)."""
+        comm = self.comm
+        if self.resolve:
+            new, new_free = self.previous, self.previous_free
+        else:
+            new, new_free = wanted, free
+        key = _global_key(comm, new, new_free > 0, new_free < 0)
+        if key in self.seen and not self.resolve:
+            if self.safeguard_since is not None:
+                raise ConvergenceError(
+                    f"active-set cycling: the set of step {it} repeats step {self.seen[key]} "
+                    "even under the least-index safeguard (is the body clamped, i.e. is "
+                    "N K^-1 N^T positive definite?)",
+                    self.history,
+                )
+            logger.warning(
+                "active-set cycling (step %d repeats step %d): least-index safeguard",
+                it, self.seen[key],
+            )
+            self.safeguard_since = it
+            self.seen.clear()
+        if self.safeguard_since is not None and not self.resolve:
+            first = self._least_index(self.violated)
+            new = np.where(first, wanted, self.previous)
+            new_free = np.where(first, free, self.previous_free)
+            key = _global_key(comm, new, new_free > 0, new_free < 0)
+            self.history[-1]["num_active"] = self._count(new, 0)
+            self.history[-1]["safeguard"] = True
+        self.seen[key] = it
+        return new, new_free
+
+    def _least_index(self, mask: np.ndarray) -> np.ndarray:
+        """Only the set entry with the smallest global number (on its owning rank).
+
+        Rows are numbered component by component (all normal rows first).
+        """
+        comm, n_q = self.comm, self.system.algebra.n_q
         local = np.flatnonzero(mask)
-        mine = q_start + int(local[0]) if local.size else np.iinfo(np.int64).max
+        n_global = self.system.disc.Q.dofmap.index_map.size_global
+        if local.size:
+            k, i = divmod(int(local[0]), n_q) if n_q else (0, 0)
+            mine = k * n_global + self.q_start + i
+        else:
+            mine = np.iinfo(np.int64).max
         first = comm.allreduce(mine, op=MPI.MIN)
         out = np.zeros_like(mask)
         if local.size and mine == first:
             out[local[0]] = True
         return out
 
-    lam_vec = system.N.createVecLeft()
-    nt_lam = system.f.duplicate()
-    norm_f = system.f.norm()
-    norm_K = system.algebra.stiffness_norm()
-    history: list[dict[str, Any]] = []
-    loose = system.set_loose(True)
-    seen: dict[tuple[bytes, ...], int] = {}
-    previous: np.ndarray | None = None
-    safeguard_since: int | None = None
-    try:
-        for it in range(max_iterations + 1):
-            u_vec = u.x.petsc_vec
-            lam_local = lam.x.array[:n_lam]
-            Mlam = M * lam_local
-            gap_res = system.algebra.gap_residual(u_vec)
-            test = Mlam + system.c_n * gap_res
-            # The terms of the test (21) at their round-off level, entry by entry.
-            u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
-            gap_size = M * u_max + np.abs(system.g.array)
-            force_size = comm.allreduce(float(np.max(np.abs(Mlam), initial=0.0)), op=MPI.MAX)
-            size = np.abs(Mlam) + system.c_n * gap_size
-            clean = np.where(np.abs(Mlam) > _ROUNDOFF * force_size, Mlam, 0.0) + system.c_n * (
-                np.where(np.abs(gap_res) > _ROUNDOFF * gap_size, gap_res, 0.0)
-            )
-            wanted = clean > 0.0
-            if previous is None:
-                violated = np.ones_like(wanted)
-                rule = wanted
-            else:
-                violated = wanted != previous
-                rule = wanted
+    def linear_solve(self, it: int, new: np.ndarray, free: np.ndarray) -> None:
+        """The linear system of the step's sets, its failures as :class:`ConvergenceError`."""
+        system, history = self.system, self.history
+        try:
+            # A failure that one rank sees first (after the solve's last collective) is
+            # raised on every rank (dwr_signorini.collective).
+            with collective(self.comm, f"Newton step {it}: the linear solve"):
+                system.solve_active(new, free)
+        except (LinearSolveError, PETSc.Error, np.linalg.LinAlgError) as err:
+            raise ConvergenceError(
+                f"Newton step {it}: linear solve failed ({_failure_name(system, err)}); "
+                f"{_failure_hint(system, err)}",
+                history,
+            ) from err
+        self.previous, self.previous_free = new, free
 
-            # Residuals as backward errors: the equilibrium residual relative to the size of
-            # the terms K u, N^T lam, f; the NCP function (20) entry by entry relative to `size`.
-            lam_vec.array_w[:] = lam_local
-            system.NT.mult(lam_vec, nt_lam)
-            norm_Ku = norm_K * distributed_norm(comm, u.x.array[:n_u])
-            scale_eq = max(norm_f, nt_lam.norm(), norm_Ku, 1e-300)
-            res_eq = system.algebra.equilibrium_residual(u_vec, lam_local) / scale_eq
-            ncp = np.abs(Mlam - np.maximum(0.0, test))
-            local_ncp = np.max(
-                np.divide(ncp, size, out=np.zeros_like(ncp), where=size > 0), initial=0.0
-            )
-            rel_ncp = comm.allreduce(float(local_ncp), op=MPI.MAX)
-            num_changed = comm.allreduce(int(violated.sum()), op=MPI.SUM)
-            record = {
-                "iteration": it,
-                "num_active": comm.allreduce(int(rule.sum()), op=MPI.SUM),
-                "num_changed": num_changed,
-                "residual_equilibrium": res_eq,
-                "residual_ncp": rel_ncp,
-                "ncp_scale": system.algebra.ncp_scale,
-                "safeguard": safeguard_since is not None,
-                "loose": loose,
-            }
-            history.append(record)
-            logger.info(
-                "Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
-                it,
-                record["num_active"],
-                num_changed,
-                res_eq,
-                rel_ncp,
-            )
-            settled = previous is not None and num_changed == 0
-            resolve = settled and loose
-            if resolve:  # the active set has settled: solve its system again, accurately
-                loose = system.set_loose(False)
-            elif settled:
-                if res_eq <= rtol and rel_ncp <= rtol:
-                    break
-                raise ConvergenceError(
-                    f"the active set is stationary but the residuals are not below rtol={rtol:g}: "
-                    "the linear solves are inaccurate (check petsc_options; a direct solver is "
-                    "the default)",
-                    history,
-                )
-            if it == max_iterations:
-                extra = (
-                    f" (least-index safeguard active since step {safeguard_since})"
-                    if safeguard_since is not None
-                    else ""
-                )
-                raise ConvergenceError(
-                    f"no convergence in max_iterations={max_iterations} Newton steps{extra}; "
-                    "raise max_iterations or warm-start from a nearby solution",
-                    history,
-                )
 
-            new = previous if resolve else rule
-            key = _global_key(comm, new)
-            if key in seen and not resolve:
-                if safeguard_since is not None:
-                    raise ConvergenceError(
-                        f"active-set cycling: the set of step {it} repeats step {seen[key]} "
-                        "even under the least-index safeguard (is the body clamped, i.e. is "
-                        "N K^-1 N^T positive definite?)",
-                        history,
-                    )
-                logger.warning(
-                    "active-set cycling (step %d repeats step %d): least-index safeguard",
-                    it,
-                    seen[key],
-                )
-                safeguard_since = it
-                seen.clear()
-            if safeguard_since is not None and not resolve:
-                new = previous ^ least_index(violated)
-                key = _global_key(comm, new)
-                record["num_active"] = comm.allreduce(int(new.sum()), op=MPI.SUM)
-                record["safeguard"] = True
-            seen[key] = it
+def _failure_name(system: NewtonLinearSystem, err: BaseException) -> str:
+    """What failed in a linear solve, for the message of :class:`ConvergenceError`."""
+    reason = system.ksp.getConvergedReason()
+    names = vars(PETSc.KSP.ConvergedReason).items()
+    name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
+    if isinstance(err, CollectiveError):
+        ranks = ", ".join(map(str, err.ranks))
+        size = system.disc.comm.size
+        on = f" on rank(s) {ranks} of {size}" if size > 1 else ""
+        name = f"{err.error_type}{on}: {err.error_message.splitlines()[0]}"
+    elif isinstance(err, PETSc.Error):
+        name = f"PETSc error {err.ierr}"
+    elif isinstance(err, np.linalg.LinAlgError):
+        # LinAlgError: the Cholesky factorisation of S_AA (method="schur") failed.
+        name = str(err)
+    return name
 
-            try:
-                # A failure that one rank sees first (after the solve's last collective) is
-                # raised on every rank (dwr_signorini.collective).
-                with collective(comm, f"Newton step {it}: the linear solve"):
-                    system.solve_active(new)
-            except (LinearSolveError, PETSc.Error, np.linalg.LinAlgError) as err:
-                # LinAlgError: the Cholesky factorisation of S_AA (method="schur") failed.
-                reason = system.ksp.getConvergedReason()
-                names = vars(PETSc.KSP.ConvergedReason).items()
-                name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
-                if isinstance(err, CollectiveError):
-                    ranks = ", ".join(map(str, err.ranks))
-                    on = f" on rank(s) {ranks} of {comm.size}" if comm.size > 1 else ""
-                    name = f"{err.error_type}{on}: {err.error_message.splitlines()[0]}"
-                elif isinstance(err, PETSc.Error):
-                    name = f"PETSc error {err.ierr}"
-                elif isinstance(err, np.linalg.LinAlgError):
-                    name = str(err)
-                cause = mumps_failure(system.ksp)
-                if cause is not None:
-                    hint = cause
-                elif isinstance(err, (PETSc.Error, np.linalg.LinAlgError)) or reason == (
-                    PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED
-                ):
-                    hint = (
-                        "the factorisation or preconditioner failed: the Newton matrix is "
-                        "singular (the body is not held in place, check dirichlet; or active "
-                        "contact constraints are linearly dependent, e.g. a contact facet whose "
-                        "nodes are all clamped), or the preconditioner in petsc_options does "
-                        "not suit this saddle-point system"
-                    )
-                else:
-                    hint = "the linear solver did not converge: check petsc_options"
-                raise ConvergenceError(
-                    f"Newton step {it}: linear solve failed ({name}); {hint}", history
-                ) from err
-            previous = new
-            u_new, lam_new = system.split(system.x)
-            if not all_finite(u_new, lam_new):
-                record["nonfinite"] = True
-                raise ConvergenceError(
-                    f"NaN or Inf in the Newton iterate of step {it} (singular or ill-posed "
-                    "linear system?)",
-                    history,
-                )
-            u.x.array[:n_u] = u_new
-            u.x.scatter_forward()
-            lam.x.array[:n_lam] = lam_new
-            lam.x.scatter_forward()
-    finally:
-        lam_vec.destroy()
-        nt_lam.destroy()
-    system.set_loose(False)  # the dual problem reuses the system: at full accuracy
 
+def _failure_hint(system: NewtonLinearSystem, err: BaseException) -> str:
+    """What to check after a failed linear solve."""
+    cause = mumps_failure(system.ksp)
+    if cause is not None:
+        return cause
+    if isinstance(err, (PETSc.Error, np.linalg.LinAlgError)) or system.ksp.getConvergedReason() == (
+        PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED
+    ):
+        return (
+            "the factorisation or preconditioner failed: the Newton matrix is "
+            "singular (the body is not held in place, check dirichlet; or active "
+            "contact constraints are linearly dependent, e.g. a contact facet whose "
+            "nodes are all clamped), or the preconditioner in petsc_options does "
+            "not suit this saddle-point system"
+        )
+    return "the linear solver did not converge: check petsc_options"
+
+
+def _solution(
+    system: NewtonLinearSystem, u: fem.Function, lams: list[fem.Function],
+    history: list[dict[str, Any]],
+) -> Solution:
+    """The :class:`Solution` of the converged loop."""
+    comm = system.disc.comm
+    sets = system.algebra.components_of(system.active)
+    free = system.algebra.components_of(system.free)
+    stick = sets[1] if len(sets) > 1 else None
     return Solution(
         u=u,
-        lam=lam,
-        active=system.active.copy(),
+        lam=lams[0],
+        active=sets[0].copy(),
         newton_iterations=len(history) - 1,
         history=history,
-        disc=disc,
+        disc=system.disc,
         system=system,
         ncp_scale=system.algebra.ncp_scale,
         method="schur" if isinstance(system, SchurNewtonSystem) else "block",
-        num_active=comm.allreduce(int(system.active.sum()), op=MPI.SUM),
+        num_active=comm.allreduce(int(sets[0].sum()), op=MPI.SUM),
+        lam_t=lams[1] if len(lams) > 1 else None,
+        stick=None if stick is None else stick & sets[0],
+        slip=None if stick is None else ~stick & sets[0] & (free[1] != 0.0),
     )

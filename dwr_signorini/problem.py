@@ -20,6 +20,7 @@ from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
 from . import compat
+from .laws import ContactLaw, check_law
 from .obstacles import Obstacle
 from .problem_data import (
     DirichletData,
@@ -121,6 +122,8 @@ class SignoriniProblem(ProblemDataChecks):
             shape (3, n)) onto the true (curved) surface of that boundary; after each refinement
             of T_H the vertices on those facets are moved onto it
             (:func:`dwr_signorini.refine.refine_marked`).
+        friction: The contact law (:mod:`dwr_signorini.laws`): ``None`` or
+            ``ds.Frictionless()`` (the default, Signorini's problem) or ``ds.Tresca(s)``.
 
     Raises:
         ValueError: For any inconsistent or non-physical input, naming the argument.
@@ -141,6 +144,7 @@ class SignoriniProblem(ProblemDataChecks):
         gap: GapData | Mapping[int, GapData] = 0.0,
         cell_tags: dmesh.MeshTags | None = None,
         boundary_projection: Mapping[int, Callable[[np.ndarray], np.ndarray]] | None = None,
+        friction: ContactLaw | None = None,
     ) -> None:
         if not isinstance(mesh, dmesh.Mesh):
             raise TypeError(f"mesh must be a dolfinx.mesh.Mesh, got {type(mesh).__name__}")
@@ -227,6 +231,8 @@ class SignoriniProblem(ProblemDataChecks):
         self.gap = self._check_gap(gap)
         self.boundary_projection = self._check_projection(boundary_projection)
         self._check_tags()
+        self.law = check_law(friction, self)
+        self.friction = self.law if self.law.frictional else None
         self.miss_gap  # noqa: B018  (collective: computed once, here)
 
     # -- validation ---------------------------------------------------------------------------
@@ -416,23 +422,42 @@ class SignoriniProblem(ProblemDataChecks):
             ValueError: If the gap is given per contact tag and ``x`` is not the coordinate of a
                 discretisation's mesh (no contact-tag indicators registered for it).
         """
-        if isinstance(self.gap, Mapping):
-            values = {
-                t: self.call_user(f"gap[{t}]", self._gap_value, g, x, n)
-                for t, g in self.gap.items()
-            }
-            distinct = {id(g) for g in self.gap.values()}
+        return self.contact_expr(self.gap, x, "gap", lambda g: self._gap_value(g, x, n))
+
+    def contact_expr(
+        self, data: Any, x: Any, name: str, value: Callable[[Any], Any] | None = None
+    ) -> ufl.core.expr.Expr:
+        """Data on Gamma_C (the gap, a friction threshold) as UFL on the mesh of ``x``.
+
+        Data per contact tag is the sum of each tag's value times the indicator of its macro
+        facets (a function of Lambda_H, registered by the discretisation), so it needs the
+        entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
+
+        Args:
+            data: A number, a callable x -> UFL scalar, or ``{contact tag: ...}``.
+            x: The spatial coordinate of the mesh of the form.
+            name: The argument's name, for errors.
+            value: One value's expression (default: a callable is called with ``x``).
+
+        Raises:
+            ValueError: Per-tag data and ``x`` not the coordinate of a discretisation's mesh.
+        """
+        if value is None:
+            value = lambda d: d(x) if callable(d) else d  # noqa: E731
+        if isinstance(data, Mapping):
+            values = {t: self.call_user(f"{name}[{t}]", value, d) for t, d in data.items()}
+            distinct = {id(d) for d in data.values()}
             if len(distinct) == 1:
                 return self._as_expr(next(iter(values.values())), x)
             indicators = self._domain_data(x).get("contact_indicators")
             if indicators is None:
                 raise ValueError(
-                    "gap is given per contact tag: its expression needs the contact-tag "
+                    f"{name} is given per contact tag: its expression needs the contact-tag "
                     "indicators of a discretisation (use the measures of ds.discretize)"
                 )
             total = sum(indicators[t] * ufl.as_ufl(values[t]) for t in self.contact_tags)
             return total
-        return self._as_expr(self.call_user("gap", self._gap_value, self.gap, x, n), x)
+        return self._as_expr(self.call_user(name, value, data), x)
 
     @staticmethod
     def _as_expr(value: Any, x: Any) -> Any:
@@ -475,4 +500,5 @@ class SignoriniProblem(ProblemDataChecks):
             self.gap,
             cell_tags=cell_tags,
             boundary_projection=self.boundary_projection or None,
+            friction=self.law,
         )

@@ -66,9 +66,11 @@ from .goal import GoalForms
 __all__ = [
     "active_indicator",
     "active_set_remainder",
+    "contact_term",
     "contact_violation",
     "dual_residual",
     "ncp_argument",
+    "ncp_terms",
     "primal_residual",
 ]
 
@@ -90,20 +92,49 @@ def contact_violation(
     return mu * (lam - ufl.max_value(0.0, ncp_argument(u, lam, gap, n, c))) * ds_c
 
 
+def _tuple(mu: Any) -> tuple:
+    """A weight per component of the law: a tuple, or one weight (the normal one)."""
+    return tuple(mu) if isinstance(mu, (tuple, list)) else (mu,)
+
+
+def ncp_terms(sol: Any, u: Any, lams: Any, c: Any) -> list:
+    """Each component's (x_k, P_k(x_k), P_k'(x_k)) at (u, lams) (:mod:`~dwr_signorini.laws`)."""
+    problem, m = sol.disc.problem, sol.disc.m
+    return problem.law.ncp_arguments(u, _tuple(lams), problem.gap_expr(m.x), m.n, c, problem)
+
+
+def contact_term(sol: Any, mus: Any, c: Any) -> ufl.Form:
+    """C(w_h)(mu) of every component of the law: sum_k (mu_k, lambda_k - P_k(x_k))_GC.
+
+    Without friction this is :func:`contact_violation` (the paper's C(w_h)(mu), Section 2).
+    """
+    m = sol.disc.m
+    form = None
+    for (_, P, _), lam, mu in zip(
+        ncp_terms(sol, sol.u, sol.multipliers, c), sol.multipliers, _tuple(mus), strict=True
+    ):
+        term = mu * (lam - P) * m.ds_contact
+        form = term if form is None else form + term
+    return form
+
+
 def primal_residual(sol: Any, v: Any, mu: Any, c: Any) -> ufl.Form:
-    """rho(w_h)(v, mu) = l(v) - a(u_h, v) - (lambda_H, v_n)_GC - C(w_h)(mu) (Proposition 4).
+    """rho(w_h)(v, mu) = l(v) - a(u_h, v) - sum_k (lambda_k, v . e_k)_GC - C(w_h)(mu).
+
+    Proposition 4; the directions e_k are n, and t with friction.
 
     Args:
         sol: The :class:`~dwr_signorini.newton.Solution`.
         v: The displacement weight.
-        mu: The multiplier weight.
+        mu: The multiplier weight, or a tuple of them (one per component of the law).
         c: The scale of the NCP (a function on the multiplier space, or a number).
     """
     problem, m = sol.disc.problem, sol.disc.m
+    components = problem.law.components(m.mesh.topology.dim)
     form = sol.disc.load_form(v) - problem.elastic_form(sol.u, v, m.dx)
-    form -= sol.lam * ufl.dot(v, m.n) * m.ds_contact
-    gap = problem.gap_expr(m.x)
-    return form - contact_violation(sol.u, sol.lam, mu, gap, m.n, m.ds_contact, c)
+    for comp, lam in zip(components, sol.multipliers, strict=True):
+        form -= lam * ufl.dot(v, comp.direction(m.n)) * m.ds_contact
+    return form - contact_term(sol, mu, c)
 
 
 def dual_residual(
@@ -111,16 +142,22 @@ def dual_residual(
 ) -> ufl.Form:
     """rho*(w_h, z_h)(v, mu) of Proposition 8, with b_h carrying c (see the module docstring).
 
-    ``J'(w_h)(v, mu) - a(v, y_h) + b_h(xi_H, v) - (mu, y_h,n) - c_h(xi_H, mu)`` with
-    ``b_h(xi, v) = int c chi_h xi v_n``, ``c_h(xi, mu) = int (1 - chi_h) xi mu``.
+    ``J'(w_h)(v, mu) - a(v, y_h) + sum_k [b_k(xi_k, v) - (mu_k, y_h . e_k) - c_k(xi_k, mu_k)]``
+    with ``b_k(xi, v) = int c chi_k xi v . e_k``, ``c_k(xi, mu) = int (1 - chi_k) xi mu`` and
+    chi_k = P_k' at w_h (the pointwise chi_h of the paper for the normal component, the stick
+    indicator for the tangential one).
     """
     problem, m = sol.disc.problem, sol.disc.m
-    chi = active_indicator(sol.u, sol.lam, problem.gap_expr(m.x), m.n, c)
+    components = problem.law.components(m.mesh.topology.dim)
+    terms = ncp_terms(sol, sol.u, sol.multipliers, c)
+    mus = _tuple(mu)
     form = -problem.elastic_form(v, z.y, m.dx)
-    form += c * z.xi * chi * ufl.dot(v, m.n) * m.ds_contact
-    form -= mu * ufl.dot(z.y, m.n) * m.ds_contact
-    form -= z.xi * (1.0 - chi) * mu * m.ds_contact
-    dJ = goal.directional(v, mu)
+    for comp, (_, _, chi), xi, mu_k in zip(components, terms, z.multipliers, mus, strict=True):
+        e = comp.direction(m.n)
+        form += c * xi * chi * ufl.dot(v, e) * m.ds_contact
+        form -= mu_k * ufl.dot(z.y, e) * m.ds_contact
+        form -= xi * (1.0 - chi) * mu_k * m.ds_contact
+    dJ = goal.directional(v, *mus)
     return form if dJ is None else dJ + form
 
 
@@ -130,18 +167,29 @@ def active_set_remainder(
     """R_A of Proposition 4 with w and xi replaced by reconstructions (module docstring).
 
     ``(xi^+, (chi(w^+) - chi_h) [lambda_h + c (u_h,n - g)])_GC`` with
-    ``chi(w^+) = [lambda^+ + c (u^+_n - g) > 0]``.
+    ``chi(w^+) = [lambda^+ + c (u^+_n - g) > 0]`` for the normal component. With P = max(0, .)
+    this is ``-(xi^+, P(x_h) - P(x^+) - P'(x^+) (x_h - x^+))``, the remainder of the NCP
+    function's expansion at w^+, which is the form used for the other components of the law.
 
     Args:
         sol: The :class:`~dwr_signorini.newton.Solution`.
         u_plus: The reconstructed displacement.
-        lam_plus: The reconstructed multiplier.
-        xi_plus: The reconstructed dual multiplier.
+        lam_plus: The reconstructed multiplier, or one per component (a tuple).
+        xi_plus: The reconstructed dual multiplier, or one per component (a tuple).
         c: The scale of the NCP.
     """
     problem, m = sol.disc.problem, sol.disc.m
     gap = problem.gap_expr(m.x)
     arg_h = ncp_argument(sol.u, sol.lam, gap, m.n, c)
     chi_h = active_indicator(sol.u, sol.lam, gap, m.n, c)
-    chi_plus = active_indicator(u_plus, lam_plus, gap, m.n, c)
-    return xi_plus * (chi_plus - chi_h) * arg_h * m.ds_contact
+    lam_plus, xi_plus = _tuple(lam_plus), _tuple(xi_plus)
+    chi_plus = active_indicator(u_plus, lam_plus[0], gap, m.n, c)
+    form = xi_plus[0] * (chi_plus - chi_h) * arg_h * m.ds_contact
+    if len(xi_plus) == 1:
+        return form
+    terms_h = ncp_terms(sol, sol.u, sol.multipliers, c)
+    terms_plus = ncp_terms(sol, u_plus, lam_plus, c)
+    for k in range(1, len(xi_plus)):
+        (x_h, P_h, _), (x_p, P_p, D_p) = terms_h[k], terms_plus[k]
+        form -= xi_plus[k] * (P_h - P_p - D_p * (x_h - x_p)) * m.ds_contact
+    return form

@@ -180,7 +180,7 @@ class Discretization:
         )
         self.cell_tags = fine_tags
         indicators = None
-        if isinstance(problem.gap, dict) and len(problem.contact_tags) > 1:
+        if len(problem.contact_tags) > 1:  # data per contact tag (gap, friction)
             fdim = self.macro_mesh.topology.dim - 1
             tag_of = np.full(num_entities(self.macro_mesh, fdim), -1, dtype=np.int64)
             tag_of[problem.facet_tags.indices] = problem.facet_tags.values

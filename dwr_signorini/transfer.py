@@ -27,13 +27,13 @@ def transfer_solution(
     disc: Discretization,
     rec: Reconstructor | None = None,
     macro_parent: npt.NDArray[np.int32] | None = None,
-) -> tuple[fem.Function, fem.Function]:
+) -> tuple[fem.Function, ...]:
     """Warm start on a new discretisation.
 
-    lambda_0 on each new macro contact facet is the facet mean of the old vertex-averaged linear
-    recovery i_2H^(1) lambda_H. u_0 is, with ``macro_parent``, the old i_2h^(2) u_h (the fine
-    nodal values read as macro P2 values, Section 4) evaluated at the new fine nodes, and
-    otherwise u_h interpolated; its Dirichlet dofs hold the prescribed values.
+    lambda_0 (and lambda_t,0) on each new macro contact facet is the facet mean of the old
+    vertex-averaged linear recovery i_2H^(1) lambda_H. u_0 is, with ``macro_parent``, the old
+    i_2h^(2) u_h (the fine nodal values read as macro P2 values, Section 4) evaluated at the new
+    fine nodes, and otherwise u_h interpolated; its Dirichlet dofs hold the prescribed values.
 
     Args:
         old: The solution on the previous level.
@@ -45,7 +45,8 @@ def transfer_solution(
             quadrilaterals/hexahedra, the reconstructions are interpolated with point location.
 
     Returns:
-        ``(u0, lam0)`` on ``disc.V`` and ``disc.Q``.
+        ``(u0, lam0)`` on ``disc.V`` and ``disc.Q`` (``(u0, lam0, lam_t0)`` with friction; every
+        multiplier is transferred as lambda).
     """
     rec = rec or Reconstructor(old.disc)
     if macro_parent is not None and rec.simplex:
@@ -59,7 +60,14 @@ def transfer_solution(
     u0.x.scatter_forward()
     _prescribe(u0, disc)
 
-    lam_rec_old = rec.patch_linear_multiplier(old.lam)
+    return (u0, *(_by_interpolation(f, disc, rec, cells) for f in old.multipliers))
+
+
+def _by_interpolation(
+    old: fem.Function, disc: Discretization, rec: Reconstructor, cells: npt.NDArray[np.int32]
+) -> fem.Function:
+    """A multiplier's facet means on the new macro contact facets, by point location."""
+    lam_rec_old = rec.patch_linear_multiplier(old)
     P1 = fem.functionspace(disc.mesh, ("Lagrange", 1))
     lam_rec = fem.Function(P1)
     data = fem.create_interpolation_data(P1, lam_rec_old.function_space, cells, padding=1e-10)
@@ -69,13 +77,13 @@ def transfer_solution(
     mu = ufl.TestFunction(disc.Q)
     num = fem_petsc.assemble_vector(disc.form(lam_rec * mu * disc.m.ds_contact))
     den = fem_petsc.assemble_vector(disc.form(mu * disc.m.ds_contact))
-    lam0 = fem.Function(disc.Q, name="lambda")
+    lam0 = fem.Function(disc.Q, name=old.name)
     n = disc.Q.dofmap.index_map.size_local
     lam0.x.array[:n] = num.array[:n] / den.array[:n]
     lam0.x.scatter_forward()
     num.destroy()
     den.destroy()
-    return u0, lam0
+    return lam0
 
 
 def _prescribe(u0: fem.Function, disc: Discretization) -> None:
@@ -86,7 +94,7 @@ def _prescribe(u0: fem.Function, disc: Discretization) -> None:
 
 def _transfer_by_parents(
     old: Solution, disc: Discretization, rec: Reconstructor, macro_parent: npt.NDArray[np.int32]
-) -> tuple[fem.Function, fem.Function]:
+) -> tuple[fem.Function, ...]:
     """:func:`transfer_solution` through the parent maps (simplices, no point location).
 
     A new fine cell lies in the old macro cell ``macro_parent[disc.parent_cell[c]]``; a new
@@ -111,8 +119,11 @@ def _transfer_by_parents(
     f2c = macro.topology.connectivity(tdim - 1, tdim)
     cells = macro_parent[f2c.array[f2c.offsets[facets]]]
     mids = dmesh.compute_midpoints(macro, tdim - 1, facets)
-    lam0 = fem.Function(disc.Q, name="lambda")
-    lam_H = rec.macro_linear_multiplier(old.lam)
-    lam0.x.array[disc.Q.dofmap.list[:, 0]] = lam_H.eval(mids, cells)[:, 0]
-    lam0.x.scatter_forward()
-    return u0, lam0
+    lams = []
+    for f in old.multipliers:
+        lam0 = fem.Function(disc.Q, name=f.name)
+        lam_H = rec.macro_linear_multiplier(f)
+        lam0.x.array[disc.Q.dofmap.list[:, 0]] = lam_H.eval(mids, cells)[:, 0]
+        lam0.x.scatter_forward()
+        lams.append(lam0)
+    return (u0, *lams)

@@ -69,9 +69,10 @@ def test_iterative_p2_dual_equals_the_factored_one(case):
             z2, w2 = _higher_order_solutions(sol, forms, rec, True, None)
             errors, primal = [], []
             for rtol in (1e-2, 1e-8):
-                zk, (uk, lamk) = hierarchical_solutions(sol, forms, z, rec.V2h, True, rtol=rtol)
+                zk, (uk, (lamk,)) = hierarchical_solutions(sol, forms, z, rec.V2h, True,
+                                                           rtol=rtol)
                 errors.append((_difference(zk.y, z2.y), _difference(zk.xi, z2.xi)))
-                primal.append((_difference(uk, w2[0]), _difference(lamk, w2[1])))
+                primal.append((_difference(uk, w2[0]), _difference(lamk, w2[1][0])))
         finally:
             rec.destroy()
     assert errors[1][0] < errors[0][0] and primal[1][0] < primal[0][0]

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
@@ -98,6 +99,7 @@ class NewtonLinearSystem:
             n = self.algebra.n_u + self.algebra.n_lam
             self.x = PETSc.Vec().createMPI((n, None), comm=disc.comm)
             self.active = np.zeros(self.algebra.n_lam, dtype=bool)
+            self.free = np.zeros(self.algebra.n_lam)
             self._setup()
         except BaseException:
             self.destroy()
@@ -180,9 +182,32 @@ class NewtonLinearSystem:
         """
         return False
 
-    def solve_active(self, active: np.ndarray) -> None:
-        """One Newton step for the active set ``active`` (owned rows) into :attr:`x`."""
+    def solve_active(self, active: np.ndarray, free: np.ndarray | None = None) -> None:
+        """One Newton step for the active set ``active`` (owned rows) into :attr:`x`.
+
+        Args:
+            active: The constrained rows (active, stick): (B u)_i = g_i there.
+            free: The multiplier's values on the other rows (0 where inactive, +-s where a
+                frictional law slips); None: all 0.
+        """
         raise NotImplementedError
+
+    def _set_free(self, active: np.ndarray, free: np.ndarray | None) -> PETSc.Vec | None:
+        """Record the free values; B_I^T free_I, their force on the displacement rows, or None.
+
+        The rows of the free multipliers read M_I lam_I = M_I free_I: with lam_I known, their
+        columns move to the right-hand side, f - B_I^T free_I. None when every free value is 0
+        (frictionless problems: the step is the same, operation by operation).
+        """
+        self.free = np.zeros(self.n_lam) if free is None else np.where(active, 0.0, free)
+        if not self.disc.comm.allreduce(bool(np.any(self.free)), op=MPI.LOR):
+            return None
+        lam = self.N.createVecLeft()
+        lam.array_w[:] = self.free
+        force = self.f.duplicate()
+        self.NT.mult(lam, force)
+        lam.destroy()
+        return force
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
         """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem)."""

@@ -172,10 +172,11 @@ class NewtonSystem(NewtonLinearSystem):
             vec.destroy()
         return A
 
-    def solve_active(self, active: np.ndarray) -> None:
+    def solve_active(self, active: np.ndarray, free: np.ndarray | None = None) -> None:
         """One Newton step: solve the linear system of active set ``active`` into :attr:`x`.
 
-        A x = b with b = [f; -g_A; 0], as A_s x = L^-1 b = [f; g_A; 0] (:meth:`newton_matrix`).
+        A x = b with b = [f; -g_A; M_I free_I], as A_s x = L^-1 b = [f - B_I^T free_I; g_A;
+        M_I free_I] (:meth:`newton_matrix`; free = 0 without friction).
 
         Raises:
             numpy.linalg.LinAlgError: MUMPS found null pivots (a singular Newton matrix).
@@ -184,9 +185,14 @@ class NewtonSystem(NewtonLinearSystem):
         with timed("assemble"):
             self.A = self.newton_matrix(active, out=self.A)
             self.active = active.copy()
+            force = self._set_free(active, free)
             b = self.b.array_w
             b[: self.n_u] = self.f.array
             b[self.n_u :] = np.where(active, self.g.array, 0.0)
+            if force is not None:
+                b[: self.n_u] -= force.array
+                b[self.n_u :] += self.M.array * self.free
+                force.destroy()
         if self._update is not None:
             self._update.destroy()
             self._update = None
@@ -269,8 +275,8 @@ class NewtonSystem(NewtonLinearSystem):
                 accurate = self._refine(update, self.b, self.x)
             except np.linalg.LinAlgError:
                 accurate = False
-            # the inactive rows M_I lam_I = 0 hold exactly, as in a direct solve
-            self.x.array_w[self.n_u :][~active] = 0.0
+            # the inactive rows M_I lam_I = M_I free_I hold exactly, as in a direct solve
+            self.x.array_w[self.n_u :][~active] = self.free[~active]
         if not accurate:
             update.destroy()
             return False

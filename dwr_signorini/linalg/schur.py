@@ -472,13 +472,23 @@ class SchurNewtonSystem(NewtonLinearSystem):
         """
         return self.schur.set_loose(loose)
 
-    def solve_active(self, active: np.ndarray) -> None:
-        """One Newton step: lam_A from S_AA, then u with the solver of K, into :attr:`x`."""
+    def solve_active(self, active: np.ndarray, free: np.ndarray | None = None) -> None:
+        """One Newton step: lam_A from S_AA, then u with the solver of K, into :attr:`x`.
+
+        With free values (friction) the load is f - B_I^T free_I, and lam_I = free_I.
+        """
         with timed("newton solve"):
             self.schur.set_active(active)
             guess = np.where(active, self.split(self.x)[1], 0.0) if self.solved else None
             self.active = active.copy()
-            lam = self._saddle(self.f, self.g.array, self._u_f, guess)
+            force = self._set_free(active, free)
+            if force is None:
+                lam = self._saddle(self.f, self.g.array, self._u_f, guess)
+            else:
+                force.aypx(-1.0, self.f)  # f - B_I^T free_I
+                solve_with(self.ksp, force, self._u)
+                lam = self._saddle(force, self.g.array, self._u, guess) + self.free
+                force.destroy()
             self.write(self.x, self._u.array_r, lam)
         self.solved = True
 
