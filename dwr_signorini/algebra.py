@@ -306,7 +306,7 @@ class ContactAlgebra:
         return np.concatenate(out)
 
     def newton_sets(
-        self, u: PETSc.Vec, lam: np.ndarray, u_max: float, previous: np.ndarray | None = None
+        self, u: PETSc.Vec, lam: np.ndarray, u_max: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The set test of every component (eq. 21 and the law's analogue), owned rows.
 
@@ -314,9 +314,6 @@ class ContactAlgebra:
             u: The displacement iterate.
             lam: The owned multiplier rows.
             u_max: max |u| over all ranks.
-            previous: The constrained rows of the last step, or None: facets that come into
-                contact (normal rows active now, not then) start stuck, as the tangential
-                displacement of a facet out of contact says nothing about its friction.
 
         Returns:
             ``(constrained, free, ncp, size)`` as
@@ -334,10 +331,6 @@ class ContactAlgebra:
             parts.append(
                 comp.newton_set(Mlam[r], residual[r], c[r], M[r], g[r], u_max, force_size, bound)
             )
-            if k and previous is not None:  # facets that come into contact start stuck
-                new = parts[0][0] & ~previous[self._rows()[0]]
-                constrained, free, ncp, size = parts[k]
-                parts[k] = (constrained | new, np.where(new, 0.0, free), ncp, size)
         return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
 
     def _rows(self) -> list[slice]:

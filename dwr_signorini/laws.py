@@ -20,18 +20,20 @@ inactive facets and s sign(x_i) on slipping ones). The semi-smooth Newton step, 
 value on the free facets (:meth:`Component.newton_set`), and the UFL forms of P_k and P_k'
 (:meth:`Component.projection`, :meth:`Component.derivative`): they do not branch on the law.
 
-Tresca's law is given-threshold friction on the contact set: |lambda_t| <= s chi where
-chi = [lambda_n + c (u_n - g) > 0] is the normal component's P_n', u_t = 0 where |lambda_t| < s
-and lambda_t = s u_t / |u_t| where the body slips; off the contact set lambda_t = 0. So the
-tangential threshold is s P_n'(x_n), as Coulomb's is mu P_n(x_n): a facet that separates carries
-no friction (Duvaut and Lions' classical law puts s on all of Gamma_C, and friction on separated
-facets). Where the contact set is all of Gamma_C the two coincide, and the discrete problem is the
-minimisation of the energy plus sum_i s_i |(T u)_i| under (N u)_i <= g_i, whose dual is a
-bound-constrained quadratic programme in (lambda_n, lambda_t): the tests solve it by another
-method for an independent check. P_n' is piecewise constant, so its generalised derivative is
-0: the normal and tangential conditions do not couple in the Newton matrix, which stays
-symmetric, and every linear solver of the frictionless problem serves
-(:mod:`dwr_signorini.linalg`).
+Tresca's law is the classical given-threshold friction law (Duvaut and Lions): |lambda_t| <= s
+on all of Gamma_C, u_t = 0 where |lambda_t| < s and lambda_t = s u_t / |u_t| where the body slips.
+The threshold does not depend on the normal force, so a facet that separates still carries
+lambda_t = +-s where it moves tangentially: the law is a model of friction with a known normal
+pressure, and Coulomb's law (threshold mu lambda_n) is the one for friction that follows contact.
+What makes Tresca's law the first frictional law to build on is that the discrete problem is
+convex: it minimises the energy plus sum_i s_i |(T u)_i| under (N u)_i <= g_i, with a unique
+solution, whose dual is a bound-constrained quadratic programme in (lambda_n, lambda_t) (the
+tests solve it by another method for an independent check). A threshold s chi on the contact
+set alone would couple the tangential condition to the normal one through the set, a
+quasi-variational inequality whose discrete problem need not have a unique solution (tried: the
+semi-smooth Newton method cycled on facets at the edge of the contact zone). The normal and
+tangential conditions do not couple in the Newton matrix, which stays symmetric, and every
+linear solver of the frictionless problem serves (:mod:`dwr_signorini.linalg`).
 """
 
 from __future__ import annotations
@@ -201,8 +203,9 @@ class ContactLaw:
     def row_bound(self, data: np.ndarray | None, active: np.ndarray) -> np.ndarray | None:
         """The tangential threshold on the rows, None without one.
 
-        The integrated data, (M s)_i, on the active rows of the normal component
-        (``active``), 0 elsewhere.
+        Args:
+            data: The integrated threshold data, (M s)_i.
+            active: The active rows of the normal component.
         """
         return None
 
@@ -304,16 +307,16 @@ class Tresca(ContactLaw):
         return self
 
     def bound_expr(self, problem: Any, x: Any) -> Any:
-        """S as UFL on the mesh of ``x`` (per tag through the contact-tag indicators)."""
+        """The threshold s as UFL on the mesh of ``x`` (per tag by contact-tag indicators)."""
         return problem.contact_expr(self.s, x, "Tresca(s)")
 
     def bound(self, data: Any, x_normal: Any) -> Any:
-        """S P_n'(x_n): s on the contact set, 0 off it."""
-        return data * Normal().derivative(x_normal, None)
+        """The threshold s, whatever the normal state."""
+        return data
 
     def row_bound(self, data: np.ndarray | None, active: np.ndarray) -> np.ndarray | None:
-        """See the base class."""
-        return np.where(active, data, 0.0)
+        """The integrated threshold (M s)_i on every row."""
+        return data
 
 
 def extract_x(n: Any) -> Any:

@@ -499,7 +499,7 @@ class _NewtonLoop:
         system, comm = self.system, self.comm
         u_vec = u.x.petsc_vec
         u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
-        wanted, free, ncp, size = system.algebra.newton_sets(u_vec, lam, u_max, self.previous)
+        wanted, free, ncp, size = system.algebra.newton_sets(u_vec, lam, u_max)
         if self.previous is None:
             violated = np.ones_like(wanted)
         else:

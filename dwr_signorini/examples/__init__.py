@@ -3,7 +3,9 @@
 * :mod:`~dwr_signorini.examples.analytic_2d`: Example 5.1, a known solution (mesh, exact solution
   in UFL and numpy, quantities of interest J_{a,m} and J_{a,2} with their exact values);
 * :mod:`~dwr_signorini.examples.bar_2d`: Example 5.2, a bar in plane stress;
-* :mod:`~dwr_signorini.examples.obstacle_3d`: Example 5.3, a box pushed by an obstacle in 3D.
+* :mod:`~dwr_signorini.examples.obstacle_3d`: Example 5.3, a box pushed by an obstacle in 3D;
+* :mod:`~dwr_signorini.examples.friction_2d`: a block pressed onto a cylinder and sheared, with
+  Tresca friction (not in the paper).
 
 Each provides:
 
@@ -65,6 +67,12 @@ from .bar_2d import (
     bar_problem,
     goal_bar,
 )
+from .friction_2d import (
+    FRICTION_DEFAULTS,
+    friction_gap,
+    friction_problem,
+    goal_friction_force,
+)
 from .obstacle_3d import (
     OBSTACLE_MATERIAL,
     goal_obstacle,
@@ -82,6 +90,7 @@ __all__ = [
     "BAR_MATERIAL",
     "CONTACT",
     "DIRICHLET",
+    "FRICTION_DEFAULTS",
     "NEUMANN",
     "OBSTACLE_MATERIAL",
     "CellType",
@@ -106,10 +115,13 @@ __all__ = [
     "exact_displacement_np",
     "exact_sigma_nn_np",
     "exact_stress_np",
+    "friction_gap",
+    "friction_problem",
     "goal_a",
     "goal_a2",
     "goal_a2_weight",
     "goal_bar",
+    "goal_friction_force",
     "goal_obstacle",
     "lame_parameters",
     "obstacle_3d_mesh",
