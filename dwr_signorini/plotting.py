@@ -11,6 +11,7 @@ from .viz import cumulative_time as cumulative_time
 from .viz import plot_contact_force as plot_contact_force
 from .viz import plot_convergence as plot_convergence
 from .viz import plot_effectivity as plot_effectivity
+from .viz import plot_friction as plot_friction
 from .viz import plot_interval as plot_interval
 from .viz import plot_mesh as plot_mesh
 from .viz import plot_solution_2d as plot_solution_2d

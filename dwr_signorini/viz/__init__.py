@@ -36,7 +36,7 @@ Modules:
 """
 
 from .display import virtual_display
-from .fields2d import plot_contact_force, plot_solution_2d
+from .fields2d import plot_contact_force, plot_friction, plot_solution_2d
 from .fields3d import plot_solution_3d
 from .gather import MeshSnapshot, snapshot_mesh, von_mises_2d
 from .meshes import plot_mesh
@@ -55,6 +55,7 @@ __all__ = [
     "MeshSnapshot",
     "cumulative_time",
     "plot_contact_force",
+    "plot_friction",
     "plot_convergence",
     "plot_effectivity",
     "plot_interval",

@@ -17,7 +17,7 @@ import numpy as np
 from dolfinx import mesh as dmesh
 
 from .canvas import new_figure, save_figure
-from .gather import SolutionData, gather_contact_force, gather_solution
+from .gather import SolutionData, gather_contact_force, gather_friction, gather_solution
 
 __all__ = ["auto_scale", "plot_contact_force", "plot_solution_2d"]
 
@@ -267,4 +267,63 @@ def _draw_contact_force(
     ax.set_title(
         title if title is not None else rf"$\lambda_{{n,H}}$ on $M_C = {num}$ contact facets"
     )
+    return save_figure(fig, path)
+
+
+def plot_friction(
+    sol: Any,
+    path: str | os.PathLike,
+    threshold: float | None = None,
+    title: str | None = None,
+) -> Path | None:
+    """lambda_n and lambda_t along Gamma_C (2D) with the stick and slip zones. Collective.
+
+    Args:
+        sol: A :class:`~dwr_signorini.Solution` of a 2D frictional problem.
+        path: The PNG to write (on rank 0).
+        threshold: Tresca's s, drawn as +-s, if given.
+        title: Figure title.
+
+    Returns:
+        The path on rank 0, ``None`` on the other ranks.
+
+    Raises:
+        ValueError: A frictionless or 3D solution.
+    """
+    if sol.lam_t is None or sol.disc.mesh.topology.dim != 2:
+        raise ValueError("plot_friction draws the tractions of a 2D frictional solution")
+    data = gather_friction(sol)
+    del sol
+    if data is None:
+        return None
+    x, lam_n, lam_t, stick, slip = data
+    k = int(np.argmax(np.ptp(x.reshape(-1, 3), axis=0)))
+    ends = np.sort(x[:, :, k], axis=1)
+    order = np.argsort(ends[:, 0])
+    ends, lam_n, lam_t = ends[order], lam_n[order], lam_t[order]
+    stick, slip = stick[order], slip[order]
+    fig = new_figure((6.8, 4.0))
+    ax = fig.add_subplot()
+    for (a, b), on_stick, on_slip in zip(ends, stick, slip, strict=True):
+        if on_stick or on_slip:
+            ax.axvspan(a, b, color="C2" if on_stick else "C1", alpha=0.15, linewidth=0)
+    ax.hlines(lam_n, ends[:, 0], ends[:, 1], color="C0", linewidth=1.5,
+              label=r"$\lambda_{n,H}$")
+    ax.hlines(lam_t, ends[:, 0], ends[:, 1], color="C3", linewidth=1.5,
+              label=r"$\lambda_{t,H}$")
+    if threshold is not None:
+        for sign in (1.0, -1.0):
+            ax.axhline(sign * threshold, color="grey", linestyle="--", linewidth=0.8,
+                       label=r"$\pm s$" if sign > 0 else None)
+    from matplotlib.patches import Patch
+
+    handles, _ = ax.get_legend_handles_labels()
+    handles += [Patch(color="C2", alpha=0.15, label="stick"),
+                Patch(color="C1", alpha=0.15, label="slip (in contact)")]
+    ax.legend(handles=handles, fontsize="small")
+    ax.set_xlabel(f"{'xyz'[k]} on $\\Gamma_C$")
+    ax.set_ylabel("contact traction")
+    ax.grid(True, alpha=0.3)
+    ax.set_title(title if title is not None else
+                 rf"tractions on $M_C = {len(lam_n)}$ contact elements")
     return save_figure(fig, path)

@@ -247,6 +247,33 @@ def gather_solution(
     return None if data is None else SolutionData(*data)
 
 
+def gather_friction(sol: Any) -> list[np.ndarray] | None:
+    """Gather lambda_n, lambda_t and the stick and slip sets on rank 0. Collective.
+
+    Args:
+        sol: A :class:`~dwr_signorini.Solution` of a frictional problem.
+
+    Returns:
+        On rank 0 the vertex coordinates of the macro facets, shape (facets, vertices, 3),
+        lambda_n and lambda_t on each, and whether it sticks and whether it slips (in contact);
+        ``None`` elsewhere.
+    """
+    sub = sol.disc.contact_mesh
+    sdim = sub.topology.dim
+    n = sub.topology.index_map(sdim).size_local
+    x = _cell_vertices(sub, sdim, np.arange(n, dtype=np.int32))
+    dofs = sol.lam.function_space.dofmap.list[:n, 0]
+    owned = dofs < len(sol.stick)
+    sets = []
+    for rows in (sol.stick, sol.slip):
+        out = np.zeros(n, dtype=bool)
+        out[owned] = np.asarray(rows, dtype=bool)[dofs[owned]]
+        sets.append(out)
+    return _gather_arrays(
+        sub.comm, x, sol.lam.x.array[dofs].copy(), sol.lam_t.x.array[dofs].copy(), *sets
+    )
+
+
 def gather_contact_force(sol: Any) -> list[np.ndarray] | None:
     """Gather the contact force lambda_H on the macro contact facets on rank 0. Collective.
 
