@@ -97,6 +97,12 @@ demo_pages = {
         ("hertz_pressure_profile.png", "2D: the contact force of the last level, and Hertz's."),
         ("hertz_errors_dofs.png", "2D: the estimate and the errors against Hertz's formulas."),
     ],
+    "friction": [
+        ("friction_tractions.png", "lambda_n and lambda_t along Gamma_C, stick and slip zones."),
+        ("friction_interval.png", "The friction force and its interval per level."),
+        ("friction_convergence_cells.png", "Error and estimate against the number of cells."),
+        ("friction_mesh_level06.png", "The adaptive mesh of level 6."),
+    ],
 }
 
 

@@ -52,6 +52,36 @@ far the contact set is from resolved. It is not a bound: it sees only the part o
 on which the reconstruction and chi_h disagree; a contact zone that neither resolves (smaller than
 a macro facet, and not seen by the reconstruction either) is not detected by it, and only the
 contact term C(w_h)(xi_H) of the estimate can see it.
+
+**Friction** (:mod:`dwr_signorini.laws`). A frictional law adds a multiplier lambda_t (the
+tangential traction, along t) with the NCP lambda_t - P_t(lambda_t + c u_t) = 0, P_t the
+projection onto [-s, s] (Tresca). With w = (u, lambda_n, lambda_t), phi = (v, mu_n, mu_t) the
+forms gain, component by component, the same terms as the normal one:
+
+    rho(w)(phi) = l(v) - a(u, v) - (lambda_n, v_n) - (lambda_t, v_t)
+                  - C_n(w)(mu_n) - C_t(w)(mu_t),
+    C_t(w)(mu)  = (mu, lambda_t - P_t(lambda_t + c u_t))_GC,
+    C_t'(w_h)(dv, dmu)(mu) = (mu, (1 - chi_t) dmu - c chi_t dv_t)_GC,
+    chi_t = [|lambda_t + c u_t| < s],
+
+chi_t the pointwise stick indicator. The Lagrangian L(w, z) = J(w) + rho(w)(z) is the same
+functional of a longer w, so the identities (13) and (15) hold as they are, and the estimators
+read
+
+    eta_p = rho(w_h)(A z_h - z_h) - C_n(w_h)(xi_n) - C_t(w_h)(xi_t),
+    eta   = 1/2 rho(w_h)(A z_h - z_h) + 1/2 rho*(w_h, z_h)(A w_h - w_h) - C_n(w_h)(xi_n)
+            - C_t(w_h)(xi_t),
+
+with the dual residual rho* gaining b_t(xi_t, v) = (c chi_t xi_t, v_t), -(mu_t, y_t) and
+c_t(xi_t, mu) = ((1 - chi_t) xi_t, mu): the added terms are the tangential part of the primal
+residual, (lambda_t, v_t), the tangential contact term -C_t(w_h)(xi_t), which measures where
+the discrete traction violates Tresca's law pointwise (the discrete law holds per macro facet),
+and the tangential parts of rho*. The dual problem is the transposed Newton matrix with the stick
+rows in the constrained block (:mod:`dwr_signorini.dual`). The remainder R_A gains
+-(xi_t^+, P_t(x_h) - P_t(x^+) - P_t'(x^+) (x_h - x^+)) with x = lambda_t + c u_t: the
+remainder of P_t's expansion at the reconstruction, which for P_n = max(0, .) is the normal R_A
+below. :func:`primal_residual`, :func:`dual_residual`, :func:`contact_term` and
+:func:`active_set_remainder` sum over the law's components and do not branch on the law.
 """
 
 from __future__ import annotations

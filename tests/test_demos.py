@@ -49,6 +49,7 @@ SMALL_ARGS = {
     "analytic_2d": ["--levels", "2", "--sweep", "2", "--sweep-level", "0"],
     "obstacle_3d": ["--levels", "2", "--max-cells", "20000"],
     "hertz": ["--levels", "2"],
+    "friction": ["--levels", "3", "--mesh-level", "1"],
 }
 
 
@@ -347,6 +348,35 @@ def test_hertz_3d_quarter(tmp_path):
 # --------------------------------------------------------------------------------------------------
 # The command line and the table reader
 # --------------------------------------------------------------------------------------------------
+
+
+# --------------------------------------------------------------------------------------------------
+# Friction
+# --------------------------------------------------------------------------------------------------
+
+FRICTION_RUNS = ["adaptive", "uniform"]
+
+
+def test_friction_serial(runs):
+    """The demo's files, and its rows are the library's for the same problem and goal."""
+    out = runs("friction", 1)
+    _check_files(out, ["tractions.png", "interval.png", "convergence_cells.png",
+                       "convergence_time.png", "effectivity.png", "solution.png",
+                       "mesh_level01.png"], FRICTION_RUNS)
+    res = ds.solve_adaptive(ex.friction_problem(MPI.COMM_SELF), ex.goal_friction_force(),
+                            max_levels=3, fraction=0.2, verbose=False)
+    rows = _csv(out / "adaptive" / "adaptive.csv")
+    _compare_rows(rows, res.levels, 1e-10, "friction adaptive")
+    assert all(row["num_stick"] > 0 and row["num_slip"] > 0 for row in rows)
+    res.destroy()
+
+
+def test_friction_parallel(runs):
+    serial, parallel = runs("friction", 1), runs("friction", 2)
+    _check_files(parallel, ["tractions.png"], FRICTION_RUNS)
+    for run in FRICTION_RUNS:
+        _compare_rows(_csv(parallel / run / f"{run}.csv"), _csv(serial / run / f"{run}.csv"),
+                      1e-9, f"friction {run} 2 processes vs serial")
 
 
 def test_cli_list(capsys):
