@@ -18,8 +18,8 @@ default; the others are kept for reference):
   load's integration method (``MeshImData``, values from our UFL expression), or ``"p2"``, the
   body force interpolated in P2 and a source term brick (assembled by the generic assembly in
   every Newton step);
-* ``obstacle``: ``"levelset"``, the steep level set d(x, y) = g(y) - K x (K = 1e8) on a P2 field
-  (normal (1, 0) up to 1e-8, gap g(y) on x = 0), or ``"shift"``, the obstacle d = -x for
+* ``obstacle``: ``"levelset"``, the steep level set d(x, y) = g(y) - K x (K = ``slope``) on a
+  P2 field (normal (1, 0) up to 1/K, gap g(y) on x = 0), or ``"shift"``, the obstacle d = -x for
   w = u - u_g with u_g = (g(y), 0) at the contact vertices (an extra volume source term);
 * ``dirichlet``: ``"simplification"`` (``add_Dirichlet_condition_with_simplification``) or
   ``"multipliers"`` (``add_Dirichlet_condition_with_multipliers``, a P1 multiplier);
@@ -46,6 +46,7 @@ FASTEST = {
     "load": "imdata",
     "load_rule": "IM_TRIANGLE(3)",
     "obstacle": "levelset",
+    "slope": 1.0e8,
     "dirichlet": "simplification",
     "max_res": 1e-9,
     "lsolver": "mumps",
@@ -53,9 +54,6 @@ FASTEST = {
     "option": 1,
     "multiplier": "coarse",
 }
-
-#: Slope of the level-set obstacle d = g(y) - K x.
-LEVELSET_SLOPE = 1.0e8
 
 
 def peak_rss_gib() -> float:
@@ -187,7 +185,7 @@ def worker(inp: Path, out: Path) -> None:
         else:
             xy = mfd.basic_dof_nodes()
             md.add_initialized_fem_data(
-                "obstacle", mfd, _gap(xy[1]) - LEVELSET_SLOPE * xy[0]
+                "obstacle", mfd, _gap(xy[1]) - float(cfg["slope"]) * xy[0]
             )
         if cfg["dirichlet"] == "simplification":
             md.add_Dirichlet_condition_with_simplification("u", GD)

@@ -479,6 +479,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     g.add_argument("--gf-load-rule", default=FASTEST["load_rule"],
                    help="GetFEM's integration method of the load with --gf-load imdata")
     g.add_argument("--gf-obstacle", default=FASTEST["obstacle"], choices=("levelset", "shift"))
+    g.add_argument("--gf-slope", type=float, default=FASTEST["slope"],
+                   help="K of the level-set obstacle d = g(y) - K x")
     g.add_argument("--gf-dirichlet", default=FASTEST["dirichlet"],
                    choices=("simplification", "multipliers"))
     g.add_argument("--gf-max-res", type=float, default=FASTEST["max_res"])
