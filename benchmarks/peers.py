@@ -264,10 +264,10 @@ def run_ours(comm: Any, nx: int, ny: int, method: str | None) -> tuple[dict[str,
 def run_snesvi(comm: Any, nx: int, ny: int, args: argparse.Namespace) -> dict[str, Any]:
     """SNES VI on T_h (T_H refined as ours refines it), its errors; set-up timed separately."""
     from dolfinx.mesh import CellType
+    from peer_snesvi import SnesOptions, solve_snesvi
 
     from dwr_signorini import compat
     from dwr_signorini import examples as ex
-    from peer_snesvi import SnesOptions, solve_snesvi
 
     msh, _ = ex.analytic_2d_mesh(comm, nx, ny, CellType.triangle)
     comm.barrier()

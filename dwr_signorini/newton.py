@@ -242,7 +242,8 @@ def solve(
             the dual problem is solved the same way. ``None`` (the default): ``"block"`` when
             ``petsc_options`` are given (they are for the block matrix), otherwise the rule of
             :func:`~dwr_signorini.linalg.choose_method` (the dense Schur path for large 3D
-            problems with few multipliers, and for 2D solves without ``initial_guess``). :attr:`Solution.method` tells which was used.
+            problems with few multipliers, and for 2D solves without ``initial_guess``).
+            :attr:`Solution.method` tells which was used.
         petsc_options_prefix: Base options prefix of this solve (default: a new unique
             ``dwr_signorini_<n>_``); inner solvers use sub-prefixes
             (:mod:`dwr_signorini.linalg.options`), so e.g. ``-<prefix>ksp_view`` on the
