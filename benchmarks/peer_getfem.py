@@ -48,7 +48,7 @@ FASTEST = {
     "obstacle": "levelset",
     "slope": 1.0e8,
     "dirichlet": "simplification",
-    "max_res": 1e-9,
+    "max_res": 1e-7,
     "lsolver": "mumps",
     "lsearch": "default",
     "option": 1,
