@@ -1,51 +1,40 @@
-"""Example 5.1 solved by a peer code, GetFEM, on our fine mesh T_h, beside our solve + estimate.
+"""Example 5.1 by two peer codes on our fine mesh T_h, beside our solve + estimate.
 
-Each code uses its own discretisation on the same triangles (the fine mesh T_h that our solver
-builds from the macro mesh T_H it is given; GetFEM gets T_h's vertices and cells):
+Each code uses its own discretisation on the same triangles, the fine mesh T_h that our solver
+builds from the macro mesh T_H it is given (``analytic_2d_mesh(nx, ny, triangle)`` refined once):
 
-* ours: ``ds.solve(problem)`` then ``ds.estimate(sol, goal_a(-0.5))`` from the macro mesh on
-  (uniform refinement to T_h, spaces, assembly, semi-smooth Newton, dual problem, estimate): u_h
-  in vector P1 on T_h, lambda_H in P0 on the macro contact facets (H = 2h), NCP with c = E / H;
-* GetFEM (its Python interface, ``gf.Model``; a separate process, see below): u in vector P1 on
-  T_h (``add_isotropic_linearized_elasticity_pstrain_brick``), clamped on Gamma_D
-  (``add_Dirichlet_condition_with_simplification``), the body force of example 5.1 as a P2 field
-  (``add_source_term_brick``), and frictionless contact with a rigid obstacle through the integral
-  contact brick (``add_integral_contact_with_rigid_obstacle_brick``, option 1: the non-symmetric
-  Alart-Curnier augmented Lagrangian, r = E / h) with a multiplier in continuous P1 on the macro
-  contact vertices (every second fine one, H = 2h: GetFEM asks for an inf-sup condition, which the
-  equal-order multiplier on all fine contact vertices, ``--multiplier fine``, violates), solved
-  by GetFEM's Newton method (``Model.solve``, sequential MUMPS).
+* ours: ``SignoriniProblem`` on T_H, ``ds.solve`` and ``ds.estimate(sol, goal_a(-0.5))``, that is
+  everything from the macro mesh on (refinement to T_h, spaces, assembly, semi-smooth Newton, dual
+  problem, reconstructions, indicators; eta with patch weights): u_h in vector P1 on T_h,
+  lambda_H in P0 on the macro contact facets (H = 2h);
+* GetFEM (``benchmarks/peer_getfem.py``, a child process, serial): u in vector P1 on T_h and a
+  continuous P1 multiplier on the macro contact vertices, the integral contact brick
+  (non-symmetric Alart-Curnier), ``Model.solve`` (Newton, sequential MUMPS), in its fastest
+  configuration that reaches our accuracy (``peer_getfem.FASTEST``; the ``--gf-*`` options select
+  the weaker ones, kept for reference);
+* SNES VI (``benchmarks/peer_snesvi.py``, in this process, serial or in parallel): dolfinx with
+  PETSc's ``vinewtonrsls`` on the displacement-only P1 problem, u_1 <= g(y) as bounds at the
+  fine contact vertices, MUMPS (no multiplier, no estimate).
 
-The obstacle. GetFEM's rigid-obstacle bricks take the obstacle as a signed distance d: the gap is
-d and the normal -grad d / |grad d|, so a curved gap g(y) would tilt the normal, while example 5.1
-prescribes u . n <= g(y) with the body's normal n = (1, 0) (and no friction in that frame).
-The driver therefore solves for w = u - u_g, where u_g is the P1 function with first component
-g(y_i) at the nodes of Gamma_C and zero elsewhere: the obstacle of w is the plane x = 0 (d = -x,
-normal (1, 0), zero gap), the load gets -a(u_g, v) (``add_source_term``), and u = w + u_g. This is
-GetFEM's integral contact with normal (1, 0) and the gap interpolated in P1 (as the brick
-interpolates any obstacle on a finite element space).
-
-Errors of both against the exact solution, computed here in the same way for both (numpy,
+Errors of all three against the exact solution, computed here in the same way (numpy,
 ``exact_displacement_np`` & co., a 16-point rule on every triangle and an 8-point Gauss rule on
-every fine contact facet): displacement L2 and H1 seminorm, contact pressure L2 on Gamma_C, and
-J_a1 = J_{a,-0.5} relative to ``exact_J_a(-0.5)``.
+every fine contact facet; in parallel each rank sums over its cells): displacement L2 and H1
+seminorm, contact pressure L2 on Gamma_C (the codes with a multiplier), and J_a1 =
+J_{a,-0.5} relative to ``exact_J_a(-0.5)``.
 
-Times, in the same run: ours is the wall-clock time of problem set-up on the given macro mesh +
-``ds.solve`` + ``ds.estimate`` (everything from T_H on, after one untimed warm-up on a small mesh
-so that the forms' JIT compilation, cached on disk, is not counted); the peer's is
-``Model.solve`` alone (the Newton iterations with their assembly and factorisations; GetFEM's mesh
-import, finite element spaces, data and bricks, its model set-up, are excluded and reported
-separately). GetFEM runs in a child process of this script (``--worker``) that imports getfem
-and not dolfinx, since both link a MUMPS (GetFEM the sequential one): the child loads our mesh
-and the load from a temporary ``.npz`` file and returns its solution the same way.
+Times, in the same run: ours is the wall-clock time of everything from T_H on, after one untimed
+warm-up on a small mesh (so that the forms' JIT compilation, cached on disk, is not counted);
+each peer's is its solve alone (``Model.solve``, ``SNES.solve``: the Newton iterations with
+their assembly and factorisations), with its set-up (mesh import or refinement, spaces, data,
+bricks, assembly of K and f for SNES VI) excluded and printed beside it.
 
-    make peer-env                                         # once: installs GetFEM (optional)
-    scripts/fenicsx python3 benchmarks/peers.py           # 49k, 196k and 786k fine triangles
-    scripts/fenicsx python3 benchmarks/peers.py --quick   # 49k only
-    scripts/fenicsx python3 benchmarks/peers.py --sizes 49k,196k
+    make peer-env                                          # once: installs GetFEM (optional)
+    scripts/fenicsx python3 benchmarks/peers.py            # 49k, 196k and 786k fine triangles
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/peers.py  # ours and SNES VI on 2 ranks
+    scripts/fenicsx python3 benchmarks/peers.py --quick    # 49k only
 
-Serial. Where GetFEM is not installed it prints one SKIPPED line and exits 0. Writes
-``benchmarks/results/peers.csv`` and ``peers.json`` (``--output`` to move them).
+Where GetFEM is not installed it is skipped with one line (and on more than one rank). Writes
+``benchmarks/results/peers[_np2].csv`` and ``.json`` (``--output`` to move them).
 """
 
 from __future__ import annotations
@@ -66,6 +55,10 @@ from typing import Any
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from peer_getfem import FASTEST  # noqa: E402
+
 DEFAULT_OUTPUT = HERE / "results"
 #: Fine triangles of the default sizes; a macro mesh of nx x ny = 3k x 2k squares, each split into
 #: 2 triangles, refined once uniformly, has 48 k^2 of them (k even: the kinks y = +-1/2 are mesh
@@ -106,7 +99,7 @@ def macro_size(num_fine: int) -> tuple[int, int]:
 
 
 # --------------------------------------------------------------------------------------------------
-# Errors against the exact solution (numpy only, the same for both codes)
+# Errors against the exact solution (numpy only, the same for all codes)
 # --------------------------------------------------------------------------------------------------
 
 
@@ -126,9 +119,14 @@ def omega_np(x: np.ndarray, y: np.ndarray, m: float = -0.5, d: float = 0.5) -> n
 
 
 def domain_errors(
-    points: np.ndarray, cells: np.ndarray, U: np.ndarray, chunk: int = 65536
+    comm: Any, points: np.ndarray, cells: np.ndarray, U: np.ndarray, chunk: int = 65536
 ) -> dict[str, float]:
-    """||u - u_h||_L2, |u - u_h|_H1 and J_{a,-0.5}(u_h) of a P1 field given at the vertices."""
+    """||u - u_h||_L2, |u - u_h|_H1 and J_{a,-0.5}(u_h) of a P1 field given at the vertices.
+
+    Each rank sums over the cells it is given; the sums are reduced over ``comm``.
+    """
+    from mpi4py import MPI
+
     from dwr_signorini import examples as ex
 
     xi, eta, wq = triangle_rule(4)
@@ -161,27 +159,32 @@ def domain_errors(
         l2 += float(np.sum(dx * np.sum((uh - u) ** 2, axis=1)))
         h1 += float(np.sum(dx * np.sum((grad_h[..., None] - grad) ** 2, axis=(1, 2))))
         J += float(np.sum(dx * omega_np(x, y) * np.sum(uh**2, axis=1)))
-    return {"u_L2": math.sqrt(l2), "u_H1": math.sqrt(h1), "J": J}
+    l2, h1, J = comm.allreduce(np.array([l2, h1, J]), op=MPI.SUM)
+    return {"u_L2": math.sqrt(l2), "u_H1": math.sqrt(h1), "J": float(J)}
 
 
-def pressure_error(breaks: np.ndarray, values: np.ndarray, kind: str, n: int = 8) -> float:
-    """||lambda - lambda_h||_L2(Gamma_C) of a piecewise P0 or P1 function of y.
+def pressure_error_sq(
+    lo: np.ndarray, hi: np.ndarray, values: np.ndarray, kind: str, parts: int = 1, n: int = 8
+) -> float:
+    """Square of ||lambda - lambda_h||_L2 on the intervals [lo, hi] of Gamma_C (local sum).
 
-    ``breaks`` are the sorted y of the fine contact vertices; ``values`` the P1 nodal values at
-    them (``kind="p1"``) or one value per fine interval (``kind="p0"``).
+    ``values`` are one value per interval (``kind="p0"``) or the P1 values at (lo, hi) (shape
+    (k, 2), ``kind="p1"``); each interval is split into ``parts`` equal ones, each integrated
+    with an n-point Gauss rule.
     """
     from dwr_signorini import examples as ex
 
     t, w = np.polynomial.legendre.leggauss(n)
-    a, b = breaks[:-1, None], breaks[1:, None]
-    s = 0.5 * (t + 1.0)
+    s = (np.arange(parts)[:, None] + 0.5 * (t + 1.0)).ravel() / parts  # (parts n,)
+    w = np.tile(w, parts) / parts
+    a, b = lo[:, None], hi[:, None]
     y = a + (b - a) * s
     if kind == "p1":
-        lam_h = values[:-1, None] * (1.0 - s) + values[1:, None] * s
+        lam_h = values[:, :1] * (1.0 - s) + values[:, 1:] * s
     else:
         lam_h = np.broadcast_to(values[:, None], y.shape)
     lam = ex.exact_contact_pressure_np(y, ex.ANALYTIC_MATERIAL.E, ex.ANALYTIC_MATERIAL.nu)
-    return math.sqrt(float(np.sum(0.5 * (b - a) * w * (lam_h - lam) ** 2)))
+    return float(np.sum(0.5 * (b - a) * w * (lam_h - lam) ** 2))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -189,12 +192,10 @@ def pressure_error(breaks: np.ndarray, values: np.ndarray, kind: str, n: int = 8
 # --------------------------------------------------------------------------------------------------
 
 
-def run_ours(nx: int, ny: int) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Solve + estimate from the macro mesh on, timed; then T_h, u_h and lambda_H as arrays."""
+def run_ours(comm: Any, nx: int, ny: int, method: str | None) -> tuple[dict[str, Any], Any]:
+    """Solve + estimate from the macro mesh on, timed; the errors and T_h afterwards."""
     from mpi4py import MPI
 
-    import ufl
-    from dolfinx import fem
     from dolfinx.mesh import CellType
 
     import dwr_signorini as ds
@@ -202,93 +203,103 @@ def run_ours(nx: int, ny: int) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     from dwr_signorini import examples as ex
 
     mat = ex.ANALYTIC_MATERIAL
-    msh, tags = ex.analytic_2d_mesh(MPI.COMM_WORLD, nx, ny, CellType.triangle)  # T_H, given
+    msh, tags = ex.analytic_2d_mesh(comm, nx, ny, CellType.triangle)  # T_H, given
     goal = ex.goal_a(-0.5)
+    comm.barrier()
     tic = time.perf_counter()
     problem = ds.SignoriniProblem(
         msh, tags, contact=CONTACT, dirichlet=(DIRICHLET,), E=mat.E, nu=mat.nu, model=mat.model,
         body_force=ex.analytic_body_force, gap=ex.analytic_gap,
     )
-    sol = ds.solve(problem)
+    sol = ds.solve(problem, method=method)
+    comm.barrier()
     t_solve = time.perf_counter() - tic
     est = ds.estimate(sol, goal)
+    comm.barrier()
     t_total = time.perf_counter() - tic
 
     disc = sol.disc
     fine = disc.mesh
     points = np.ascontiguousarray(fine.geometry.x[:, :2])
     gdm = compat.geometry_dofmap(fine)
-    dofs = disc.V.dofmap.list
     U = np.zeros_like(points)
-    U[gdm] = sol.u.x.array.reshape(-1, 2)[dofs]  # P1 on a P1 mesh: dofs follow the vertices
-    # lambda_H: one value per macro contact facet (interval of Sigma_H), on the fine breaks.
+    U[gdm] = sol.u.x.array.reshape(-1, 2)[disc.V.dofmap.list]  # P1 on a P1 mesh
+    # lambda_H: one value per owned macro contact facet, on its interval [lo, hi] of y.
     sub = disc.contact_mesh
-    sub_x = sub.geometry.x[compat.geometry_dofmap(sub)][:, :, 1]  # (facets, 2) y of the ends
+    sub_y = sub.geometry.x[compat.geometry_dofmap(sub)][:, :, 1]
     qdofs = disc.Q.dofmap.list[:, 0]
-    lam_values = sol.lam.x.array[qdofs]
-    on_contact = np.abs(points[:, 0]) < 1e-12
-    breaks = np.sort(points[on_contact, 1])
-    mids = 0.5 * (breaks[:-1] + breaks[1:])
-    lo, hi = sub_x.min(axis=1), sub_x.max(axis=1)
-    order = np.argsort(lo)
-    which = np.searchsorted(lo[order], mids, side="right") - 1
-    if np.any(mids > hi[order][which]):
-        raise RuntimeError("a fine contact facet outside every macro contact facet")
-    lam_fine = lam_values[order][which]
-    # Example 5.1's body force f at the P2 nodes of T_h, from its UFL, for GetFEM's source term.
-    V2 = fem.functionspace(fine, ("Lagrange", 2, (2,)))
-    f = fem.Function(V2)
-    f.interpolate(fem.Expression(
-        ex.analytic_body_force(ufl.SpatialCoordinate(fine), mat.E, mat.nu),
-        compat.interpolation_points(V2.element),
-    ))
-    f_nodes = V2.tabulate_dof_coordinates()[:, :2].copy()
-    f_values = f.x.array.reshape(-1, 2).copy()
-
+    owned = qdofs < disc.Q.dofmap.index_map.size_local
+    lam_sq = pressure_error_sq(
+        sub_y.min(axis=1)[owned], sub_y.max(axis=1)[owned], sol.lam.x.array[qdofs[owned]],
+        "p0", parts=2,
+    )
+    errors = domain_errors(comm, points, gdm, U)
     info = {
         "ours_time": t_total,
         "ours_solve_time": t_solve,
-        "ours_estimate_time": t_total - t_solve,
         "ours_newton": int(sol.newton_iterations),
+        "ours_method": sol.method,
         "ours_dofs": int(
             disc.V.dofmap.index_map.size_global * 2 + disc.Q.dofmap.index_map.size_global
         ),
         "ours_J_h": float(est.J_h),
         "ours_eta": float(est.eta) if est.eta is not None else float("nan"),
         "ours_eta_p": float(est.eta_p),
-        "num_fine_cells": len(gdm),
-        "num_macro_cells": int(msh.topology.index_map(2).size_global),
+        "num_fine_cells": int(fine.topology.index_map(2).size_global),
+        "ours_u_L2": errors["u_L2"],
+        "ours_u_H1": errors["u_H1"],
+        "ours_J_quadrature": errors["J"],
+        "ours_lam_L2": math.sqrt(comm.allreduce(lam_sq, op=MPI.SUM)),
     }
     est.destroy()
     sol.destroy()
-    arrays = {
-        "points": points, "cells": np.ascontiguousarray(gdm, dtype=np.int64), "U": U,
-        "breaks": breaks, "lam_fine": lam_fine, "f_nodes": f_nodes, "f_values": f_values,
+    return info, fine
+
+
+# --------------------------------------------------------------------------------------------------
+# SNES VI (this process)
+# --------------------------------------------------------------------------------------------------
+
+
+def run_snesvi(comm: Any, nx: int, ny: int, args: argparse.Namespace) -> dict[str, Any]:
+    """SNES VI on T_h (T_H refined as ours refines it), its errors; set-up timed separately."""
+    from dolfinx.mesh import CellType
+    from peer_snesvi import SnesOptions, solve_snesvi
+
+    from dwr_signorini import compat
+    from dwr_signorini import examples as ex
+
+    msh, _ = ex.analytic_2d_mesh(comm, nx, ny, CellType.triangle)
+    comm.barrier()
+    tic = time.perf_counter()
+    fine, _, _ = compat.refine(msh)
+    t_refine = time.perf_counter() - tic
+    opts = SnesOptions(
+        pc=args.snes_pc, dirichlet=args.snes_dirichlet, linesearch=args.snes_linesearch,
+        rtol=args.snes_rtol,
+    )
+    times, out = [], None
+    for _ in range(args.repeat):
+        out = solve_snesvi(fine, opts)
+        times.append(out["t_solve"])
+    points = np.ascontiguousarray(fine.geometry.x[:, :2])
+    errors = domain_errors(comm, points, compat.geometry_dofmap(fine), out["U"])
+    return {
+        "snes_time": min(times),
+        "snes_times": times,
+        "snes_setup_time": t_refine + out["t_setup"],
+        "snes_newton": out["newton"],
+        "snes_reason": out["reason"],
+        "snes_dofs": out["dofs"],
+        "snes_u_L2": errors["u_L2"],
+        "snes_u_H1": errors["u_H1"],
+        "snes_J_quadrature": errors["J"],
     }
-    return info, arrays
 
 
 # --------------------------------------------------------------------------------------------------
 # GetFEM (child process)
 # --------------------------------------------------------------------------------------------------
-
-
-def peak_rss_gib() -> float:
-    """Peak resident memory of this process (VmHWM) in GiB."""
-    with open("/proc/self/status") as fh:
-        for line in fh:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 2**20
-    return float("nan")
-
-
-def reset_peak_rss() -> None:
-    """Reset VmHWM to the current resident memory (Linux; ignored where not allowed)."""
-    try:
-        with open("/proc/self/clear_refs", "w") as fh:
-            fh.write("5")
-    except OSError:
-        pass
 
 
 def getfem_version() -> str | None:
@@ -302,328 +313,268 @@ def getfem_version() -> str | None:
     return out.stdout.strip() if out.returncode == 0 else None
 
 
-def getfem_worker(inp: Path, out: Path) -> None:
-    """Build and solve example 5.1 with GetFEM on the given triangles; write the solution."""
-    import getfem as gf
-    from scipy.spatial import cKDTree
-
-    gf.util_trace_level(0)
-
-    d = np.load(inp)
-    points, cells = d["points"], d["cells"]
-    E, nu, r, option = float(d["E"]), float(d["nu"]), float(d["r"]), int(d["option"])
-    lsolver, multiplier = str(d["lsolver"]), str(d["multiplier"])
-    mu = E / (2.0 * (1.0 + nu))
-    lmbda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))  # plane strain
-    GC, GD = 1, 2
-
-    tic = time.perf_counter()
-    m = gf.Mesh("ptND", points.T.copy(), cells.T.copy())
-    if m.nbcvs() != len(cells) or not np.array_equal(m.pts().T, points):
-        raise RuntimeError("GetFEM renumbered the mesh's points or cells")
-    faces = m.outer_faces()
-    normals = m.normal_of_faces(faces)
-    m.set_region(GC, faces[:, normals[0] > 0.5])  # x = 0, outer normal (1, 0)
-    m.set_region(GD, faces[:, normals[0] < -0.5])  # x = -3
-    mfu = gf.MeshFem(m, 2)
-    mfu.set_classical_fem(1)
-    mfd = gf.MeshFem(m, 1)
-    mfd.set_classical_fem(2)
-    # The multiplier: continuous P1 on Gamma_C. "coarse": on every second fine contact vertex
-    # (the macro vertices, H = 2h), through GetFEM's reduction/extension matrices (the values at
-    # the fine vertices in between are the means of their neighbours'); "fine": on all fine
-    # contact vertices (the trace space of u, which violates the inf-sup condition).
-    mfl = gf.MeshFem(m, 1)
-    mfl.set_classical_fem(1)
-    ldof = mfl.basic_dof_on_region(GC)
-    fine_dofs = ldof[np.argsort(mfl.basic_dof_nodes(ldof)[1])]  # sorted by y
-    if multiplier == "coarse":
-        if len(fine_dofs) % 2 == 0:
-            raise RuntimeError("an odd number of fine contact facets")
-        lam_dofs = fine_dofs[0::2]
-        nb, nc = mfl.nb_basic_dof(), len(lam_dofs)
-        R, Ext = gf.Spmat("empty", nc, nb), gf.Spmat("empty", nb, nc)
-        for j, dof in enumerate(lam_dofs):
-            R[j, dof] = 1.0
-            Ext[dof, j] = 1.0
-        for k in range(1, len(fine_dofs), 2):
-            Ext[fine_dofs[k], k // 2] = 0.5
-            Ext[fine_dofs[k], k // 2 + 1] = 0.5
-        mfl_c = gf.MeshFem("clone", mfl)
-        mfl_c.reduction_matrices(R, Ext)
-    else:
-        lam_dofs = np.sort(fine_dofs)
-        mfl_c = gf.MeshFem("partial", mfl, lam_dofs)
-    if mfl_c.nbdof() != len(lam_dofs):
-        raise RuntimeError("unexpected multiplier space on Gamma_C")
-    # Integration: exact for the stiffness (constant gradients) and for f_h . v (P2 x P1); the
-    # composite rule of GetFEM's contact demo on Gamma_C (the brick's integrand has kinks).
-    mim_e = gf.MeshIm(m, gf.Integ("IM_TRIANGLE(1)"))
-    mim_f = gf.MeshIm(m, gf.Integ("IM_TRIANGLE(3)"))
-    mim_c = gf.MeshIm(m, gf.Integ("IM_STRUCTURED_COMPOSITE(IM_TRIANGLE(4),4)"))
-
-    # Vertex of each dof (P1 and P1 multiplier), and the component of each displacement dof.
-    tree = cKDTree(points)
-    nodes_u = mfu.basic_dof_nodes()
-    dist, vert_u = tree.query(nodes_u.T)
-    if dist.max() > 1e-12:
-        raise RuntimeError("a P1 dof of GetFEM is not at a vertex")
-    comp_u = np.zeros(len(vert_u), dtype=np.int64)
-    comp_u[1::2] = 1
-    if not np.array_equal(vert_u[0::2], vert_u[1::2]):
-        raise RuntimeError("unexpected order of GetFEM's vector dofs")
-
-    # f at the P2 nodes (computed by the parent from the UFL expression).
-    dist, idx = cKDTree(d["f_nodes"]).query(mfd.basic_dof_nodes().T)
-    if dist.max() > 1e-12:
-        raise RuntimeError("a P2 node of GetFEM is not a P2 node of dolfinx")
-    F = d["f_values"][idx]
-    # The lifting u_g: first component g(y) at the vertices of Gamma_C.
-    on_c = np.abs(points[:, 0]) < 1e-12
-    yv = points[:, 1]
-    g = np.where(np.abs(yv) < 0.5, -9.0 * (yv**2 - 0.25) ** 4, 0.0)
-    UG = np.where(on_c[vert_u] & (comp_u == 0), g[vert_u], 0.0)
-
-    def build_model() -> Any:
-        md = gf.Model("real")
-        md.add_fem_variable("w", mfu)
-        md.add_initialized_data("E", [E])
-        md.add_initialized_data("nu", [nu])
-        md.add_initialized_data("clambda", [lmbda])
-        md.add_initialized_data("cmu", [mu])
-        md.add_isotropic_linearized_elasticity_pstrain_brick(mim_e, "w", "E", "nu")
-        md.add_initialized_fem_data("f1", mfd, F[:, 0].copy())
-        md.add_initialized_fem_data("f2", mfd, F[:, 1].copy())
-        md.add_source_term_brick(mim_f, "w", "[f1, f2]")
-        md.add_initialized_fem_data("ug", mfu, UG)
-        md.add_source_term(mim_e, "-(clambda*Div_ug*Div_Test_w + 2*cmu*Sym(Grad_ug):Grad_Test_w)")
-        md.add_Dirichlet_condition_with_simplification("w", GD)
-        md.add_fem_variable("lambda_n", mfl_c)
-        md.add_initialized_data("r", [r])
-        md.add_initialized_fem_data("obstacle", mfl, -mfl.basic_dof_nodes()[0])  # d = -x
-        md.add_integral_contact_with_rigid_obstacle_brick(
-            mim_c, "w", "lambda_n", "obstacle", "r", GC, option
-        )
-        return md
-
-    # Each repeat solves a new model (nothing assembled before its solve).
-    t_solves = []
-    for _ in range(int(d["repeat"])):
-        md = build_model()
-        if not t_solves:
-            t_setup = time.perf_counter() - tic
-        tic = time.perf_counter()
-        nit, converged = md.solve("max_res", float(d["max_res"]), "max_iter", 100,
-                                  "lsolver", lsolver)
-        t_solves.append(time.perf_counter() - tic)
-
-    W = md.variable("w")
-    U = np.zeros_like(points)
-    U[vert_u, comp_u] = W + UG
-    lam = md.variable("lambda_n")
-    lam_nodes = mfl.basic_dof_nodes(lam_dofs)  # the dofs of mfl_c, in this order
-    order = np.argsort(lam_nodes[1])
-    np.savez(
-        out,
-        U=U,
-        lam_y=lam_nodes[1][order],
-        lam=lam[order],
-        newton=int(nit),
-        converged=bool(converged),
-        t_setup=t_setup,
-        t_solve=min(t_solves),
-        t_solves=np.array(t_solves),
-        dofs=int(md.nbdof()),
-        peak_rss_gib=peak_rss_gib(),
+def _child(args: list[str]) -> subprocess.CompletedProcess:
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    return subprocess.run(
+        [sys.executable, str(HERE / "peer_getfem.py"), *args], env=env, check=False,
+        capture_output=args[0] == "--rule", text=args[0] == "--rule",
     )
 
 
-def run_getfem(arrays: dict[str, np.ndarray], args: argparse.Namespace) -> dict[str, Any]:
-    """Run :func:`getfem_worker` in a child process on our T_h; return its results."""
+def getfem_config(args: argparse.Namespace) -> dict[str, Any]:
+    """The GetFEM configuration of the ``--gf-*`` options (default: ``FASTEST``)."""
+    return {key: getattr(args, "gf_" + key) for key in FASTEST}
+
+
+def run_getfem(fine: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """Run the GetFEM worker in a child process on T_h (serial); its errors."""
+    from mpi4py import MPI
+
+    import ufl
+    from dolfinx import fem
+
+    from dwr_signorini import compat
     from dwr_signorini import examples as ex
 
-    points = arrays["points"]
-    h = float(np.max(np.diff(arrays["breaks"])))  # fine contact facets
+    cfg = getfem_config(args)
     mat = ex.ANALYTIC_MATERIAL
+    points = np.ascontiguousarray(fine.geometry.x[:, :2])
+    cells = np.ascontiguousarray(compat.geometry_dofmap(fine), dtype=np.int64)
+    on_c = np.abs(points[:, 0]) < 1e-12
+    breaks = np.sort(points[on_c, 1])
+    f_ufl = ex.analytic_body_force(ufl.SpatialCoordinate(fine), mat.E, mat.nu)
+    data: dict[str, Any] = {}
+    if cfg["load"] == "imdata":
+        # f at the points of GetFEM's rule, from our UFL expression (the cells are the same, and
+        # both map reference vertex k to the cell's vertex k).
+        proc = _child(["--rule", cfg["load_rule"]])
+        if proc.returncode != 0:
+            raise RuntimeError(f"GetFEM's rule {cfg['load_rule']}: {proc.stderr}")
+        ref = np.asarray(json.loads(proc.stdout)).T  # (q, 2)
+        all_cells = np.arange(len(cells), dtype=np.int32)
+        values = fem.Expression(f_ufl, ref).eval(fine, all_cells).reshape(len(cells), -1, 2)
+        xq = fem.Expression(ufl.SpatialCoordinate(fine), ref).eval(fine, all_cells)
+        data["f_values_q"] = values.reshape(-1, 2)
+        data["f_points"] = xq.reshape(-1, 2)
+    else:
+        V2 = fem.functionspace(fine, ("Lagrange", 2, (2,)))
+        f = fem.Function(V2)
+        f.interpolate(fem.Expression(f_ufl, compat.interpolation_points(V2.element)))
+        data["f_nodes"] = V2.tabulate_dof_coordinates()[:, :2].copy()
+        data["f_values"] = f.x.array.reshape(-1, 2).copy()
     with tempfile.TemporaryDirectory(prefix="dwr-peers-") as tmp:
         inp, out = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
         np.savez(
-            inp, points=points, cells=arrays["cells"], f_nodes=arrays["f_nodes"],
-            f_values=arrays["f_values"],
-            E=mat.E, nu=mat.nu, r=args.r0 * mat.E / h, option=args.option,
-            lsolver=args.lsolver, max_res=args.max_res, multiplier=args.multiplier,
-            repeat=args.repeat,
+            inp, points=points, cells=cells, E=mat.E, nu=mat.nu,
+            h=float(np.max(np.diff(breaks))), config=json.dumps(cfg), repeat=args.repeat, **data,
         )
-        env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-        proc = subprocess.run(
-            [sys.executable, str(Path(__file__).resolve()), "--worker", str(inp), str(out)],
-            env=env, check=False,
-        )
+        proc = _child([str(inp), str(out)])
         if proc.returncode != 0:
             raise RuntimeError(f"the GetFEM worker failed with status {proc.returncode}")
-        res = dict(np.load(out))
-    return {k: (v.item() if np.ndim(v) == 0 else v) for k, v in res.items()}
+        res = {k: (v.item() if np.ndim(v) == 0 else v) for k, v in dict(np.load(out)).items()}
+    errors = domain_errors(MPI.COMM_SELF, points, cells, res["U"])
+    lam_breaks = breaks[0::2] if cfg["multiplier"] == "coarse" else breaks
+    if not np.allclose(res["lam_y"], lam_breaks, atol=1e-12):
+        raise RuntimeError("GetFEM's multiplier dofs are not where they should be")
+    # GetFEM's lambda_n is the normal stress sigma_nn (<= 0); the pressure is -lambda_n.
+    lam = -res["lam"]
+    lam_sq = pressure_error_sq(
+        lam_breaks[:-1], lam_breaks[1:], np.stack((lam[:-1], lam[1:]), axis=1), "p1",
+        parts=2 if cfg["multiplier"] == "coarse" else 1,
+    )
+    return {
+        "getfem_time": res["t_solve"],
+        "getfem_times": [float(t) for t in np.atleast_1d(res["t_solves"])],
+        "getfem_setup_time": res["t_setup"],
+        "getfem_newton": res["newton"],
+        "getfem_converged": bool(res["converged"]),
+        "getfem_dofs": res["dofs"],
+        "getfem_peak_rss_gib": res["peak_rss_gib"],
+        "getfem_u_L2": errors["u_L2"],
+        "getfem_u_H1": errors["u_H1"],
+        "getfem_J_quadrature": errors["J"],
+        "getfem_lam_L2": math.sqrt(lam_sq),
+    }
 
 
 # --------------------------------------------------------------------------------------------------
 # Driver
 # --------------------------------------------------------------------------------------------------
 
-COLUMNS = (
-    ("fine cells", "num_fine_cells", "{:d}"),
-    ("ours [s]", "ours_time", "{:.2f}"),
-    ("ours solve [s]", "ours_solve_time", "{:.2f}"),
-    ("GetFEM solve [s]", "peer_time", "{:.2f}"),
-    ("ratio", "time_ratio", "{:.2f}"),
-    ("Newton ours/GetFEM", "newton", "{}"),
-    ("|u-u_h|_L2 ours", "ours_u_L2", "{:.3e}"),
-    ("GetFEM", "peer_u_L2", "{:.3e}"),
-    ("|u-u_h|_H1 ours", "ours_u_H1", "{:.3e}"),
-    ("GetFEM", "peer_u_H1", "{:.3e}"),
-    ("|lam-lam_h|_L2 ours", "ours_lam_L2", "{:.3e}"),
-    ("GetFEM", "peer_lam_L2", "{:.3e}"),
-    ("E_rel(J_a1) ours", "ours_J_rel", "{:.3e}"),
-    ("GetFEM", "peer_J_rel", "{:.3e}"),
-    ("eta/(J-J_h) ours", "ours_ieff", "{:.3f}"),
-)
+
+def time_columns(peers: list[str]) -> list[tuple[str, str, str]]:
+    """Columns of the time table: (title, key, format)."""
+    cols = [
+        ("fine cells", "num_fine_cells", "{:d}"),
+        ("ours [s]", "ours_time", "{:.2f}"),
+        ("(solve)", "ours_solve_time", "{:.2f}"),
+        ("Newton", "ours_newton", "{:d}"),
+    ]
+    names = {"getfem": "GetFEM", "snes": "SNES VI"}
+    for p in peers:
+        cols += [
+            (f"{names[p]} solve [s]", f"{p}_time", "{:.2f}"),
+            ("(set-up)", f"{p}_setup_time", "{:.2f}"),
+            ("Newton", f"{p}_newton", "{:d}"),
+            (f"ours/{names[p]}", f"ratio_{p}", "{:.2f}"),
+        ]
+    return cols
 
 
-def print_row(row: dict[str, Any] | None) -> None:
-    """Print the table's header (row None) or one row."""
-    widths = [max(len(title), 10) for title, _, _ in COLUMNS]
-    if row is None:
-        print("  ".join(title.rjust(w) for (title, _, _), w in zip(COLUMNS, widths, strict=True)))
-        return
-    cells = [fmt.format(row[key]) for (_, key, fmt), _w in zip(COLUMNS, widths, strict=True)]
-    print("  ".join(c.rjust(w) for c, w in zip(cells, widths, strict=True)), flush=True)
+def error_columns(peers: list[str]) -> list[tuple[str, str, str]]:
+    """Columns of the error table."""
+    cols = [("fine cells", "num_fine_cells", "{:d}")]
+    for what, title in (("u_L2", "|u-u_h|_L2"), ("u_H1", "|u-u_h|_H1"),
+                        ("lam_L2", "|lam-lam_h|"), ("J_rel", "E_rel(J_a1)")):
+        for code in ("ours", *peers):
+            if what == "lam_L2" and code == "snes":
+                continue
+            cols.append((f"{title} {code}", f"{code}_{what}", "{:.3e}"))
+    cols.append(("Ieff ours", "ours_ieff", "{:.3f}"))
+    return cols
 
 
-def write_results(rows: list[dict[str, Any]], meta: dict[str, Any], output: Path) -> None:
+def print_table(cols: list[tuple[str, str, str]], rows: list[dict[str, Any]]) -> None:
+    """Print a header and the rows."""
+    widths = [max(len(title), 9) for title, _, _ in cols]
+    print("  ".join(t.rjust(w) for (t, _, _), w in zip(cols, widths, strict=True)))
+    for row in rows:
+        print("  ".join(fmt.format(row[key]).rjust(w)
+                        for (_, key, fmt), w in zip(cols, widths, strict=True)), flush=True)
+
+
+def write_results(rows: list[dict[str, Any]], meta: dict[str, Any], output: Path, tag: str) -> None:
     """CSV (one row per size) and JSON (rows and run metadata) under ``output``."""
     output.mkdir(parents=True, exist_ok=True)
     keys = list(rows[0])
-    with open(output / "peers.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=keys)
+    with open(output / f"peers{tag}.csv", "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
-    with open(output / "peers.json", "w") as fh:
+    with open(output / f"peers{tag}.json", "w") as fh:
         json.dump({"meta": meta, "rows": rows}, fh, indent=2)
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default=",".join(map(str, DEFAULT_SIZES)),
                         help="fine triangles, comma-separated (49152 or 49k, ...)")
     parser.add_argument("--quick", action="store_true", help="the smallest size only")
+    parser.add_argument("--peers", default="getfem,snes",
+                        help="comma-separated: getfem, snes (default both; GetFEM serial only)")
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
-    parser.add_argument("--r0", type=float, default=1.0,
-                        help="GetFEM's augmentation parameter r = r0 E / h (default 1)")
-    parser.add_argument("--option", type=int, default=1, choices=(1, 2, 3, 4),
-                        help="version of GetFEM's integral contact brick (default 1)")
-    parser.add_argument("--lsolver", default="mumps", help="GetFEM's linear solver")
-    parser.add_argument("--multiplier", default="coarse", choices=("coarse", "fine"),
-                        help="GetFEM's multiplier: continuous P1 on the macro contact vertices "
-                        "(coarse, H = 2h, the default) or on all fine contact vertices (fine)")
-    parser.add_argument("--max-res", type=float, default=1e-10,
-                        help="GetFEM's Newton tolerance on the residual (default 1e-10)")
     parser.add_argument("--repeat", type=int, default=1,
                         help="time each code this many times per size, report the fastest")
+    parser.add_argument("--method", default=None, choices=("block", "schur"),
+                        help="our linear solver (default: the package's choice)")
     parser.add_argument("--check", action="store_true",
                         help="only report whether GetFEM is installed (status 1 if not)")
-    parser.add_argument("--worker", nargs=2, type=Path, metavar=("IN", "OUT"),
-                        help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
+    g = parser.add_argument_group("GetFEM (defaults: the fastest configuration, FASTEST)")
+    g.add_argument("--gf-r", default=FASTEST["r"], choices=("E", "E/h"),
+                   help="augmentation parameter r = r0 E or r0 E / h")
+    g.add_argument("--gf-r0", type=float, default=FASTEST["r0"])
+    g.add_argument("--gf-load", default=FASTEST["load"], choices=("imdata", "p2"),
+                   help="body force at the quadrature points or as a P2 field")
+    g.add_argument("--gf-load-rule", default=FASTEST["load_rule"],
+                   help="GetFEM's integration method of the load with --gf-load imdata")
+    g.add_argument("--gf-obstacle", default=FASTEST["obstacle"], choices=("levelset", "shift"))
+    g.add_argument("--gf-slope", type=float, default=FASTEST["slope"],
+                   help="K of the level-set obstacle d = g(y) - K x")
+    g.add_argument("--gf-dirichlet", default=FASTEST["dirichlet"],
+                   choices=("simplification", "multipliers"))
+    g.add_argument("--gf-max-res", type=float, default=FASTEST["max_res"])
+    g.add_argument("--gf-lsolver", default=FASTEST["lsolver"])
+    g.add_argument("--gf-lsearch", default=FASTEST["lsearch"],
+                   choices=("default", "simplest", "systematic", "quadratic", "basic"))
+    g.add_argument("--gf-option", type=int, default=FASTEST["option"], choices=(1, 2, 3))
+    g.add_argument("--gf-multiplier", default=FASTEST["multiplier"], choices=("coarse", "fine"))
+    s = parser.add_argument_group("SNES VI")
+    s.add_argument("--snes-pc", default="cholesky", choices=("cholesky", "lu"))
+    s.add_argument("--snes-dirichlet", default="bc", choices=("bc", "bounds"))
+    s.add_argument("--snes-linesearch", default="basic", choices=("basic", "bt", "l2", "cp"))
+    s.add_argument("--snes-rtol", type=float, default=1e-10)
+    return parser.parse_args(argv)
 
-    if args.worker:
-        getfem_worker(*args.worker)
-        return 0
-    version = getfem_version()
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the comparison; print and write the tables."""
+    args = parse_args(argv)
+    peers = [p.strip() for p in args.peers.split(",") if p.strip()]
+    if not set(peers) <= {"getfem", "snes"}:
+        raise SystemExit(f"--peers: unknown peer in {args.peers!r} (getfem, snes)")
+    version = getfem_version() if "getfem" in peers else None
     if args.check:
         if version is None:
             print(SKIP_MESSAGE)
             return 1
         print(f"benchmarks/peers.py: GetFEM {version} is installed")
         return 0
-    if version is None:
-        print(SKIP_MESSAGE)
-        return 0
 
     from mpi4py import MPI
 
-    if MPI.COMM_WORLD.size > 1:
-        raise SystemExit("benchmarks/peers.py runs in serial (GetFEM's Python interface is serial)")
     from dwr_signorini import examples as ex
 
+    comm = MPI.COMM_WORLD
+    rank0 = comm.rank == 0
+    if "getfem" in peers and (version is None or comm.size > 1):
+        if rank0:
+            print(SKIP_MESSAGE if version is None else
+                  "benchmarks/peers.py: GetFEM is serial; skipped on more than one rank")
+        peers.remove("getfem")
     sizes = sorted({parse_size(s) for s in args.sizes.split(",") if s.strip()})
     if args.quick:
         sizes = sizes[:1]
     J_exact = ex.exact_J_a(-0.5)
-    print(f"Example 5.1 on triangles, ours (solve + estimate from T_H) and GetFEM {version} "
-          f"(Model.solve; set-up excluded) on the same T_h; J_a1 = {J_exact:.12e}", flush=True)
-    run_ours(12, 8)  # warm-up: JIT compilation of the forms (cached on disk) is not timed
+    if rank0:
+        print(f"Example 5.1 on triangles, {comm.size} rank(s): ours (set-up + solve + estimate "
+              f"from T_H) against the peers' solve alone; J_a1 = {J_exact:.12e}", flush=True)
+        if "getfem" in peers:
+            print(f"GetFEM {version}: {getfem_config(args)}", flush=True)
+    run_ours(comm, 12, 8, args.method)  # warm-up: JIT compilation (cached on disk) not timed
+    if "snes" in peers:
+        run_snesvi(comm, 12, 8, argparse.Namespace(**{**vars(args), "repeat": 1}))
 
     rows: list[dict[str, Any]] = []
-    print_row(None)
+    tag = "" if comm.size == 1 else f"_np{comm.size}"
     for num_fine in sizes:
         nx, ny = macro_size(num_fine)
-        reset_peak_rss()
         times = []
         for _ in range(args.repeat):
-            info, arrays = run_ours(nx, ny)
+            info, fine = run_ours(comm, nx, ny, args.method)
             times.append((info["ours_time"], info["ours_solve_time"]))
-        rss_ours = peak_rss_gib()
-        best = min(times)
-        info["ours_time"], info["ours_solve_time"] = best
-        info["ours_estimate_time"] = best[0] - best[1]
+        info["ours_time"], info["ours_solve_time"] = min(times)
         info["ours_times"] = [t for t, _ in times]
-        peer = run_getfem(arrays, args)
-
-        ours_err = domain_errors(arrays["points"], arrays["cells"], arrays["U"])
-        peer_err = domain_errors(arrays["points"], arrays["cells"], peer["U"])
-        breaks = arrays["breaks"]
-        lam_breaks = breaks[0::2] if args.multiplier == "coarse" else breaks
-        if not np.allclose(peer["lam_y"], lam_breaks, atol=1e-12):
-            raise RuntimeError("GetFEM's multiplier dofs are not where they should be")
-        # GetFEM's lambda_n is the normal stress sigma_nn (<= 0); ours is -sigma_nn (>= 0).
-        ours_lam = pressure_error(breaks, arrays["lam_fine"], "p0")
-        peer_lam = pressure_error(lam_breaks, -peer["lam"], "p1")
-        ours_Jrel = abs(ours_err["J"] - J_exact) / abs(J_exact)
-        row = {
-            **info,
-            "macro": f"{nx}x{ny}",
-            "ours_J_quadrature": ours_err["J"],
-            "ours_u_L2": ours_err["u_L2"],
-            "ours_u_H1": ours_err["u_H1"],
-            "ours_lam_L2": ours_lam,
-            "ours_J_rel": ours_Jrel,
-            "ours_ieff": info["ours_eta"] / (J_exact - info["ours_J_h"]),
-            "ours_peak_rss_gib": rss_ours,
-            "peer_time": peer["t_solve"],
-            "peer_setup_time": peer["t_setup"],
-            "peer_times": [float(t) for t in np.atleast_1d(peer["t_solves"])],
-            "peer_newton": peer["newton"],
-            "peer_converged": bool(peer["converged"]),
-            "peer_dofs": peer["dofs"],
-            "peer_J": peer_err["J"],
-            "peer_u_L2": peer_err["u_L2"],
-            "peer_u_H1": peer_err["u_H1"],
-            "peer_lam_L2": peer_lam,
-            "peer_J_rel": abs(peer_err["J"] - J_exact) / abs(J_exact),
-            "peer_peak_rss_gib": peer["peak_rss_gib"],
-        }
-        row["time_ratio"] = row["ours_time"] / row["peer_time"]
-        row["newton"] = f"{row['ours_newton']}/{row['peer_newton']}"
+        row = {**info, "macro": f"{nx}x{ny}"}
+        if "getfem" in peers:
+            row.update(run_getfem(fine, args))
+        del fine
+        if "snes" in peers:
+            row.update(run_snesvi(comm, nx, ny, args))
+        for code in ("ours", *peers):
+            row[f"{code}_J_rel"] = abs(row[f"{code}_J_quadrature"] - J_exact) / abs(J_exact)
+        row["ours_ieff"] = row["ours_eta"] / (J_exact - row["ours_J_h"])
+        for p in peers:
+            row[f"ratio_{p}"] = row["ours_time"] / row[f"{p}_time"]
         rows.append(row)
-        print_row(row)
-        meta = {
-            "command": " ".join(["benchmarks/peers.py", *(argv or sys.argv[1:])]),
-            "getfem": version,
-            "J_exact": J_exact,
-            "getfem_options": {"r0": args.r0, "option": args.option, "lsolver": args.lsolver,
-                               "max_res": args.max_res, "multiplier": args.multiplier},
-        }
-        write_results(rows, meta, args.output)
-    print(f"wrote {args.output / 'peers.csv'} and {args.output / 'peers.json'}")
+        if rank0:
+            meta = {
+                "command": " ".join(["benchmarks/peers.py", *(argv or sys.argv[1:])]),
+                "ranks": comm.size,
+                "getfem": version,
+                "getfem_config": getfem_config(args) if "getfem" in peers else None,
+                "J_exact": J_exact,
+                "load_average": os.getloadavg(),
+            }
+            write_results(rows, meta, args.output, tag)
+            print(f"[{num_fine} fine cells done, load average {os.getloadavg()[0]:.2f}]",
+                  flush=True)
+    if rank0:
+        print("\nTimes [s] (ours: everything from T_H on; peers: solve alone, set-up beside):")
+        print_table(time_columns(peers), rows)
+        print("\nErrors:")
+        print_table(error_columns(peers), rows)
+        print(f"wrote {args.output / f'peers{tag}.csv'} and {args.output / f'peers{tag}.json'}")
     return 0
 
 

@@ -286,7 +286,8 @@ def solve(
             the dual problem is solved the same way. ``None`` (the default): ``"block"`` when
             ``petsc_options`` are given (they are for the block matrix), otherwise the rule of
             :func:`~dwr_signorini.linalg.choose_method` (the dense Schur path for large 3D
-            problems with few multipliers). :attr:`Solution.method` tells which was used.
+            problems with few multipliers, and for 2D solves without ``initial_guess``).
+            :attr:`Solution.method` tells which was used.
         petsc_options_prefix: Base options prefix of this solve (default: a new unique
             ``dwr_signorini_<n>_``); inner solvers use sub-prefixes
             (:mod:`dwr_signorini.linalg.options`), so e.g. ``-<prefix>ksp_view`` on the
@@ -370,7 +371,12 @@ def solve(
         method = (
             "block"
             if petsc_options is not None
-            else choose_method(disc.mesh.topology.dim, disc.num_dofs, disc.num_contact_elements)
+            else choose_method(
+                disc.mesh.topology.dim,
+                disc.num_dofs,
+                disc.num_contact_elements,
+                cold_start=initial_guess is None,
+            )
         )
     try:
         system = SYSTEMS[method](

@@ -36,9 +36,13 @@ SYSTEMS: dict[str, type[NewtonLinearSystem]] = {"block": NewtonSystem, "schur": 
 AUTO_SCHUR_MIN_DOFS = 100_000
 #: ... with at most this many multipliers (S costs 8 n_lam^2 bytes and n_lam columns of K^-1).
 AUTO_SCHUR_MAX_MULTIPLIERS = 1000
+#: ... and in 2D, from a zero initial guess, from this many DoFs.
+AUTO_SCHUR_COLD_MIN_DOFS = 20_000
 
 
-def choose_method(tdim: int, num_dofs: int, num_multipliers: int) -> str:
+def choose_method(
+    tdim: int, num_dofs: int, num_multipliers: int, *, cold_start: bool = False
+) -> str:
     """The linear solver of the Newton steps when the user gives neither method nor options.
 
     ``"schur"`` (K factored once, S = N K^-1 N^T dense) for 3D problems of at least
@@ -46,23 +50,32 @@ def choose_method(tdim: int, num_dofs: int, num_multipliers: int) -> str:
     multipliers, ``"block"`` otherwise. Measured (docs, Performance): on a uniform 3D level of
     216k DoFs and 512 multipliers the Schur path took 0.64 of the block path's time on 1 rank
     and 0.61 on 2; on an adaptive 3D level with 1,510 multipliers computing S alone took
-    42.9 s. In 2D (1-2 Newton steps per level) the Schur path was not measured to pay, and
-    below 100k DoFs neither path was compared: there the block path, the reference, stays.
+    42.9 s. In 2D a warm-started level takes 1 Newton step, one factorisation either way, and
+    the block path, the reference, stays. A 2D solve from a zero initial guess
+    (``cold_start``) of at least :data:`AUTO_SCHUR_COLD_MIN_DOFS` DoFs takes the Schur path:
+    its first active set is that of the strictly negative gaps, so it takes 2 or more Newton
+    steps, each a factorisation of the block matrix when many facets change, where the Schur
+    path factors K once (example 5.1 from zero, 49k-786k triangles: 2 steps, the Schur path
+    0.1-0.4 of a level's time faster, ``benchmarks/peers.py``).
 
     Args:
         tdim: The topological dimension of the mesh.
         num_dofs: The number of displacement DoFs (global).
         num_multipliers: The number of contact multipliers (global).
+        cold_start: Whether the Newton method starts from zero (no initial guess).
 
     Returns:
         ``"schur"`` or ``"block"``.
     """
-    large = num_dofs >= AUTO_SCHUR_MIN_DOFS
-    if tdim == 3 and large and num_multipliers <= AUTO_SCHUR_MAX_MULTIPLIERS:
+    few = num_multipliers <= AUTO_SCHUR_MAX_MULTIPLIERS
+    if tdim == 3 and num_dofs >= AUTO_SCHUR_MIN_DOFS and few:
+        return "schur"
+    if tdim == 2 and cold_start and num_dofs >= AUTO_SCHUR_COLD_MIN_DOFS and few:
         return "schur"
     return "block"
 
 __all__ = [
+    "AUTO_SCHUR_COLD_MIN_DOFS",
     "AUTO_SCHUR_MAX_MULTIPLIERS",
     "AUTO_SCHUR_MIN_DOFS",
     "LOOSE_RTOL",
