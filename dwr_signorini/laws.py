@@ -10,7 +10,7 @@ set of admissible forces, and its condition is the NCP (paper eq. 8, with the sc
     C_k(w)(mu) = (mu, lambda_k - P_k(lambda_k + c (u . e_k - g_k)))_GC = 0,
 
     normal (Signorini):   P_n(x) = max(0, x),         P_n'(x) = [x > 0]       (active / inactive)
-    tangential (Tresca):  P_t(x) = max(-s, min(s, x)), P_t'(x) = [|x| < s]    (stick / slip)
+    tangential (Tresca):  P_t(x) = max(-s, min(s, x)), P_t'(x) = [abs(x) < s]  (stick / slip)
 
 Both projections are piecewise linear with slopes 0 and 1, so each component splits its facets
 into *constrained* ones (slope 1: the contact condition fixes the displacement, (u . e_k)_i = g_k,i;
@@ -20,13 +20,14 @@ inactive facets and s sign(x_i) on slipping ones). The semi-smooth Newton step, 
 value on the free facets (:meth:`Component.newton_set`), and the UFL forms of P_k and P_k'
 (:meth:`Component.projection`, :meth:`Component.derivative`): they do not branch on the law.
 
-Tresca's law is the classical given-threshold friction law (Duvaut and Lions): |lambda_t| <= s
-on all of Gamma_C, u_t = 0 where |lambda_t| < s and lambda_t = s u_t / |u_t| where the body slips.
+Tresca's law is the classical given-threshold friction law (Duvaut and Lions): ``|lambda_t| <= s``
+on all of Gamma_C, u_t = 0 where ``|lambda_t| < s`` and ``lambda_t = s u_t / |u_t|`` where the
+body slips.
 The threshold does not depend on the normal force, so a facet that separates still carries
 lambda_t = +-s where it moves tangentially: the law is a model of friction with a known normal
 pressure, and Coulomb's law (threshold mu lambda_n) is the one for friction that follows contact.
 What makes Tresca's law the first frictional law to build on is that the discrete problem is
-convex: it minimises the energy plus sum_i s_i |(T u)_i| under (N u)_i <= g_i, with a unique
+convex: it minimises the energy plus ``sum_i s_i |(T u)_i|`` under (N u)_i <= g_i, with a unique
 solution, whose dual is a bound-constrained quadratic programme in (lambda_n, lambda_t) (the
 tests solve it by another method for an independent check). A threshold s chi on the contact
 set alone would couple the tangential condition to the normal one through the set, a
@@ -97,13 +98,13 @@ class Component:
             c: c_i of the NCP.
             M: M_i (sizes of the macro contact facets).
             g: g_i (the assembled offset).
-            u_max: max |u| over all ranks.
-            force_size: max_j |(M lam)_j| over all ranks.
+            u_max: ``max |u|`` over all ranks.
+            force_size: ``max_j |(M lam)_j|`` over all ranks.
             bound: (M s)_i, the integrated threshold, or None.
 
         Returns:
             ``(constrained, free, ncp, size)``: the rows the Newton step constrains, the value
-            of lambda on the free rows, |C_k| of eq. (20) and the size it is relative to.
+            of lambda on the free rows, ``|C_k|`` of eq. (20) and the size it is relative to.
         """
         raise NotImplementedError
 

@@ -133,7 +133,7 @@ class Solution(Releasable):
         lam_t: With friction, the tangential traction lambda_t (DG0 on the macro contact
             facets, along t = (-n_2, n_1) in 2D); None without.
         stick, slip: With friction, the macro contact facets in contact that stick
-            (|lambda_t| < s) and that slip (owned rows); None without.
+            (``|lambda_t| < s``) and that slip (owned rows); None without.
     """
 
     u: fem.Function
@@ -188,7 +188,12 @@ class Solution(Releasable):
     def multiplier_functions(self, values: np.ndarray, name: str) -> tuple[fem.Function, ...]:
         """One function on Lambda_H per component from the stacked owned rows ``values``.
 
-        The functions are named ``name`` and ``name + "_t"``.
+        Args:
+            values: The owned multiplier rows, laid out as the Newton system's.
+            name: The name of the first function; the next is ``name + "_t"``.
+
+        Returns:
+            The functions, normal first.
         """
         parts = self.system.algebra.components_of(values)
         names = (name, name + "_t")
@@ -352,9 +357,9 @@ def solve(
     if initial_guess is not None:
         num = len(disc.problem.law.components(disc.mesh.topology.dim))
         if not isinstance(initial_guess, (tuple, list)) or not 2 <= len(initial_guess) <= 1 + num:
-            pair = "(u0, lam0) or (u0, lam0, lam_t0)" if num > 1 else "(u0, lam0)"
+            pair = "(u0, lam0) or a triple (u0, lam0, lam_t0)" if num > 1 else "(u0, lam0)"
             raise TypeError(
-                f"initial_guess must be a tuple {pair} of dolfinx Functions, got "
+                f"initial_guess must be a pair {pair} of dolfinx Functions, got "
                 f"{type(initial_guess).__name__}"
                 + (f" of length {len(initial_guess)}" if isinstance(initial_guess, (tuple, list))
                    else "")

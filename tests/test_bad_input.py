@@ -8,7 +8,7 @@ Every case calls one public function (``SignoriniProblem``, ``solve``, ``estimat
 * PETSc's options database is as before the call;
 * a good solve follows and gives the same displacement as the good solve before the sweep.
 
-Friction laws and load paths do not exist yet; their arguments join the sweep when they land.
+Load paths do not exist yet; their arguments join the sweep when they land.
 """
 
 import math
@@ -195,6 +195,22 @@ CASES = [
      r"Cylinder is a 3D obstacle"),
     ("Graph-psi-not-callable", lambda d: Graph(0.0), TypeError,
      r"Graph psi must be a callable x -> UFL scalar"),
+    # -- friction ------------------------------------------------------------------------------
+    ("friction-number", lambda d: P(d, friction=0.3), TypeError,
+     r"friction must be None, ds.Frictionless\(\) or ds.Tresca\(s\)"),
+    ("Tresca-zero", lambda d: P(d, friction=ds.Tresca(0.0)), ValueError,
+     r"Tresca\(s\): the slip threshold s must be a finite number > 0"),
+    ("Tresca-nan", lambda d: P(d, friction=ds.Tresca(math.nan)), ValueError,
+     r"Tresca\(s\): the slip threshold s must be a finite number > 0"),
+    ("Tresca-string", lambda d: P(d, friction=ds.Tresca("0.1")), TypeError,
+     r"Tresca\(s\): s must be a number, a callable x -> UFL scalar or a dict"),
+    ("Tresca-not-contact-tag", lambda d: P(d, friction=ds.Tresca({CONTACT: 1.0, NEUMANN: 1.0})),
+     ValueError, r"friction=Tresca\(s\): s has tag\(s\) \[2\] that are not contact tags"),
+    ("Tresca-numpy-callable", lambda d: P(d, friction=ds.Tresca(lambda x: np.sin(x[0]))),
+     TypeError, r"Tresca\(s\) must be a callable x -> UFL scalar"),
+    ("estimate-goal-lam_t-frictionless",
+     lambda d: ds.estimate(d.sol, lambda u, lam, m, lam_t: lam_t * m.ds_contact), ValueError,
+     r"goal takes four arguments goal\(u, lam, m, lam_t\), but the problem is frictionless"),
     # -- boundary_projection -----------------------------------------------------------------
     ("boundary_projection-not-dict", lambda d: P(d, boundary_projection=[abs]), TypeError,
      r"boundary_projection must be a dict \{facet tag: callable"),
