@@ -351,3 +351,93 @@ def test_three_argument_goal_serves_a_frictional_problem():
         with ds.estimate(sol, lambda u, lam, m: lam * m.ds_contact) as est:
             assert est.J_h > 0
             assert est.dual.xi_t is not None
+
+
+# --------------------------------------------------------------------------------------------------
+# Units and data given in other forms
+# --------------------------------------------------------------------------------------------------
+
+
+def _scaled(comm, s_L=1.0, s_E=1.0, s=None, nx=17, ny=7):
+    """The friction demo's problem with lengths scaled by s_L and stresses by s_E."""
+    d = ex.FRICTION_DEFAULTS
+    msh = mesh.create_rectangle(comm, [(0.0, 0.0), (s_L, 0.5 * s_L)], [nx, ny],
+                                mesh.CellType.triangle, ghost_mode=mesh.GhostMode.none)
+
+    def classify(x):
+        tags = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
+        tags[np.isclose(x[1], 0.5 * s_L)] = ex.DIRICHLET
+        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
+        return tags
+
+    def gap(x):
+        return s_L * (x[0] / s_L - 0.5) ** 2 / (2.0 * d["radius"])
+
+    return ds.SignoriniProblem(
+        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        dirichlet={ex.DIRICHLET: (d["shear"] * s_L, -d["press"] * s_L)}, E=10.0 * s_E, nu=0.3,
+        gap=gap, friction=ds.Tresca(d["s"] * s_E if s is None else s),
+    )
+
+
+@pytest.mark.mpi
+def test_estimate_is_invariant_under_a_change_of_units():
+    """Lengths x 1e-3, stresses x 1e6: the friction force, eta_p, eta and the contact term
+    scale by s_E s_L to 1e-8 (c = E / H keeps lambda + c u a stress in any units)."""
+    s_L, s_E = 1e-3, 1e6
+    values = []
+    for scale in ((1.0, 1.0), (s_L, s_E)):
+        with ds.solve(_scaled(COMM, *scale)) as sol:
+            with ds.estimate(sol, ex.goal_friction_force()) as est:
+                values.append({k: getattr(est, k) for k in ("J_h", "eta_p", "eta",
+                                                             "contact_term")})
+                values[-1]["sets"] = (sol.num_active, sol.num_stick, sol.num_slip)
+    ref, other = values
+    assert ref.pop("sets") == other.pop("sets")
+    for key, value in ref.items():
+        assert other[key] / (s_L * s_E) == pytest.approx(
+            value, rel=1e-8, abs=1e-8 * abs(ref["eta"])), key
+
+
+@pytest.mark.mpi
+def test_threshold_as_a_callable_or_per_tag_is_the_number():
+    """s as a constant callable of x, or as {contact tag: s}: the same solution as the number."""
+    s = ex.FRICTION_DEFAULTS["s"]
+    results = []
+    for data in (s, lambda x: s + 0.0 * x[0], {ex.CONTACT: s}):
+        with ds.solve(_scaled(COMM, s=data)) as sol:
+            results.append((sol.u.x.array.copy(), sol.lam_t.x.array.copy()))
+    for u, lam_t in results[1:]:
+        assert global_max(u - results[0][0]) <= 1e-12 * global_max(results[0][0])
+        assert global_max(lam_t - results[0][1]) <= 1e-12 * global_max(results[0][1])
+
+
+@pytest.mark.mpi
+def test_threshold_per_contact_tag():
+    """Gamma_C in two tags (x < 1/2, x > 1/2) with s = 0.05 and 0.03: |lambda_t| <= s of its tag on
+    every macro contact facet, = s on the slipping ones, both thresholds reached somewhere."""
+    base = _scaled(COMM)
+    tags = base.facet_tags
+    msh = base.mesh
+    mids = mesh.compute_midpoints(msh, 1, tags.indices)
+    values = tags.values.copy()
+    values[(values == ex.CONTACT) & (mids[:, 0] > 0.5)] = 6
+    split = mesh.meshtags(msh, 1, tags.indices, values)
+    s = {ex.CONTACT: 0.05, 6: 0.03}
+    problem = ds.SignoriniProblem(
+        msh, split, contact=(ex.CONTACT, 6), dirichlet=base.dirichlet_values, E=10.0, nu=0.3,
+        gap=base.gap, friction=ds.Tresca(s),
+    )
+    with ds.solve(problem) as sol:
+        n = sol.system.algebra.n_q
+        x = mesh.compute_midpoints(sol.disc.macro_mesh, 1, sol.disc.contact_mesh_to_macro)
+        dofs = sol.disc.Q.dofmap.list[: len(x), 0]
+        owned = dofs < n
+        bound = np.where(x[owned, 0] > 0.5, 0.03, 0.05)
+        lam_t = np.abs(sol.lam_t.x.array[dofs[owned]])
+        slip = ~sol.system.algebra.components_of(sol.system.active)[1][dofs[owned]]
+        assert np.all(lam_t <= bound * (1 + 1e-12))
+        assert np.allclose(lam_t[slip], bound[slip], rtol=1e-12)
+        reached = [COMM.allreduce(bool(np.any(slip & (bound == b))), op=MPI.LOR)
+                   for b in (0.05, 0.03)]
+        assert all(reached), reached
