@@ -62,6 +62,7 @@ def test_iterative_fieldsplit_matches_direct_3d():
 SCHUR_CASES = {
     "strip-2d-tri": (lambda comm: strip_problem(comm, 32, 8), ex.goal_a(-0.5)),
     "obstacle-3d-tet": (lambda comm: ex.obstacle_problem(comm, (2, 8, 8)), ex.goal_obstacle()),
+    "tresca-2d-tri": (lambda comm: ex.friction_problem(comm, s=0.05), ex.goal_friction_force()),
 }
 
 
@@ -96,13 +97,13 @@ def test_schur_path_matches_block_path(case, solver):
     runs = {}
     for method, opts in (("block", None), ("schur", options)):
         sol = ds.solve(disc, method=method, petsc_options=opts)
-        z = solve_dual(sol.system, GoalForms(goal, sol.u, sol.lam, sol.disc))
+        z = solve_dual(sol.system, GoalForms(goal, sol.u, sol.lam, sol.disc, sol.lam_t))
         runs[method] = (sol, z)
     (s0, z0), (s1, z1) = runs["block"], runs["schur"]
     assert isinstance(s1.system, SchurNewtonSystem)
     assert isinstance(s1.system.schur, KrylovSchurComplement) == (solver == "krylov")
     assert type(s0.system) is NewtonSystem
-    n_u, n_lam = s0.system.n_u, s0.system.n_lam
+    n_u, n_lam = s0.system.n_u, s0.system.algebra.n_q
     assert s0.num_active > 0
     assert s0.num_active < comm.allreduce(n_lam, op=MPI.SUM)  # a genuine inactive set too
     # The Krylov path takes loose steps until the active set settles, then solves that set
@@ -112,12 +113,15 @@ def test_schur_path_matches_block_path(case, solver):
     assert s1.newton_iterations == s0.newton_iterations + extra
     assert [h["num_active"] for h in _settled(s1.history)] == [h["num_active"] for h in s0.history]
     assert comm.allreduce(bool(np.array_equal(s1.active, s0.active)), op=MPI.LAND)
+    assert comm.allreduce(bool(np.array_equal(s1.system.free, s0.system.free)), op=MPI.LAND)
     pairs = {
         "u": (s0.u.x.array[:n_u], s1.u.x.array[:n_u]),
-        "lam": (s0.lam.x.array[:n_lam], s1.lam.x.array[:n_lam]),
+        "lam": (s0.stacked(), s1.stacked()),
         "y": (z0.y.x.array[:n_u], z1.y.x.array[:n_u]),
-        "xi": (z0.xi.x.array[:n_lam], z1.xi.x.array[:n_lam]),
+        "xi": (s0.stacked(z0.multipliers), s1.stacked(z1.multipliers)),
     }
+    if s0.lam_t is not None:  # friction: slipping facets, whose lam_t is on the right-hand side
+        assert s0.num_slip > 0 and comm.allreduce(bool(np.any(s0.system.free)), op=MPI.LOR)
     for name, (ref, other) in pairs.items():
         assert _relative_difference(comm, ref, other) < tol, name
     # The estimator takes the dual solution through Solution.system on either path.
