@@ -86,9 +86,18 @@ class _P2System:
     _petsc_objects = ("P", "edges", "edge_ksp", "ksp", "op", "b", "x", "rhs1", "z1")
 
     def __init__(self, sol: Solution, V2: fem.FunctionSpace) -> None:
-        disc, system = sol.disc, sol.system
-        self.disc, self.system, self.V2 = disc, system, V2
+        self.disc, self.system, self.V2 = sol.disc, sol.system, V2
         self.transpose = True
+        self.algebra: ContactAlgebra | None = None
+        try:  # a failure in the set-up releases what was made (collective)
+            self._set_up(sol, V2)
+        except BaseException:
+            self.destroy()
+            raise
+
+    def _set_up(self, sol: Solution, V2: fem.FunctionSpace) -> None:
+        """The P2 algebra, the prolongation P, the edge smoother and the FGMRES solver."""
+        disc, system = self.disc, self.system
         # K_2, N_2, f_2, g on V2: what the factored P2 solve of weights="higher_order" uses.
         self.algebra = ContactAlgebra(disc, V2, sol.ncp_scale)
         self.K2, self.N2 = self.algebra.K, self.algebra.N
@@ -220,8 +229,10 @@ class _P2System:
         return u, self.x.array_r[self.n2 :].copy()
 
     def destroy(self) -> None:
+        """Destroy the PETSc objects (collective; idempotent)."""
         destroy_attributes(self, self._petsc_objects)
-        self.algebra.destroy()
+        if self.algebra is not None:
+            self.algebra.destroy()
 
 
 class _Operator:

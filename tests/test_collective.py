@@ -415,3 +415,37 @@ def test_a_run_says_in_one_line_why_it_stopped(capsys):
     for r in (res, capped, tol):
         r.destroy()
     assert np.isfinite(tol.levels[-1].J_h)
+
+
+@pytest.mark.mpi
+def test_a_failure_in_the_p2_set_up_leaves_nothing_behind(monkeypatch):
+    """The hierarchical P2 solver fails after its algebra and prolongation exist: they are
+    destroyed at once (not left to the garbage collector), the error reaches the caller, and
+    the solution stays usable."""
+    from dwr_signorini import hierarchical
+
+    made = []
+
+    class Recorded(hierarchical.ContactAlgebra):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    def fails(V2):
+        raise RuntimeError("edge set failed")
+
+    def goal(u, lam, m):
+        return lam * m.ds_contact
+
+    with ds.solve(strip_problem(COMM, 8, 2)) as sol:
+        with ds.estimate(sol, goal, weights="patch") as est:
+            good = est.eta
+        monkeypatch.setattr(hierarchical, "ContactAlgebra", Recorded)
+        monkeypatch.setattr(hierarchical, "_edge_index_set", fails)
+        with pytest.raises(RuntimeError, match="edge set failed"):
+            ds.estimate(sol, goal, weights="hierarchical")
+        assert len(made) == 1
+        assert all(getattr(made[0], name) is None for name in ("K", "N", "NT", "f", "M", "g"))
+        monkeypatch.undo()
+        with ds.estimate(sol, goal, weights="patch") as est:
+            assert est.eta == good
