@@ -60,7 +60,7 @@ def _square_tags(msh):
     return mesh.meshtags(msh, 1, facets[order], values[order])
 
 
-def patch_problem(s, comm=COMM, n=6):
+def patch_problem(s, comm=COMM, n=6, cell_type=mesh.CellType.triangle):
     """The unit square on a rigid plane y = 0, its top displaced by (SHEAR, -PRESS).
 
     The exact solution is linear: u = (a + (SHEAR - a) y, -PRESS y) with the rigid slip a = 0
@@ -69,7 +69,7 @@ def patch_problem(s, comm=COMM, n=6):
     carry as tractions. On Gamma_C (n = (0, -1), t = (1, 0)): lambda_n = (lambda + 2 mu) PRESS,
     lambda_t = sigma_xy.
     """
-    msh = mesh.create_unit_square(comm, n, n, ghost_mode=mesh.GhostMode.none)
+    msh = mesh.create_unit_square(comm, n, n, cell_type, ghost_mode=mesh.GhostMode.none)
     a = 0.0 if MU * SHEAR < s else SHEAR - s / MU
     sxx, sxy = -LMBDA * PRESS, MU * (SHEAR - a)
     problem = ds.SignoriniProblem(
@@ -126,11 +126,13 @@ def test_huge_threshold_under_a_tangential_load_sticks():
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("cell_type", [mesh.CellType.triangle, mesh.CellType.quadrilateral],
+                         ids=["tri", "quad"])
 @pytest.mark.parametrize("s", [1.0, 0.05], ids=["stick", "slip"])
-def test_patch_test_is_exact(s):
+def test_patch_test_is_exact(s, cell_type):
     """Full stick (mu SHEAR = 0.077 < s = 1) and full slip (s = 0.05): lambda_n, lambda_t and
     u on Gamma_C are the exact ones to round-off, the friction force's estimate is round-off."""
-    problem, a, sxy = patch_problem(s)
+    problem, a, sxy = patch_problem(s, cell_type=cell_type)
     with ds.solve(problem) as sol:
         n_contact = sol.disc.num_contact_elements
         assert sol.num_active == n_contact
