@@ -225,6 +225,8 @@ def plot_convergence(
                 linewidth=1.0,
                 label=_slope_label(s, x),
             )
+    if xs_all:  # the data's range (error bars on a log axis can widen matplotlib's own)
+        ax.set_xlim(min(xs_all) / 1.5, max(xs_all) * 1.5)
     ax.set_xlabel(
         r"cells $M_\Omega$ of $T_h$" if x == "num_cells" else "cumulative wall-clock time [s]"
     )
