@@ -11,6 +11,9 @@ reference value of J obtained without any estimate:
   (fraction 0.2, patch weights: its J_h alone), whose last change is the uncertainty;
 * ``bar``: example 5.2, goal of the paper, against the paper's J_ref (5.934693870188e-6); the
   uncertainty is its distance to ``bar_reference.json``'s extrapolations plus their own;
+* ``friction``: the friction demo's problem (Tresca, ``examples.friction_problem``), goal the
+  friction force, adaptive and uniform, against the finest J_h of a longer adaptive run (12
+  levels, 1.6M cells, patch weights), whose last change is the uncertainty;
 * ``obstacle``, ``indentation8``, ``indentation12``: example 5.3 from 1 x 4 x 4 boxes and the
   3D indentation of ``reference_3d.py`` from 8 x 8 x 4 and 12 x 12 x 6 boxes, against the
   references of ``reference_3d.py`` (from J_h alone; ``reference_3d.stored_reference``).
@@ -22,6 +25,7 @@ counted as resolved, and the times of the solve and of the estimate. JSON to
 ``benchmarks/results/interval_coverage.json`` (a run of some problems replaces theirs)::
 
     scripts/fenicsx python3 benchmarks/interval_coverage.py --problems analytic block bar
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/interval_coverage.py --problems friction
     scripts/fenicsx mpirun -n 2 python3 benchmarks/interval_coverage.py \\
         --problems obstacle indentation8 indentation12
     scripts/fenicsx python3 benchmarks/interval_coverage.py --tables-from \\
@@ -69,6 +73,15 @@ def _block_reference(comm: MPI.Comm, levels: int) -> tuple[float, float]:
     return J[-1], abs(J[-1] - J[-2])
 
 
+def _friction_reference(comm: MPI.Comm, levels: int) -> tuple[float, float]:
+    """The finest J_h of a longer adaptive run of the friction problem; its last change."""
+    with ds.solve_adaptive(ex.friction_problem(comm), ex.goal_friction_force(), fraction=0.2,
+                           weights="patch", max_levels=levels, max_cells=4_000_000,
+                           verbose=False) as res:
+        J = [r.J_h for r in res.levels]
+    return J[-1], abs(J[-1] - J[-2])
+
+
 def problems(comm: MPI.Comm, quick: bool) -> dict[str, dict[str, Any]]:
     """Per problem: builder, goal, reference (a callable), levels, and whether to run uniform."""
     return {
@@ -83,6 +96,10 @@ def problems(comm: MPI.Comm, quick: bool) -> dict[str, dict[str, Any]]:
         "bar": dict(
             build=lambda: ex.bar_problem(comm), goal=ex.goal_bar(), reference=_bar_reference,
             levels=4 if quick else 9, uniform=False),
+        "friction": dict(
+            build=lambda: ex.friction_problem(comm), goal=ex.goal_friction_force(),
+            reference=lambda: _friction_reference(comm, 8 if quick else 12),
+            levels=5 if quick else 8, uniform=True),
         "obstacle": dict(
             build=lambda: ex.obstacle_problem(comm, (1, 4, 4)), goal=ex.goal_obstacle(),
             reference=lambda: stored_reference("obstacle"),

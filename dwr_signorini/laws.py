@@ -206,7 +206,11 @@ class ContactLaw:
 
         Args:
             data: The integrated threshold data, (M s)_i.
-            active: The active rows of the normal component.
+            active: The active rows of the normal component (a threshold that follows contact,
+                as Coulomb's, needs them).
+
+        Returns:
+            (M s)_i per tangential row, or None.
         """
         return None
 
@@ -220,6 +224,9 @@ class ContactLaw:
             n: The outward unit normal.
             c: The scale of the NCP.
             problem: The problem (for the threshold data).
+
+        Returns:
+            One tuple per component, normal first.
         """
         comps = self.components(len(n))
         out = []
