@@ -449,3 +449,27 @@ def test_a_failure_in_the_p2_set_up_leaves_nothing_behind(monkeypatch):
         monkeypatch.undo()
         with ds.estimate(sol, goal, weights="patch") as est:
             assert est.eta == good
+
+
+def test_an_interrupt_while_a_level_is_written_waits_for_both_tables(tmp_path, monkeypatch):
+    """SIGINT arriving between the CSV row and the JSON of a level is delivered after both:
+    the tables keep the same levels (the race the two-rank signal test can hit under load)."""
+    from dwr_signorini import io as ds_io
+
+    out = ds_io.OutputDirectory(tmp_path / "run", MPI.COMM_SELF)
+    out.append({"level": 0, "J_h": 1.0})
+    write_json = ds_io.write_json
+    reached = []
+
+    def interrupted(path, data):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the interrupt would be raised here without the hold
+        reached.append(True)
+        write_json(path, data)
+
+    monkeypatch.setattr(ds_io, "write_json", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        out.append({"level": 1, "J_h": 2.0})
+    assert reached == [True]
+    rows = _rows(out.csv_path)
+    assert len(rows) == 2 == len(json.loads(out.json_path.read_text())["levels"])
