@@ -113,7 +113,11 @@ def _cleaned(
     Mlam: np.ndarray, residual: np.ndarray, c: np.ndarray, M: np.ndarray, g: np.ndarray,
     u_max: float, force_size: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """X = M lam + c (B u - g) with each part zero below its round-off level; x; its size."""
+    """The set test's argument x = M lam + c (B u - g), three ways.
+
+    Returns:
+        x with each part zero below its round-off level, x as it is, and the size of its parts.
+    """
     gap_size = M * u_max + np.abs(g)
     size = np.abs(Mlam) + c * gap_size
     clean = np.where(np.abs(Mlam) > ROUNDOFF * force_size, Mlam, 0.0) + c * (

@@ -455,7 +455,10 @@ def _all_finite(comm: MPI.Comm, *arrays: np.ndarray) -> bool:
 def _initial_iterate(
     system: NewtonLinearSystem, initial_guess: tuple[fem.Function, ...] | None
 ) -> tuple[fem.Function, list[fem.Function]]:
-    """U and the law's multipliers (lambda, then lambda_t) to start from; u_D set in u."""
+    """The displacement and the law's multipliers (lambda, then lambda_t) to start from.
+
+    The displacement holds the prescribed Dirichlet values.
+    """
     disc = system.disc
     u = fem.Function(disc.V, name="u")
     names = ("lambda", "lambda_t")
