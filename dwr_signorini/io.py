@@ -10,15 +10,12 @@ so the other ranks do not wait for it in the next collective.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import json
 import math
 import os
-import signal
 import tempfile
-import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +25,7 @@ from dolfinx import io
 
 from .collective import on_root
 
-__all__ = ["OutputDirectory", "check_output_dir", "signals_deferred", "write_csv", "write_json"]
+__all__ = ["OutputDirectory", "check_output_dir", "write_csv", "write_json"]
 
 
 def _clean(value: Any) -> Any:
@@ -61,35 +58,6 @@ def write_csv(path: str | os.PathLike, rows: Sequence[dict[str, Any]]) -> None:
         writer = csv.DictWriter(fh, fieldnames=list(flat[0]))
         writer.writeheader()
         writer.writerows(flat)
-
-
-@contextlib.contextmanager
-def signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM for the block; they are delivered when it ends.
-
-    Their handlers are replaced by one that only records them, and the recorded signals are
-    raised again with the former handlers once the block is left (a default SIGTERM then ends
-    the process, SIGINT raises KeyboardInterrupt). Masking the signals would not do: in a
-    process with other threads (MPI's) the kernel hands them to a thread that does not mask
-    them. On a thread other than the main one the block runs as it is.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received: list[int] = []
-
-    def record(signum: int, frame: Any) -> None:
-        received.append(signum)
-
-    held = (signal.SIGINT, signal.SIGTERM)
-    former = {s: signal.signal(s, record) for s in held}
-    try:
-        yield
-    finally:
-        for s, handler in former.items():  # None: a handler not set from Python
-            signal.signal(s, signal.SIG_DFL if handler is None else handler)
-        for s in dict.fromkeys(received):
-            signal.raise_signal(s)
 
 
 def write_json(path: str | os.PathLike, data: Any) -> None:
@@ -161,27 +129,27 @@ class OutputDirectory:
         return self.path / f"{self.name}.json"
 
     def append(self, row: dict[str, Any], meta: dict[str, Any] | None = None) -> None:
-        """Append a finished level's row to the CSV and rewrite the JSON (rank 0)."""
+        """Append a finished level's row to the CSV and rewrite the JSON (rank 0).
+
+        Both files are complete after every level (the CSV row is flushed to disk, the JSON
+        replaced atomically); a run killed between the two writes of a level leaves the JSON
+        one level behind the CSV.
+        """
         self._create()
         self.rows.append(row)
         on_root(self.comm, f"writing {self.csv_path.name}", self._write_row, row, meta)
 
     def _write_row(self, row: dict[str, Any], meta: dict[str, Any] | None) -> None:
-        """The row into the CSV and the JSON, with SIGINT and SIGTERM held until both are written.
-
-        An interrupted run so leaves the two tables with the same levels.
-        """
         flat = _flatten(row)
-        with signals_deferred():
-            new = not self.csv_path.exists()
-            with open(self.csv_path, "a", newline="") as fh:
-                writer = csv.DictWriter(fh, fieldnames=list(flat))
-                if new:
-                    writer.writeheader()
-                writer.writerow(flat)
-                fh.flush()
-                os.fsync(fh.fileno())
-            write_json(self.json_path, {"meta": meta or {}, "levels": self.rows})
+        new = not self.csv_path.exists()
+        with open(self.csv_path, "a", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(flat))
+            if new:
+                writer.writeheader()
+            writer.writerow(flat)
+            fh.flush()
+            os.fsync(fh.fileno())
+        write_json(self.json_path, {"meta": meta or {}, "levels": self.rows})
 
     def write_fields(
         self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]

@@ -77,7 +77,10 @@ def main():
     except Exception as err:
         line = f"{type(err).__name__}: {err}".replace("\n", " | ")
     left = sorted(set(PETSc.Options().getAll()) - set(before))
-    print(f"rank {COMM.rank}: {line} || options left: {left}", flush=True)
+    # One write of the whole line: print's separate write of the newline let mpirun forward
+    # the two ranks' lines run together ("... []rank 0: ...").
+    sys.stdout.write(f"rank {COMM.rank}: {line} || options left: {left}\n")
+    sys.stdout.flush()
     np.testing.assert_equal(left, [])
 
 
