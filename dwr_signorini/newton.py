@@ -379,7 +379,9 @@ def solve(
             else choose_method(
                 disc.mesh.topology.dim,
                 disc.num_dofs,
-                disc.num_contact_elements,
+                # the multiplier rows: one per macro contact facet and component of the law
+                disc.num_contact_elements
+                * len(disc.problem.law.components(disc.mesh.topology.dim)),
                 cold_start=initial_guess is None,
             )
         )

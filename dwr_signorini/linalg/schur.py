@@ -395,8 +395,8 @@ class SchurNewtonSystem(NewtonLinearSystem):
 
     @property
     def n_lam_global(self) -> int:
-        """Global number of multipliers."""
-        return self.disc.Q.dofmap.index_map.size_global
+        """Global number of multiplier rows (every component of the contact law's)."""
+        return self.N.getSize()[0]
 
     def _setup(self) -> None:
         """Check and set up the solver of K, compute K^-1 f and the Schur complement."""
