@@ -1,0 +1,279 @@
+"""The bookkeeping of the semi-smooth Newton method: residuals, history, sets, safeguards.
+
+:class:`NewtonLoop` measures an iterate (the residuals as backward errors, the sets the rule (21)
+and its tangential analogue want, :meth:`~dwr_signorini.algebra.ContactAlgebra.newton_sets`),
+decides whether the method has converged or failed, picks the next step's sets with the cycling
+safeguard (Murty's least-index rule) and solves the step's linear system, turning its failures
+into a :class:`ConvergenceError` with the iteration history. The loop itself is
+:func:`dwr_signorini.newton.solve`'s.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+from dolfinx import fem
+
+from .algebra import distributed_norm
+from .collective import CollectiveError, collective
+from .linalg import LinearSolveError, NewtonLinearSystem, mumps_failure
+
+__all__ = ["ConvergenceError", "NewtonLoop"]
+
+logger = logging.getLogger("dwr_signorini.newton")
+
+
+class ConvergenceError(RuntimeError):
+    """The semi-smooth Newton method did not converge.
+
+    The message ends with the iteration history, one line per step.
+
+    Args:
+        message: What failed.
+        history: One dict per iteration: ``iteration``, ``num_active``, ``num_changed``,
+            ``residual_equilibrium``, ``residual_ncp`` (and ``safeguard``, ``nonfinite``).
+
+    Attributes:
+        history: One dict per iteration: iteration, active-set size, changes, residuals.
+    """
+
+    def __init__(self, message: str, history: list[dict[str, Any]]) -> None:
+        lines = [message, "iteration history:" if history else "(before the first Newton step)"]
+        for h in history:
+            lines.append(
+                "  it {iteration:3d}: |A| = {num_active:6d}, changed = {num_changed:6d}, "
+                "equilibrium residual = {residual_equilibrium:.3e}, "
+                "NCP residual = {residual_ncp:.3e}".format(**h)
+                + (" [least-index safeguard]" if h.get("safeguard") else "")
+                + (" [NaN/Inf]" if h.get("nonfinite") else "")
+            )
+        super().__init__("\n".join(lines))
+        self.history = history
+
+
+def _global_key(comm: MPI.Comm, *states: np.ndarray) -> tuple[bytes, ...]:
+    """The global sets, exactly (packed bits of every rank's owned rows), as a dict key."""
+    local = b"".join(np.packbits(a).tobytes() + a.size.to_bytes(8, "little") for a in states)
+    return tuple(comm.allgather(local))
+
+
+class NewtonLoop:
+    """The semi-smooth Newton method's bookkeeping: residuals, history, sets, safeguards.
+
+    The sets of a step are the constrained rows of each component of the contact law (active,
+    stick) and the multiplier values on the free ones (0 inactive, +-s slip), from
+    :meth:`~dwr_signorini.algebra.ContactAlgebra.newton_sets` at the previous iterate.
+    """
+
+    def __init__(self, system: NewtonLinearSystem, rtol: float, max_iterations: int) -> None:
+        self.system, self.rtol, self.max_iterations = system, rtol, max_iterations
+        self.comm = system.disc.comm
+        self.lam_vec = system.N.createVecLeft()
+        self.nt_lam = system.f.duplicate()
+        self.norm_f = system.f.norm()
+        self.norm_K = system.algebra.stiffness_norm()
+        self.history: list[dict[str, Any]] = []
+        self.loose = system.set_loose(True)
+        self.seen: dict[tuple[bytes, ...], int] = {}
+        self.previous: np.ndarray | None = None
+        self.previous_free: np.ndarray | None = None
+        self.safeguard_since: int | None = None
+        self.violated: np.ndarray | None = None
+        self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
+
+    def destroy(self) -> None:
+        """Release the work vectors."""
+        self.lam_vec.destroy()
+        self.nt_lam.destroy()
+
+    def measure(
+        self, it: int, u: fem.Function, lam: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals of the iterate (a history record) and the sets the rule (21) wants.
+
+        Residuals as backward errors: the equilibrium residual relative to the size of the
+        terms K u, B^T lam, f; the NCP functions entry by entry relative to their terms' size.
+        """
+        system, comm = self.system, self.comm
+        u_vec = u.x.petsc_vec
+        u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
+        wanted, free, ncp, size = system.algebra.newton_sets(u_vec, lam, u_max)
+        if self.previous is None:
+            violated = np.ones_like(wanted)
+        else:
+            violated = (wanted != self.previous) | (
+                ~wanted & ~self.previous & (free != self.previous_free)
+            )
+        self.violated = violated
+        self.lam_vec.array_w[:] = lam
+        system.NT.mult(self.lam_vec, self.nt_lam)
+        norm_Ku = self.norm_K * distributed_norm(comm, u.x.array[: system.n_u])
+        scale_eq = max(self.norm_f, self.nt_lam.norm(), norm_Ku, 1e-300)
+        res_eq = system.algebra.equilibrium_residual(u_vec, lam) / scale_eq
+        local_ncp = np.max(
+            np.divide(ncp, size, out=np.zeros_like(ncp), where=size > 0), initial=0.0
+        )
+        rel_ncp = comm.allreduce(float(local_ncp), op=MPI.MAX)
+        num_changed = comm.allreduce(int(violated.sum()), op=MPI.SUM)
+        record = {
+            "iteration": it,
+            "num_active": self._count(wanted, 0),
+            "num_changed": num_changed,
+            "residual_equilibrium": res_eq,
+            "residual_ncp": rel_ncp,
+            "ncp_scale": system.algebra.ncp_scale,
+            "safeguard": self.safeguard_since is not None,
+            "loose": self.loose,
+        }
+        if len(system.algebra.components) > 1:
+            record["num_stick"] = self._count(wanted, 1)
+        self.history.append(record)
+        logger.info(
+            "Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
+            it, record["num_active"], num_changed, res_eq, rel_ncp,
+        )
+        return wanted, free
+
+    def _count(self, rows: np.ndarray, component: int) -> int:
+        """Global number of set rows of one component."""
+        part = self.system.algebra.components_of(rows)[component]
+        return self.comm.allreduce(int(part.sum()), op=MPI.SUM)
+
+    def finished(self, it: int) -> bool:
+        """Converged (True), or one more step to take; raises when the method has failed."""
+        record = self.history[-1]
+        settled = self.previous is not None and record["num_changed"] == 0
+        self.resolve = settled and self.loose
+        if self.resolve:  # the sets have settled: solve their system again, accurately
+            self.loose = self.system.set_loose(False)
+        elif settled:
+            if record["residual_equilibrium"] <= self.rtol and record["residual_ncp"] <= self.rtol:
+                return True
+            raise ConvergenceError(
+                f"the active set is stationary but the residuals are not below rtol={self.rtol:g}: "
+                "the linear solves are inaccurate (check petsc_options; a direct solver is "
+                "the default)",
+                self.history,
+            )
+        if it == self.max_iterations:
+            extra = (
+                f" (least-index safeguard active since step {self.safeguard_since})"
+                if self.safeguard_since is not None
+                else ""
+            )
+            raise ConvergenceError(
+                f"no convergence in max_iterations={self.max_iterations} Newton steps{extra}; "
+                "raise max_iterations or warm-start from a nearby solution",
+                self.history,
+            )
+        return False
+
+    def next_set(
+        self, it: int, wanted: np.ndarray, free: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The sets of the next step: the rule's, with the cycling safeguard (see :func:`solve`)."""
+        comm = self.comm
+        if self.resolve:
+            new, new_free = self.previous, self.previous_free
+        else:
+            new, new_free = wanted, free
+        key = _global_key(comm, new, new_free > 0, new_free < 0)
+        if key in self.seen and not self.resolve:
+            if self.safeguard_since is not None:
+                raise ConvergenceError(
+                    f"active-set cycling: the set of step {it} repeats step {self.seen[key]} "
+                    "even under the least-index safeguard (is the body clamped, i.e. is "
+                    "N K^-1 N^T positive definite?)",
+                    self.history,
+                )
+            logger.warning(
+                "active-set cycling (step %d repeats step %d): least-index safeguard",
+                it, self.seen[key],
+            )
+            self.safeguard_since = it
+            self.seen.clear()
+        if self.safeguard_since is not None and not self.resolve:
+            first = self._least_index(self.violated)
+            new = np.where(first, wanted, self.previous)
+            new_free = np.where(first, free, self.previous_free)
+            key = _global_key(comm, new, new_free > 0, new_free < 0)
+            self.history[-1]["num_active"] = self._count(new, 0)
+            self.history[-1]["safeguard"] = True
+        self.seen[key] = it
+        return new, new_free
+
+    def _least_index(self, mask: np.ndarray) -> np.ndarray:
+        """Only the set entry with the smallest global number (on its owning rank).
+
+        Rows are numbered component by component (all normal rows first).
+        """
+        comm, n_q = self.comm, self.system.algebra.n_q
+        local = np.flatnonzero(mask)
+        n_global = self.system.disc.Q.dofmap.index_map.size_global
+        if local.size:
+            k, i = divmod(int(local[0]), n_q) if n_q else (0, 0)
+            mine = k * n_global + self.q_start + i
+        else:
+            mine = np.iinfo(np.int64).max
+        first = comm.allreduce(mine, op=MPI.MIN)
+        out = np.zeros_like(mask)
+        if local.size and mine == first:
+            out[local[0]] = True
+        return out
+
+    def linear_solve(self, it: int, new: np.ndarray, free: np.ndarray) -> None:
+        """The linear system of the step's sets, its failures as :class:`ConvergenceError`."""
+        system, history = self.system, self.history
+        try:
+            # A failure that one rank sees first (after the solve's last collective) is
+            # raised on every rank (dwr_signorini.collective).
+            with collective(self.comm, f"Newton step {it}: the linear solve"):
+                system.solve_active(new, free)
+        except (LinearSolveError, PETSc.Error, np.linalg.LinAlgError) as err:
+            raise ConvergenceError(
+                f"Newton step {it}: linear solve failed ({_failure_name(system, err)}); "
+                f"{_failure_hint(system, err)}",
+                history,
+            ) from err
+        self.previous, self.previous_free = new, free
+
+
+def _failure_name(system: NewtonLinearSystem, err: BaseException) -> str:
+    """What failed in a linear solve, for the message of :class:`ConvergenceError`."""
+    reason = system.ksp.getConvergedReason()
+    names = vars(PETSc.KSP.ConvergedReason).items()
+    name = next((k for k, v in names if v == reason and k.isupper()), str(reason))
+    if isinstance(err, CollectiveError):
+        ranks = ", ".join(map(str, err.ranks))
+        size = system.disc.comm.size
+        on = f" on rank(s) {ranks} of {size}" if size > 1 else ""
+        name = f"{err.error_type}{on}: {err.error_message.splitlines()[0]}"
+    elif isinstance(err, PETSc.Error):
+        name = f"PETSc error {err.ierr}"
+    elif isinstance(err, np.linalg.LinAlgError):
+        # LinAlgError: the Cholesky factorisation of S_AA (method="schur") failed.
+        name = str(err)
+    return name
+
+
+def _failure_hint(system: NewtonLinearSystem, err: BaseException) -> str:
+    """What to check after a failed linear solve."""
+    cause = mumps_failure(system.ksp)
+    if cause is not None:
+        return cause
+    if isinstance(err, (PETSc.Error, np.linalg.LinAlgError)) or system.ksp.getConvergedReason() == (
+        PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED
+    ):
+        return (
+            "the factorisation or preconditioner failed: the Newton matrix is "
+            "singular (the body is not held in place, check dirichlet; or active "
+            "contact constraints are linearly dependent, e.g. a contact facet whose "
+            "nodes are all clamped), or the preconditioner in petsc_options does "
+            "not suit this saddle-point system"
+        )
+    return "the linear solver did not converge: check petsc_options"
