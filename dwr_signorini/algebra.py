@@ -33,6 +33,7 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from .laws import Coupling
 from .lifetime import destroy_attributes
 from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
@@ -114,6 +115,7 @@ class ContactAlgebra:
         Q, m = disc.Q, disc.m
         self.V = V
         self.components = problem.law.components(disc.mesh.topology.dim)
+        self.conditions = problem.law.conditions(disc.mesh.topology.dim)
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         mu = ufl.TestFunction(Q)
         options = {k: v for k, v in (compile_options or {}).items() if v is not None}
@@ -294,21 +296,35 @@ class ContactAlgebra:
         return out
 
     def ncp_residual(self, u: PETSc.Vec, lam: np.ndarray) -> np.ndarray:
-        """C(u, lam) of eq. (20), each component's rows with its NCP function, owned rows."""
+        """C(u, lam) of eq. (20), each condition's rows with its NCP function, owned rows."""
         Mlam = self.M.array * lam
         x = Mlam + self.c_n * self.gap_residual(u)
         rows = self._rows()
+        out = np.empty_like(Mlam)
         active = x[rows[0]] > 0.0
-        out = []
-        for k, (comp, r) in enumerate(zip(self.components, rows, strict=True)):
-            bound = self.disc.problem.law.row_bound(self.bounds[k], active) if k else None
-            out.append(comp.ncp(Mlam[r], x[r], bound))
-        return np.concatenate(out)
+        for idx, cond in self.conditions:
+            bound = self._bound(idx, active)
+            r = [rows[k] for k in idx]
+            if len(idx) == 1:
+                out[r[0]] = cond.ncp(Mlam[r[0]], x[r[0]], bound)
+            else:
+                values = cond.ncp(
+                    np.array([Mlam[k] for k in r]), np.array([x[k] for k in r]), bound
+                )
+                for k, v in zip(r, values, strict=True):
+                    out[k] = v
+        return out
+
+    def _bound(self, idx: tuple[int, ...], active: np.ndarray) -> np.ndarray | None:
+        """The threshold on the rows of the condition of components ``idx`` (None: normal)."""
+        if idx[0] == 0:
+            return None
+        return self.disc.problem.law.row_bound(self.bounds[idx[0]], active)
 
     def newton_sets(
         self, u: PETSc.Vec, lam: np.ndarray, u_max: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The set test of every component (eq. 21 and the law's analogue), owned rows.
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[Coupling]]:
+        """The set test of every condition of the law (eq. 21 and its analogues), owned rows.
 
         Args:
             u: The displacement iterate.
@@ -316,22 +332,42 @@ class ContactAlgebra:
             u_max: max |u| over all ranks.
 
         Returns:
-            ``(constrained, free, ncp, size)`` as
-            :meth:`~dwr_signorini.laws.Component.newton_set`, the components' rows stacked.
+            ``(constrained, free, ncp, size, couplings)`` as
+            :meth:`~dwr_signorini.laws.Component.newton_set`, the components' rows stacked,
+            and the coupled rows of conditions on several components
+            (:class:`~dwr_signorini.laws.Coupling`, empty for a symmetric law).
         """
         Mlam = self.M.array * lam
         residual = self.gap_residual(u)
         M, g, c = self.M.array, self.g.array, self.c_n
-        parts: list[tuple[np.ndarray, ...]] = []
-        for k, (comp, r) in enumerate(zip(self.components, self._rows(), strict=True)):
-            bound = self.disc.problem.law.row_bound(self.bounds[k], parts[0][0]) if k else None
+        rows = self._rows()
+        out = [np.empty(self.n_lam, dtype=bool), np.empty(self.n_lam), np.empty(self.n_lam),
+               np.empty(self.n_lam)]
+        couplings: list[Coupling] = []
+        for idx, cond in self.conditions:
+            bound = self._bound(idx, out[0][rows[0]])
+            r = [rows[k] for k in idx]
             force_size = self.comm.allreduce(
-                float(np.max(np.abs(Mlam[r]), initial=0.0)), op=MPI.MAX
+                float(max(np.max(np.abs(Mlam[k]), initial=0.0) for k in r)), op=MPI.MAX
             )
-            parts.append(
-                comp.newton_set(Mlam[r], residual[r], c[r], M[r], g[r], u_max, force_size, bound)
+            if len(idx) == 1:
+                k = r[0]
+                parts = cond.newton_set(Mlam[k], residual[k], c[k], M[k], g[k], u_max,
+                                        force_size, bound)
+                for o, p in zip(out, parts, strict=True):
+                    o[k] = p
+                continue
+            stack = [np.array([a[k] for k in r]) for a in (Mlam, residual, g)]
+            *parts, (slip, J, rhs) = cond.newton_set(
+                stack[0], stack[1], c[r[0]], M[r[0]], stack[2], u_max, force_size, bound
             )
-        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+            for o, p in zip(out, parts, strict=True):
+                for k, v in zip(r, p, strict=True):
+                    o[k] = v
+            facets = np.flatnonzero(slip)
+            local = np.array([np.arange(self.n_lam)[k][facets] for k in r]).T
+            couplings.append(Coupling(local.reshape(-1, len(idx)), J, rhs))
+        return (*out, couplings)
 
     def _rows(self) -> list[slice]:
         """The owned rows of each component (normal first)."""

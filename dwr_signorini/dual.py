@@ -38,6 +38,7 @@ from dolfinx.fem import petsc as fem_petsc
 from .algebra import ContactAlgebra
 from .collective import collective
 from .goal import GoalForms
+from .laws import multiplier_names
 from .linalg import NewtonLinearSystem
 from .timing import timed
 
@@ -46,16 +47,17 @@ __all__ = ["DualSolution", "dual_rhs", "solve_dual"]
 
 @dataclass
 class DualSolution:
-    """z_h = (y_h, xi_H), the discrete dual solution (and xi_t with friction)."""
+    """z_h = (y_h, xi_H), the discrete dual solution (and xi_t, or xi_t1, xi_t2, with friction)."""
 
     y: fem.Function
     xi: fem.Function
     xi_t: fem.Function | None = None
+    xi_t2: fem.Function | None = None
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
-        """The dual multipliers of the contact law's components: (xi,) or (xi, xi_t)."""
-        return (self.xi,) if self.xi_t is None else (self.xi, self.xi_t)
+        """The dual multipliers of the contact law's components: (xi,), (xi, xi_t) or three."""
+        return tuple(f for f in (self.xi, self.xi_t, self.xi_t2) if f is not None)
 
 
 def dual_rhs(
@@ -122,7 +124,7 @@ def _solve_dual(
     # b_h: xi = xi^(1) / c on the constrained rows (see dwr_signorini.residuals).
     xi_1 = z.array_r[system.n_u :]
     xi_all = np.where(system.active, xi_1 / system.c_n, xi_1)
-    names = ("xi", "xi_t")
+    names = multiplier_names(system.algebra.components, "xi")
     xis = []
     for k, values in enumerate(system.algebra.components_of(xi_all)):
         xi = fem.Function(system.disc.Q, name=names[k])

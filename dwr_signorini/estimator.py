@@ -170,7 +170,9 @@ def _higher_order_solutions(
         )
     try:
         with timed("higher-order solve"):
-            system2.solve_active(sol.system.active, sol.system.free)
+            system2.solve_active(
+                sol.system.active, sol.system.free, getattr(sol.system, "couplings", None)
+            )
             z2 = solve_dual(system2, goal)
         w2 = None
         if primal:
@@ -208,6 +210,12 @@ def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
     if weights == "patch":
         z2, w2 = z, None
     elif weights == "hierarchical":
+        if not sol.disc.problem.law.symmetric(sol.disc.mesh.topology.dim):
+            raise ValueError(
+                "weights='hierarchical': the two-level P2 solver works on symmetric Newton "
+                "matrices; Tresca friction in 3D has coupled rows on slipping facets: use "
+                "weights='higher_order' (the P2 system factored by LU) or 'patch'"
+            )
         z2, w2 = hierarchical_solutions(sol, inp.goal_forms, z, rec.V2h, want_eta)
     else:
         z2, w2 = _higher_order_solutions(sol, inp.goal_forms, rec, want_eta, inp.petsc_options)
@@ -302,7 +310,8 @@ def estimate(
             (13)). eta_p is reported in both cases.
         weights: ``"auto"`` (the default: the patch weights, and the hierarchical P2 weights
             instead on a level whose contact set is not resolved, see
-            :mod:`~dwr_signorini.interval`), ``"patch"`` (the paper's patch-wise
+            :mod:`~dwr_signorini.interval`; the factored P2 ones, ``"higher_order"``, for a law
+            with coupled rows, Tresca friction in 3D), ``"patch"`` (the paper's patch-wise
             reconstructions), ``"higher_order"`` (dual, and for eta the primal, solved in P2
             with Lambda_H and the final active set, by a factorisation) or ``"hierarchical"``
             (the same P2 solutions by a two-level iteration on the Newton factors,
@@ -357,7 +366,7 @@ def estimate(
             f"quadrature_degree must be an integer in [0, 30] or None, got {quadrature_degree!r}"
         )
     disc = sol.disc
-    goal_forms = GoalForms(goal, sol.u, sol.lam, disc, sol.lam_t)
+    goal_forms = GoalForms(goal, sol.u, sol.lam, disc, sol.tangential or None)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
     t_dual = time.perf_counter() - tic
@@ -370,7 +379,9 @@ def estimate(
         terms = _terms(inp, "patch" if weights == "auto" else weights, quadrature_degree, DG0)
         resolved = contact_set_resolved(terms.value(estimator), terms.remainder, terms.contact)
         if weights == "auto" and not resolved:
-            terms = _terms(inp, "hierarchical", quadrature_degree, DG0)
+            symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
+            p2 = "hierarchical" if symmetric else "higher_order"
+            terms = _terms(inp, p2, quadrature_degree, DG0)
 
         t_estimate = time.perf_counter() - tic - t_dual
         indicators = fem.Function(DG0, name="indicators")

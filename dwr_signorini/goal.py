@@ -20,6 +20,7 @@ from dolfinx import fem
 from ufl.algorithms import expand_derivatives
 
 from .collective import call_collectively
+from .laws import tangent_basis
 from .spaces import Discretization
 from .timing import timed
 
@@ -66,14 +67,16 @@ class GoalForms:
     """J and its derivatives for one discrete solution w_h = (u_h, lambda_H).
 
     A goal takes ``(u, lam, m)``; with friction it may take ``(u, lam, m, lam_t)``, the
-    tangential traction (:attr:`~dwr_signorini.Solution.lam_t`).
+    tangential traction (:attr:`~dwr_signorini.Solution.lam_t`): in 2D its value along
+    t = (-n_2, n_1), in 3D the traction vector lambda_t1 t_1 + lambda_t2 t_2 (UFL).
 
     Args:
         goal: The user's ``goal(u, lam, m)`` or ``goal(u, lam, m, lam_t)``.
         u: u_h (a Function on V_h).
         lam: lambda_H (a Function on Lambda_H).
         disc: The discretisation.
-        lam_t: lambda_t,H with friction, else None.
+        lam_t: lambda_t,H with friction, else None: a function (2D), or the tangential
+            multipliers (:attr:`~dwr_signorini.Solution.tangential`, 3D: two).
 
     Raises:
         CollectiveError: ``goal`` raised, on any rank (then on every rank, naming ``goal``).
@@ -84,7 +87,7 @@ class GoalForms:
 
     def __init__(
         self, goal: Goal, u: fem.Function, lam: fem.Function, disc: Discretization,
-        lam_t: fem.Function | None = None,
+        lam_t: fem.Function | tuple[fem.Function, ...] | None = None,
     ):
         if not callable(goal):
             raise TypeError(f"goal must be a callable goal(u, lam, m) -> ufl.Form, got {goal!r}")
@@ -95,6 +98,14 @@ class GoalForms:
                 "frictionless (no tangential traction lam_t): give the goal three arguments, "
                 "or a friction law (SignoriniProblem(..., friction=ds.Tresca(s)))"
             )
+        tangential = (() if lam_t is None else
+                      tuple(lam_t) if isinstance(lam_t, (tuple, list)) else (lam_t,))
+        if not tangential:
+            lam_t = None
+        elif len(tangential) == 1:
+            lam_t = tangential[0]
+        else:  # 3D: the traction vector from its coordinates in the tangent basis
+            lam_t = sum(f * t for f, t in zip(tangential, tangent_basis(disc.m.n), strict=True))
         args = (u, lam, disc.m, lam_t) if lam_t is not None and four else (u, lam, disc.m)
         J = call_collectively(disc.comm, "goal", goal, *args)
         if not isinstance(J, ufl.Form):
@@ -107,7 +118,7 @@ class GoalForms:
                 "goal(u, lam, m) must return a scalar functional (a form without test or trial "
                 f"functions); it has {len(J.arguments())} argument(s)"
             )
-        multipliers = (lam,) if lam_t is None else (lam, lam_t)
+        multipliers = (lam, *tangential)
         for itg in J.integrals():
             if itg.ufl_domain() != disc.mesh.ufl_domain():
                 raise ValueError(
@@ -115,7 +126,7 @@ class GoalForms:
                     "(m.dx, m.ds_contact, m.ds(tag)) of the current mesh"
                 )
             used = ufl.algorithms.extract_coefficients(itg.integrand())
-            for name, f in zip(("lam", "lam_t"), multipliers, strict=False):
+            for name, f in zip(("lam", "lam_t", "lam_t"), multipliers, strict=False):
                 if f in used:
                     contact = disc.problem.contact_tags
                     ids = itg.subdomain_id()

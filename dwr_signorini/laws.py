@@ -41,13 +41,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import ufl
 from ufl.domain import extract_unique_domain
 
-__all__ = ["Component", "ContactLaw", "Frictionless", "Normal", "Tangential", "Tresca"]
+__all__ = [
+    "Component",
+    "ContactLaw",
+    "Coupling",
+    "Frictionless",
+    "Normal",
+    "Tangential",
+    "TangentialBall",
+    "Tresca",
+    "multiplier_names",
+    "tangent_basis",
+]
 
 #: Relative round-off level of the parts of the set test: (B u - g)_i below it times
 #: M_i max|u| + |g_i|, and (M lam)_i below it times max_j |(M lam)_j|, count as zero.
@@ -156,13 +168,26 @@ class Normal(Component):
 
 
 class Tangential(Component):
-    """Tresca's condition in 2D: P_t(x) = max(-s, min(s, x)); constrained = stick."""
+    """Tresca's condition in 2D: P_t(x) = max(-s, min(s, x)); constrained = stick.
+
+    In 3D a tangential component is one coordinate of lambda_t in the facet's tangent basis
+    (:func:`tangent_basis`); its projection is the ball's (:class:`TangentialBall`), so the
+    scalar projection below is the 2D one.
+
+    Args:
+        axis: None in 2D (t = (-n_2, n_1)); 0 or 1 in 3D (t_1 or t_2 of :func:`tangent_basis`).
+    """
 
     name = "tangential"
 
+    def __init__(self, axis: int | None = None) -> None:
+        self.axis = axis
+
     def direction(self, n: Any) -> Any:
         """See the base class."""
-        return ufl.as_vector((-n[1], n[0]))
+        if self.axis is None:
+            return ufl.as_vector((-n[1], n[0]))
+        return tangent_basis(n)[self.axis]
 
     def projection(self, x: Any, bound: Any) -> Any:
         """See the base class."""
@@ -180,6 +205,115 @@ class Tangential(Component):
         stick = np.abs(clean) < bound
         free = np.where(stick, 0.0, np.sign(clean) * bound / M)
         return stick, free, np.abs(self.ncp(Mlam, test, bound)), size + bound
+
+
+@dataclass
+class Coupling:
+    """Rows whose Newton step is a general linearisation of the NCP (module docstring).
+
+    For facet f of the group's components k (rows ``rows[f, k]``) the step solves
+
+        sum_l [(delta_kl - J_kl) M_f lam_l - c_f J_kl (B u)_l] = r_k - c_f sum_l J_kl g_l,
+
+    J = P'(x) the generalised derivative of the group's projection at the iterate x and
+    r = P(x) - J x (eq. 20 linearised; the offsets g are those of the system that solves the
+    step, so that a P2 system of the same step uses its own). Rows that the step constrains
+    or frees (slopes 0 and 1) are not coupled rows.
+
+    Attributes:
+        rows: (m, k) owned multiplier rows of the m coupled facets.
+        J: (m, k, k) the derivative blocks.
+        r: (m, k) P(x) - J x.
+    """
+
+    rows: np.ndarray
+    J: np.ndarray
+    r: np.ndarray
+
+    @staticmethod
+    def empty(k: int) -> Coupling:
+        """No coupled facet (for a group of k components)."""
+        return Coupling(np.zeros((0, k), dtype=np.int64), np.zeros((0, k, k)), np.zeros((0, k)))
+
+    def mask(self, n: int) -> np.ndarray:
+        """The coupled rows as a mask of ``n`` owned rows."""
+        out = np.zeros(n, dtype=bool)
+        out[self.rows.ravel()] = True
+        return out
+
+    def restricted(self, keep: np.ndarray) -> Coupling:
+        """The coupled facets of the mask ``keep`` (one entry per facet)."""
+        return Coupling(self.rows[keep], self.J[keep], self.r[keep])
+
+
+class TangentialBall:
+    """Tresca's condition in 3D: lambda_t in the disc of radius s (module docstring).
+
+    The projection onto the ball B(s) of R^2, P(x) = x min(1, s / |x|), is smooth off the
+    sphere |x| = s; its derivative is I where |x| < s (stick: the step constrains
+    u_t = 0, both rows constrained) and (s / |x|) (I - q q^T), q = x / |x|, where the facet
+    slips. A slipping facet's rows are coupled (:class:`Coupling`): the exact derivative of
+    the projection, not a fixed-point on the slip direction, so that the Newton method
+    converges locally quadratically and the dual problem is the transposed linearisation the
+    error identity needs. The Newton matrix is then not symmetric (its rows have
+    (s / |x|)(I - q q^T) c B, its columns B^T), and is factored by LU.
+    """
+
+    size = 2
+
+    def projection(self, xs: Any, bound: Any) -> list:
+        """P(x) in UFL, one entry per component."""
+        norm = ufl.sqrt(xs[0] ** 2 + xs[1] ** 2)
+        factor = ufl.conditional(ufl.gt(norm, bound), bound / ufl.max_value(norm, bound), 1.0)
+        return [factor * x for x in xs]
+
+    def derivative(self, xs: Any, bound: Any) -> list:
+        """P'(x) in UFL, a 2 x 2 list of rows."""
+        norm = ufl.sqrt(xs[0] ** 2 + xs[1] ** 2)
+        slip = ufl.gt(norm, bound)
+        safe = ufl.max_value(norm, bound)
+        factor = ufl.conditional(slip, bound / safe, 1.0)
+        curvature = ufl.conditional(slip, bound / safe**3, 0.0)
+        return [
+            [factor * (1.0 if i == j else 0.0) - curvature * xs[i] * xs[j] for j in range(2)]
+            for i in range(2)
+        ]
+
+    @staticmethod
+    def project(x: np.ndarray, bound: np.ndarray) -> np.ndarray:
+        """P(x) on the rows: x of shape (2, m), bound (m,)."""
+        norm = np.hypot(x[0], x[1])
+        return x * np.minimum(1.0, np.divide(bound, norm, out=np.ones_like(norm), where=norm > 0))
+
+    def ncp(self, Mlam: np.ndarray, x: np.ndarray, bound: np.ndarray) -> np.ndarray:
+        """(M lam) - P(x), shape (2, m)."""
+        return Mlam - self.project(x, bound)
+
+    def newton_set(
+        self, Mlam: np.ndarray, residual: np.ndarray, c: np.ndarray, M: np.ndarray,
+        g: np.ndarray, u_max: float, force_size: float, bound: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+        """The set test of the pair of rows (as :meth:`Component.newton_set`, arrays (2, m)).
+
+        Returns:
+            ``(constrained, free, ncp, size, (slip, J, r))``: the stick facets' rows are
+            constrained, no row is free, and the slipping facets (mask ``slip``) carry their
+            derivative blocks J (m_slip, 2, 2) and right-hand sides r (m_slip, 2).
+        """
+        parts = [_cleaned(Mlam[k], residual[k], c, M, g[k], u_max, force_size) for k in range(2)]
+        clean = np.array([p[0] for p in parts])
+        test = np.array([p[1] for p in parts])
+        size = np.array([p[2] for p in parts])
+        norm = np.hypot(clean[0], clean[1])
+        stick = norm < bound
+        slip = ~stick
+        q = clean[:, slip] / norm[slip]
+        alpha = bound[slip] / norm[slip]
+        J = alpha[:, None, None] * (np.eye(2)[None] - np.einsum("im,jm->mij", q, q))
+        r = (bound[slip] * q).T  # P(x) - J x, as J x = 0
+        constrained = np.array([stick, stick])
+        ncp = np.abs(self.ncp(Mlam, test, bound))
+        return constrained, np.zeros_like(Mlam), ncp, size + bound, (slip, J, r)
 
 
 class ContactLaw:
@@ -218,8 +352,22 @@ class ContactLaw:
         """
         return None
 
+    def conditions(self, tdim: int) -> list[tuple[tuple[int, ...], Any]]:
+        """The law's conditions: the components each projection acts on, and the projection.
+
+        Default: one condition per component (its own scalar projection).
+        """
+        return [((k,), comp) for k, comp in enumerate(self.components(tdim))]
+
+    def symmetric(self, tdim: int) -> bool:
+        """Whether the law's Newton matrices are symmetric (no :class:`Coupling` rows)."""
+        return all(len(idx) == 1 for idx, _ in self.conditions(tdim))
+
     def ncp_arguments(self, u: Any, lams: Any, gap: Any, n: Any, c: Any, problem: Any) -> list:
-        """Each component's UFL (x_k, P_k(x_k), P_k'(x_k)), x_k = lambda_k + c (u . e_k - g_k).
+        """Each component's UFL (x_k, P_k(x), J_k), x_k = lambda_k + c (u . e_k - g_k).
+
+        J_k is row k of the derivative P'(x) of the law's projections: a tuple with an entry
+        per component (the number 0.0 where P_k does not depend on x_l).
 
         Args:
             u: The displacement.
@@ -232,16 +380,29 @@ class ContactLaw:
         Returns:
             One tuple per component, normal first.
         """
-        comps = self.components(len(n))
-        out = []
+        tdim = len(n)
+        comps = self.components(tdim)
         data = self.bound_expr(problem, extract_x(n)) if len(comps) > 1 else None
-        bound = None
-        for k, (comp, lam) in enumerate(zip(comps, lams, strict=True)):
-            x = lam + c * (ufl.dot(u, comp.direction(n)) - comp.offset(gap))
-            if k == 1:
-                bound = self.bound(data, out[0][0])
-            out.append((x, comp.projection(x, bound), comp.derivative(x, bound)))
-        return out
+        xs = [
+            lam + c * (ufl.dot(u, comp.direction(n)) - comp.offset(gap))
+            for comp, lam in zip(comps, lams, strict=True)
+        ]
+        P: list[Any] = [None] * len(comps)
+        J: list[list[Any]] = [[0.0] * len(comps) for _ in comps]
+        for idx, cond in self.conditions(tdim):
+            bound = None if idx[0] == 0 else self.bound(data, xs[0])
+            if len(idx) == 1:
+                k = idx[0]
+                P[k], J[k][k] = cond.projection(xs[k], bound), cond.derivative(xs[k], bound)
+                continue
+            group = [xs[k] for k in idx]
+            for a, (p, row) in enumerate(
+                zip(cond.projection(group, bound), cond.derivative(group, bound), strict=True)
+            ):
+                P[idx[a]] = p
+                for b, entry in enumerate(row):
+                    J[idx[a]][idx[b]] = entry
+        return [(x, p, tuple(row)) for x, p, row in zip(xs, P, J, strict=True)]
 
     def check(self, problem: Any) -> ContactLaw:
         """Validate the law's data against ``problem``; returns the law (ValueError else)."""
@@ -284,19 +445,19 @@ class Tresca(ContactLaw):
         return f"Tresca({self.s!r})"
 
     def components(self, tdim: int) -> tuple[Component, ...]:
-        """See the base class."""
-        if tdim != 2:
-            raise NotImplementedError(
-                "Tresca friction is implemented for 2D problems (plane strain/stress); in 3D "
-                "the tangential traction is a vector in the facet's tangent plane, not yet "
-                "supported"
-            )
-        return (Normal(), Tangential())
+        """See the base class: in 3D the two coordinates of lambda_t in the tangent basis."""
+        if tdim == 2:
+            return (Normal(), Tangential())
+        return (Normal(), Tangential(0), Tangential(1))
+
+    def conditions(self, tdim: int) -> list[tuple[tuple[int, ...], Any]]:
+        """See the base class: in 3D the ball projection acts on both tangential rows."""
+        if tdim == 2:
+            return super().conditions(tdim)
+        return [((0,), Normal()), ((1, 2), TangentialBall())]
 
     def check(self, problem: Any) -> Tresca:
         """Tags of a per-tag threshold are the contact tags; a callable returns a scalar."""
-        if problem.mesh.topology.dim != 2:
-            self.components(problem.mesh.topology.dim)
         values = self.s.items() if isinstance(self.s, Mapping) else [(None, self.s)]
         if isinstance(self.s, Mapping):
             keys = set(self.s)
@@ -329,6 +490,31 @@ class Tresca(ContactLaw):
     def row_bound(self, data: np.ndarray | None, active: np.ndarray) -> np.ndarray | None:
         """The integrated threshold (M s)_i on every row."""
         return data
+
+
+def tangent_basis(n: Any) -> tuple[Any, Any]:
+    """An orthonormal basis (t_1, t_2) of the plane normal to the unit vector n (3D, UFL).
+
+    t_1 is the unit projection of e_1 onto that plane (of e_2 where |n_1| >= 0.9, so that the
+    projection is not short) and t_2 = n x t_1; (t_1, t_2, n) is right-handed. On a flat face
+    the basis is constant; the switch between e_1 and e_2 is a jump of the basis where the
+    normal crosses |n_1| = 0.9, so a contact zone should not straddle it (a face with normal
+    +-e_1 and one with |n_1| < 0.9 are each fine).
+    """
+    use_e1 = ufl.lt(abs(n[0]), 0.9)
+    a = ufl.as_vector((ufl.conditional(use_e1, 1.0, 0.0), ufl.conditional(use_e1, 0.0, 1.0), 0.0))
+    t1 = a - ufl.dot(a, n) * n
+    t1 = t1 / ufl.sqrt(ufl.dot(t1, t1))
+    return t1, ufl.cross(n, t1)
+
+
+def multiplier_names(components: tuple, name: str) -> list[str]:
+    """The names of the functions of the law's multipliers: name, name_t or name_t1, name_t2."""
+    out = [name]
+    for comp in components[1:]:
+        axis = getattr(comp, "axis", None)
+        out.append(f"{name}_t" if axis is None else f"{name}_t{axis + 1}")
+    return out
 
 
 def extract_x(n: Any) -> Any:

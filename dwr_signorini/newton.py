@@ -30,16 +30,17 @@ from typing import Any
 from mpi4py import MPI
 
 import numpy as np
-from dolfinx import fem
+import ufl
+from dolfinx import fem, la
 
 from .algebra import check_ncp_scale
+from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
 from .linalg import (
     LOOSE_RTOL,
     METHODS,
     SCHUR_KRYLOV_OPTIONS,
     SCHUR_MAX_MULTIPLIERS,
-    SYSTEMS,
     DenseSchurComplement,
     KrylovSchurComplement,
     LinearSolveError,
@@ -52,6 +53,7 @@ from .linalg import (
     iterative_petsc_options,
     mumps_failure,
     null_pivots,
+    system_class,
 )
 from .semismooth import ConvergenceError, NewtonLoop
 from .spaces import Discretization
@@ -102,7 +104,11 @@ class Solution(Releasable):
         method: The linear solver of the Newton steps that was used (``"block"``,
             ``"schur"``).
         lam_t: With friction, the tangential traction lambda_t (DG0 on the macro contact
-            facets, along t = (-n_2, n_1) in 2D); None without.
+            facets): in 2D its value along t = (-n_2, n_1), in 3D the traction vector
+            (gdim components, the facet means of lambda_t1 t_1 + lambda_t2 t_2); None without.
+        tangential: With friction, the tangential multipliers of the law: (lam_t,) in 2D,
+            (lam_t1, lam_t2) in 3D, the coordinates in the tangent basis
+            (:func:`~dwr_signorini.laws.tangent_basis`); () without.
         stick, slip: With friction, the macro contact facets in contact that stick
             (``|lambda_t| < s``) and that slip (owned rows); None without.
     """
@@ -120,11 +126,12 @@ class Solution(Releasable):
     lam_t: fem.Function | None = None
     stick: np.ndarray | None = None
     slip: np.ndarray | None = None
+    tangential: tuple[fem.Function, ...] = ()
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
-        """The contact law's multipliers: (lam,) or (lam, lam_t)."""
-        return (self.lam,) if self.lam_t is None else (self.lam, self.lam_t)
+        """The contact law's multipliers: (lam,), (lam, lam_t) or (lam, lam_t1, lam_t2)."""
+        return (self.lam, *self.tangential)
 
     @property
     def num_stick(self) -> int | None:
@@ -161,13 +168,14 @@ class Solution(Releasable):
 
         Args:
             values: The owned multiplier rows, laid out as the Newton system's.
-            name: The name of the first function; the next is ``name + "_t"``.
+            name: The name of the first function; the next are ``name`` and the tangential
+                suffixes (``_t``; ``_t1``, ``_t2`` in 3D).
 
         Returns:
             The functions, normal first.
         """
         parts = self.system.algebra.components_of(values)
-        names = (name, name + "_t")
+        names = multiplier_names(self.system.algebra.components, name)
         return tuple(self.multiplier_function(p, names[k]) for k, p in enumerate(parts))
 
     def multiplier_function(self, values: Any, name: str) -> fem.Function:
@@ -337,6 +345,7 @@ def solve(
                 "initial_guess must be functions on this discretisation's V and Q "
                 "(transfer them with dwr_signorini.adapt.transfer_solution)"
             )
+    symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
     if method is None:
         method = (
             "block"
@@ -348,10 +357,11 @@ def solve(
                 disc.num_contact_elements
                 * len(disc.problem.law.components(disc.mesh.topology.dim)),
                 cold_start=initial_guess is None,
+                symmetric=symmetric,
             )
         )
     try:
-        system = SYSTEMS[method](
+        system = system_class(method, symmetric)(
             disc,
             petsc_options,
             prefix=petsc_options_prefix,
@@ -392,8 +402,8 @@ def _semismooth_newton(
             wanted, free = loop.measure(it, u, lam_owned)
             if loop.finished(it):
                 break
-            new, new_free = loop.next_set(it, wanted, free)
-            loop.linear_solve(it, new, new_free)
+            new, new_free, couplings = loop.next_set(it, wanted, free)
+            loop.linear_solve(it, new, new_free, couplings)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):
                 loop.history[-1]["nonfinite"] = True
@@ -428,8 +438,8 @@ def _initial_iterate(
     """
     disc = system.disc
     u = fem.Function(disc.V, name="u")
-    names = ("lambda", "lambda_t")
-    lams = [fem.Function(disc.Q, name=names[k]) for k in range(len(system.algebra.components))]
+    names = multiplier_names(system.algebra.components, "lambda")
+    lams = [fem.Function(disc.Q, name=name) for name in names]
     if initial_guess is not None:
         u.x.array[:] = initial_guess[0].x.array
         for f, guess in zip(lams, initial_guess[1:], strict=False):
@@ -446,9 +456,17 @@ def _solution(
 ) -> Solution:
     """The :class:`Solution` of the converged loop."""
     comm = system.disc.comm
-    sets = system.algebra.components_of(system.active)
-    free = system.algebra.components_of(system.free)
-    stick = sets[1] if len(sets) > 1 else None
+    algebra = system.algebra
+    sets = algebra.components_of(system.active)
+    free = algebra.components_of(system.free)
+    stick = slip = lam_t = None
+    if len(sets) > 1:
+        coupled = np.zeros(len(system.active), dtype=bool)
+        for cp in getattr(system, "couplings", ()):
+            coupled[cp.rows.ravel()] = True
+        moving = (free[1] != 0.0) | algebra.components_of(coupled)[1]
+        stick, slip = sets[1] & sets[0], ~sets[1] & sets[0] & moving
+        lam_t = lams[1] if len(lams) == 2 else traction_vector(system.disc, lams[1:])
     return Solution(
         u=u,
         lam=lams[0],
@@ -457,10 +475,38 @@ def _solution(
         history=history,
         disc=system.disc,
         system=system,
-        ncp_scale=system.algebra.ncp_scale,
+        ncp_scale=algebra.ncp_scale,
         method="schur" if isinstance(system, SchurNewtonSystem) else "block",
         num_active=comm.allreduce(int(sets[0].sum()), op=MPI.SUM),
-        lam_t=lams[1] if len(lams) > 1 else None,
-        stick=None if stick is None else stick & sets[0],
-        slip=None if stick is None else ~stick & sets[0] & (free[1] != 0.0),
+        lam_t=lam_t,
+        stick=stick,
+        slip=slip,
+        tangential=tuple(lams[1:]),
     )
+
+
+def traction_vector(disc: Discretization, tangential: list[fem.Function]) -> fem.Function:
+    """The tangential traction lambda_t1 t_1 + lambda_t2 t_2 (3D) as facet means, vector DG0.
+
+    Args:
+        disc: The discretisation.
+        tangential: (lambda_t1, lambda_t2) on Lambda_H.
+
+    Returns:
+        A DG0 function with gdim components on Sigma_H, named ``lambda_t``.
+    """
+    m = disc.m
+    Qv = fem.functionspace(disc.Q.mesh, ("DG", 0, (disc.mesh.geometry.dim,)))
+    mu = ufl.TestFunction(Qv)
+    t = tangent_basis(m.n)
+    traction = sum(f * t_k for f, t_k in zip(tangential, t, strict=True))
+    b = fem.assemble_vector(disc.form(ufl.inner(traction, mu) * m.ds_contact))
+    M = fem.assemble_vector(disc.form(ufl.inner(ufl.as_vector([1.0] * Qv.num_sub_spaces), mu)
+                                      * m.ds_contact))
+    for vec in (b, M):
+        vec.scatter_reverse(la.InsertMode.add)
+    out = fem.Function(Qv, name="lambda_t")
+    n = Qv.dofmap.index_map.size_local * Qv.dofmap.index_map_bs
+    out.x.array[:n] = b.array[:n] / M.array[:n]
+    out.x.scatter_forward()
+    return out

@@ -175,18 +175,25 @@ def dual_residual(
     ``J'(w_h)(v, mu) - a(v, y_h) + sum_k [b_k(xi_k, v) - (mu_k, y_h . e_k) - c_k(xi_k, mu_k)]``
     with ``b_k(xi, v) = int c chi_k xi v . e_k``, ``c_k(xi, mu) = int (1 - chi_k) xi mu`` and
     chi_k = P_k' at w_h (the pointwise chi_h of the paper for the normal component, the stick
-    indicator for the tangential one).
+    indicator for the tangential one). Where a projection acts on several components (Tresca's
+    ball in 3D) its derivative J is a matrix, chi_k = J_kk, and b_k, c_k gain
+    ``int c xi_k J_kj v . e_j`` and ``-int xi_k J_kj mu_j`` for j != k.
     """
     problem, m = sol.disc.problem, sol.disc.m
     components = problem.law.components(m.mesh.topology.dim)
     terms = ncp_terms(sol, sol.u, sol.multipliers, c)
     mus = _tuple(mu)
+    directions = [comp.direction(m.n) for comp in components]
     form = -problem.elastic_form(v, z.y, m.dx)
-    for comp, (_, _, chi), xi, mu_k in zip(components, terms, z.multipliers, mus, strict=True):
-        e = comp.direction(m.n)
-        form += c * xi * chi * ufl.dot(v, e) * m.ds_contact
-        form -= mu_k * ufl.dot(z.y, e) * m.ds_contact
+    for k, ((_, _, J_k), xi, mu_k) in enumerate(zip(terms, z.multipliers, mus, strict=True)):
+        # b_k(xi, v) = (c xi_k, sum_l J_kl v . e_l), c_k(xi, mu) = (xi_k, mu_k - sum_l J_kl mu_l)
+        chi = J_k[k]
+        form += c * xi * chi * ufl.dot(v, directions[k]) * m.ds_contact
+        form -= mu_k * ufl.dot(z.y, directions[k]) * m.ds_contact
         form -= xi * (1.0 - chi) * mu_k * m.ds_contact
+        for j, (J_kj, e_j, mu_j) in enumerate(zip(J_k, directions, mus, strict=True)):
+            if j != k and _nonzero(J_kj):  # the coupling of a projection onto a ball
+                form += (c * xi * J_kj * ufl.dot(v, e_j) + xi * J_kj * mu_j) * m.ds_contact
     dJ = goal.directional(v, *mus)
     return form if dJ is None else dJ + form
 
@@ -220,6 +227,15 @@ def active_set_remainder(
     terms_h = ncp_terms(sol, sol.u, sol.multipliers, c)
     terms_plus = ncp_terms(sol, u_plus, lam_plus, c)
     for k in range(1, len(xi_plus)):
-        (x_h, P_h, _), (x_p, P_p, D_p) = terms_h[k], terms_plus[k]
-        form -= xi_plus[k] * (P_h - P_p - D_p * (x_h - x_p)) * m.ds_contact
+        (_, P_h, _), (_, P_p, J_p) = terms_h[k], terms_plus[k]
+        expansion = P_h - P_p
+        for j, J_kj in enumerate(J_p):
+            if _nonzero(J_kj):
+                expansion -= J_kj * (terms_h[j][0] - terms_plus[j][0])
+        form -= xi_plus[k] * expansion * m.ds_contact
     return form
+
+
+def _nonzero(entry: Any) -> bool:
+    """Whether an entry of a derivative row is not the number 0 (an uncoupled pair)."""
+    return not (isinstance(entry, float) and entry == 0.0)

@@ -21,6 +21,7 @@ from dolfinx import fem
 
 from .algebra import distributed_norm
 from .collective import CollectiveError, collective
+from .laws import Coupling
 from .linalg import LinearSolveError, NewtonLinearSystem, mumps_failure
 
 __all__ = ["ConvergenceError", "NewtonLoop"]
@@ -66,8 +67,12 @@ class NewtonLoop:
     """The semi-smooth Newton method's bookkeeping: residuals, history, sets, safeguards.
 
     The sets of a step are the constrained rows of each component of the contact law (active,
-    stick) and the multiplier values on the free ones (0 inactive, +-s slip), from
-    :meth:`~dwr_signorini.algebra.ContactAlgebra.newton_sets` at the previous iterate.
+    stick), the multiplier values on the free ones (0 inactive, +-s slip) and the coupled rows
+    of a projection onto a ball (3D slip, :class:`~dwr_signorini.laws.Coupling`), from
+    :meth:`~dwr_signorini.algebra.ContactAlgebra.newton_sets` at the previous iterate. On the
+    coupled rows the step is that of a smooth Newton method: a coupled row counts as changed
+    while its NCP residual is above ``rtol`` of its size, and a step whose sets are those of
+    the step before is not cycling.
     """
 
     def __init__(self, system: NewtonLinearSystem, rtol: float, max_iterations: int) -> None:
@@ -82,6 +87,8 @@ class NewtonLoop:
         self.seen: dict[tuple[bytes, ...], int] = {}
         self.previous: np.ndarray | None = None
         self.previous_free: np.ndarray | None = None
+        self.couplings: list[Coupling] = []
+        self.last_key: tuple[bytes, ...] | None = None
         self.safeguard_since: int | None = None
         self.violated: np.ndarray | None = None
         self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
@@ -102,22 +109,24 @@ class NewtonLoop:
         system, comm = self.system, self.comm
         u_vec = u.x.petsc_vec
         u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
-        wanted, free, ncp, size = system.algebra.newton_sets(u_vec, lam, u_max)
+        wanted, free, ncp, size, self.couplings = system.algebra.newton_sets(u_vec, lam, u_max)
+        relative = np.divide(ncp, size, out=np.zeros_like(ncp), where=size > 0)
         if self.previous is None:
             violated = np.ones_like(wanted)
         else:
             violated = (wanted != self.previous) | (
                 ~wanted & ~self.previous & (free != self.previous_free)
             )
+        for coupling in self.couplings:
+            rows = coupling.rows.ravel()
+            violated[rows] |= relative[rows] > self.rtol
         self.violated = violated
         self.lam_vec.array_w[:] = lam
         system.NT.mult(self.lam_vec, self.nt_lam)
         norm_Ku = self.norm_K * distributed_norm(comm, u.x.array[: system.n_u])
         scale_eq = max(self.norm_f, self.nt_lam.norm(), norm_Ku, 1e-300)
         res_eq = system.algebra.equilibrium_residual(u_vec, lam) / scale_eq
-        local_ncp = np.max(
-            np.divide(ncp, size, out=np.zeros_like(ncp), where=size > 0), initial=0.0
-        )
+        local_ncp = np.max(relative, initial=0.0)
         rel_ncp = comm.allreduce(float(local_ncp), op=MPI.MAX)
         num_changed = comm.allreduce(int(violated.sum()), op=MPI.SUM)
         record = {
@@ -175,15 +184,20 @@ class NewtonLoop:
 
     def next_set(
         self, it: int, wanted: np.ndarray, free: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The sets of the next step: the rule's, with the cycling safeguard (see :func:`solve`)."""
-        comm = self.comm
+    ) -> tuple[np.ndarray, np.ndarray, list[Coupling]]:
+        """The sets of the next step: the rule's, with the cycling safeguard (see :func:`solve`).
+
+        Returns:
+            The constrained rows, the free values and the coupled facets whose rows the step
+            neither constrains nor frees.
+        """
         if self.resolve:
             new, new_free = self.previous, self.previous_free
         else:
             new, new_free = wanted, free
-        key = _global_key(comm, new, new_free > 0, new_free < 0)
-        if key in self.seen and not self.resolve:
+        key = self._key(new, new_free)
+        repeated = key in self.seen and key != self.last_key
+        if repeated and not self.resolve:
             if self.safeguard_since is not None:
                 raise ConvergenceError(
                     f"active-set cycling: the set of step {it} repeats step {self.seen[key]} "
@@ -201,11 +215,20 @@ class NewtonLoop:
             first = self._least_index(self.violated)
             new = np.where(first, wanted, self.previous)
             new_free = np.where(first, free, self.previous_free)
-            key = _global_key(comm, new, new_free > 0, new_free < 0)
+            key = self._key(new, new_free)
             self.history[-1]["num_active"] = self._count(new, 0)
             self.history[-1]["safeguard"] = True
         self.seen[key] = it
-        return new, new_free
+        self.last_key = key
+        couplings = [c.restricted(~new[c.rows].any(axis=1)) for c in self.couplings]
+        return new, new_free, couplings
+
+    def _key(self, new: np.ndarray, free: np.ndarray) -> tuple[bytes, ...]:
+        """The global sets of a step as a key: constrained, free > 0, free < 0, coupled."""
+        coupled = np.zeros_like(new)
+        for c in self.couplings:
+            coupled |= c.mask(len(new))
+        return _global_key(self.comm, new, free > 0, free < 0, coupled & ~new)
 
     def _least_index(self, mask: np.ndarray) -> np.ndarray:
         """Only the set entry with the smallest global number (on its owning rank).
@@ -226,14 +249,16 @@ class NewtonLoop:
             out[local[0]] = True
         return out
 
-    def linear_solve(self, it: int, new: np.ndarray, free: np.ndarray) -> None:
+    def linear_solve(
+        self, it: int, new: np.ndarray, free: np.ndarray, couplings: list[Coupling] | None = None
+    ) -> None:
         """The linear system of the step's sets, its failures as :class:`ConvergenceError`."""
         system, history = self.system, self.history
         try:
             # A failure that one rank sees first (after the solve's last collective) is
             # raised on every rank (dwr_signorini.collective).
             with collective(self.comm, f"Newton step {it}: the linear solve"):
-                system.solve_active(new, free)
+                system.solve_active(new, free, couplings)
         except (LinearSolveError, PETSc.Error, np.linalg.LinAlgError) as err:
             raise ConvergenceError(
                 f"Newton step {it}: linear solve failed ({_failure_name(system, err)}); "

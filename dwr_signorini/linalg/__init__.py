@@ -5,11 +5,14 @@
 * :mod:`~dwr_signorini.linalg.nullspace`: rigid body modes for algebraic multigrid;
 * :mod:`~dwr_signorini.linalg.base`: what every Newton system shares;
 * :mod:`~dwr_signorini.linalg.block`: the block Newton matrix by LDL^T (``method="block"``);
-* :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``).
+* :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``);
+* :mod:`~dwr_signorini.linalg.coupled`: the nonsymmetric block matrix by LU (``method="block"``
+  for a law with coupled rows, Tresca friction in 3D).
 """
 
 from .base import NewtonLinearSystem
 from .block import LinearSolveError, NewtonSystem
+from .coupled import CoupledNewtonSystem
 from .mumps import mumps_failure, mumps_inverse_entries, null_pivots
 from .options import (
     LOOSE_RTOL,
@@ -32,6 +35,24 @@ METHODS = ("block", "schur")
 #: The Newton system of each method.
 SYSTEMS: dict[str, type[NewtonLinearSystem]] = {"block": NewtonSystem, "schur": SchurNewtonSystem}
 
+
+def system_class(method: str, symmetric: bool = True) -> type[NewtonLinearSystem]:
+    """The Newton system of ``method`` for a law whose Newton matrices are (not) symmetric.
+
+    Raises:
+        ValueError: ``method="schur"`` for a law with coupled rows (its elimination of u needs
+            the symmetric S = N K^-1 N^T on constrained rows).
+    """
+    if symmetric:
+        return SYSTEMS[method]
+    if method == "schur":
+        raise ValueError(
+            "method='schur' solves symmetric Newton matrices; the Newton matrix of Tresca "
+            "friction in 3D is not symmetric on slipping facets: use method='block' (LU)"
+        )
+    return CoupledNewtonSystem
+
+
 #: The rule of :func:`choose_method`: the dense Schur path in 3D from this many DoFs ...
 AUTO_SCHUR_MIN_DOFS = 100_000
 #: ... with at most this many multipliers (S costs 8 n_lam^2 bytes and n_lam columns of K^-1).
@@ -41,7 +62,8 @@ AUTO_SCHUR_COLD_MIN_DOFS = 20_000
 
 
 def choose_method(
-    tdim: int, num_dofs: int, num_multipliers: int, *, cold_start: bool = False
+    tdim: int, num_dofs: int, num_multipliers: int, *, cold_start: bool = False,
+    symmetric: bool = True,
 ) -> str:
     """The linear solver of the Newton steps when the user gives neither method nor options.
 
@@ -63,10 +85,14 @@ def choose_method(
         num_dofs: The number of displacement DoFs (global).
         num_multipliers: The number of contact multipliers (global).
         cold_start: Whether the Newton method starts from zero (no initial guess).
+        symmetric: Whether the law's Newton matrices are symmetric (else only ``"block"``
+            serves, :func:`system_class`).
 
     Returns:
         ``"schur"`` or ``"block"``.
     """
+    if not symmetric:
+        return "block"
     few = num_multipliers <= AUTO_SCHUR_MAX_MULTIPLIERS
     if tdim == 3 and num_dofs >= AUTO_SCHUR_MIN_DOFS and few:
         return "schur"
@@ -83,6 +109,7 @@ __all__ = [
     "SCHUR_KRYLOV_OPTIONS",
     "SCHUR_MAX_MULTIPLIERS",
     "SYSTEMS",
+    "CoupledNewtonSystem",
     "DenseSchurComplement",
     "KrylovSchurComplement",
     "LinearSolveError",
@@ -97,4 +124,5 @@ __all__ = [
     "mumps_failure",
     "mumps_inverse_entries",
     "null_pivots",
+    "system_class",
 ]

@@ -90,9 +90,8 @@ class NewtonLinearSystem:
         self.solved = False
         try:  # on any failure, what exists so far is destroyed and its options removed
             self.algebra = ContactAlgebra(disc, V, ncp_scale, compile_options)
-            self._scope = OptionsScope(
-                self.prefix, _defaults_for(disc.mesh.topology.dim, petsc_options), petsc_options
-            )
+            defaults = self.default_options(_defaults_for(disc.mesh.topology.dim, petsc_options))
+            self._scope = OptionsScope(self.prefix, defaults, petsc_options)
             self.options = self._scope.options
             self.ksp = PETSc.KSP().create(disc.comm)
             self._scope.apply(self.ksp)
@@ -104,6 +103,11 @@ class NewtonLinearSystem:
         except BaseException:
             self.destroy()
             raise
+
+    @staticmethod
+    def default_options(defaults: dict[str, Any]) -> dict[str, Any]:
+        """The default options of this kind of system, from the package's defaults."""
+        return defaults
 
     def _setup(self) -> None:
         """Set up the linear solver (the subclasses'); on failure everything is destroyed."""
@@ -182,15 +186,28 @@ class NewtonLinearSystem:
         """
         return False
 
-    def solve_active(self, active: np.ndarray, free: np.ndarray | None = None) -> None:
+    def solve_active(
+        self, active: np.ndarray, free: np.ndarray | None = None, couplings: Any = None
+    ) -> None:
         """One Newton step for the active set ``active`` (owned rows) into :attr:`x`.
 
         Args:
             active: The constrained rows (active, stick): (B u)_i = g_i there.
             free: The multiplier's values on the other rows (0 where inactive, +-s where a
                 frictional law slips); None: all 0.
+            couplings: Coupled facets (:class:`~dwr_signorini.laws.Coupling`, a law whose
+                Newton matrix is not symmetric): only
+                :class:`~dwr_signorini.linalg.coupled.CoupledNewtonSystem` takes them.
         """
         raise NotImplementedError
+
+    def _check_uncoupled(self, couplings: Any) -> None:
+        """ValueError if ``couplings`` has a coupled facet: the symmetric paths have none."""
+        if any(len(c.rows) for c in couplings or ()):
+            raise ValueError(
+                f"{type(self).__name__} solves symmetric Newton matrices; coupled rows (Tresca "
+                "friction in 3D) need CoupledNewtonSystem (method='block')"
+            )
 
     def _set_free(self, active: np.ndarray, free: np.ndarray | None) -> PETSc.Vec | None:
         """Record the free values; B_I^T free_I, their force on the displacement rows, or None.

@@ -25,6 +25,7 @@ problem after them, then cost a few solves instead of a factorisation.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -172,7 +173,9 @@ class NewtonSystem(NewtonLinearSystem):
             vec.destroy()
         return A
 
-    def solve_active(self, active: np.ndarray, free: np.ndarray | None = None) -> None:
+    def solve_active(
+        self, active: np.ndarray, free: np.ndarray | None = None, couplings: Any = None
+    ) -> None:
         """One Newton step: solve the linear system of active set ``active`` into :attr:`x`.
 
         A x = b with b = [f; -g_A; M_I free_I], as A_s x = L^-1 b = [f - B_I^T free_I; g_A;
@@ -182,6 +185,7 @@ class NewtonSystem(NewtonLinearSystem):
             numpy.linalg.LinAlgError: MUMPS found null pivots (a singular Newton matrix).
             LinearSolveError: The solve failed.
         """
+        self._check_uncoupled(couplings)
         with timed("assemble"):
             self.A = self.newton_matrix(active, out=self.A)
             self.active = active.copy()

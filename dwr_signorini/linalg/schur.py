@@ -472,11 +472,14 @@ class SchurNewtonSystem(NewtonLinearSystem):
         """
         return self.schur.set_loose(loose)
 
-    def solve_active(self, active: np.ndarray, free: np.ndarray | None = None) -> None:
+    def solve_active(
+        self, active: np.ndarray, free: np.ndarray | None = None, couplings: Any = None
+    ) -> None:
         """One Newton step: lam_A from S_AA, then u with the solver of K, into :attr:`x`.
 
         With free values (friction) the load is f - B_I^T free_I, and lam_I = free_I.
         """
+        self._check_uncoupled(couplings)
         with timed("newton solve"):
             self.schur.set_active(active)
             guess = np.where(active, self.split(self.x)[1], 0.0) if self.solved else None

@@ -1,0 +1,214 @@
+"""The Newton step of a law with coupled rows (3D Tresca friction): the block matrix by LU.
+
+Where a law's projection acts on several multipliers at once (the ball of Tresca's law in
+3D, :class:`~dwr_signorini.laws.TangentialBall`), the generalised derivative J of the NCP on a
+slipping facet is a full block, and the Newton step (eq. 20 linearised) reads
+
+    [ K      N^T ] [u  ]   [ f ]
+    [ W N    G   ] [lam] = [ h ]
+
+with, per row of the multipliers,
+
+* constrained (active, stick): W = -1, G = 0, h = -g (the rows of the symmetric paths);
+* free (inactive): W = 0, G = M, h = M free;
+* coupled facet f of the components k, l (:class:`~dwr_signorini.laws.Coupling`):
+  W_kl = -c_f J_kl, G_kl = (delta_kl - J_kl) M_f, h_k = r_k - c_f sum_l J_kl g_l.
+
+J = alpha (I - q q^T) on a slipping facet is symmetric, but its rows multiply c N and its
+columns meet N^T: the matrix is not symmetric, and it is factored by LU (MUMPS, the default
+``pc_type="lu"`` of this system). The dual problem A^T z = r is solved with the same factors
+(``KSPSolveTranspose``); the constrained rows keep the scaling of the symmetric paths, so that
+:func:`~dwr_signorini.dual.solve_dual` maps the dual multipliers alike (xi = xi^(1) / c on the
+constrained rows), and the coupled rows are those of the NCP itself, whose dual multiplier is
+xi (the form b_h carries c, :mod:`dwr_signorini.residuals`).
+
+The block matrix is assembled per step from K, N^T and the rows W N, G (scipy on the owned
+rows), so its pattern follows the step's sets; each step is a new factorisation.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import scipy.sparse
+
+from ..laws import Coupling
+from ..timing import timed
+from .base import NewtonLinearSystem
+from .block import MULTIGRID, LinearSolveError
+from .mumps import mumps_failure, null_pivots, set_up
+from .schur import owned_rows
+
+__all__ = ["CoupledNewtonSystem"]
+
+
+class CoupledNewtonSystem(NewtonLinearSystem):
+    """The Newton steps of a law with coupled rows, by LU of the block matrix (module docstring).
+
+    Args:
+        disc, petsc_options, V, kwargs: See
+            :class:`~dwr_signorini.linalg.base.NewtonLinearSystem`; the default solver is
+            MUMPS's LU.
+
+    Attributes:
+        A: The Newton matrix of the last step (None before the first).
+        couplings: The coupled facets of the last step.
+
+    Raises:
+        ValueError: ``pc_type`` a Cholesky factorisation or a multigrid preconditioner.
+    """
+
+    _petsc_objects = (*NewtonLinearSystem._petsc_objects, "A", "b")
+
+    @staticmethod
+    def default_options(defaults: dict[str, Any]) -> dict[str, Any]:
+        """The defaults with LU where they factor by Cholesky (the matrix is not symmetric)."""
+        if defaults.get("pc_type") == "cholesky":
+            defaults = {**defaults, "pc_type": "lu"}
+        return defaults
+
+    def _setup(self) -> None:
+        """Check the PC; the owned rows of N for the products W N."""
+        pc_type = self.ksp.getPC().getType()
+        if pc_type == "cholesky" or pc_type in MULTIGRID:
+            raise ValueError(
+                f"pc_type {pc_type!r}: the Newton matrix of this contact law (Tresca friction "
+                "in 3D) is not symmetric and has a zero multiplier block where facets are "
+                "constrained; factor it by LU (pc_type='lu', the default)"
+            )
+        self.A: PETSc.Mat | None = None
+        self.couplings: list[Coupling] = []
+        self.factorizations = self.reused = 0
+        self._N = owned_rows(self.N).tocsr()
+        self._lo = self.N.getOwnershipRange()[0]
+        self.b = self.x.duplicate()
+
+    def _blocks(
+        self, active: np.ndarray, couplings: list[Coupling]
+    ) -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix, np.ndarray]:
+        """W, G (owned rows, local columns) and h of the module docstring."""
+        n, c, M, g = self.n_lam, self.c_n, self.M.array, self.g.array
+        coupled = np.zeros(n, dtype=bool)
+        w_rows, w_cols, w_vals = [np.flatnonzero(active)], [np.flatnonzero(active)], []
+        w_vals.append(-np.ones(len(w_rows[0])))
+        free = ~active
+        for cp in couplings:
+            coupled[cp.rows.ravel()] = True
+        free &= ~coupled
+        g_rows, g_cols, g_vals = [np.flatnonzero(free)], [np.flatnonzero(free)], [M[free]]
+        h = np.where(active, -g, M * self.free)
+        for cp in couplings:
+            k = cp.rows.shape[1]
+            rows = np.repeat(cp.rows, k, axis=1).ravel()
+            cols = np.tile(cp.rows, (1, k)).ravel()
+            J = cp.J.reshape(len(cp.rows), k * k)
+            w_rows.append(rows)
+            w_cols.append(cols)
+            w_vals.append((-c[cp.rows[:, :1]] * J).ravel())
+            eye = np.eye(k).ravel()[None, :]
+            g_rows.append(rows)
+            g_cols.append(cols)
+            g_vals.append(((eye - J) * M[cp.rows[:, :1]]).ravel())
+            h[cp.rows] = cp.r - c[cp.rows] * np.einsum("mkl,ml->mk", cp.J, g[cp.rows])
+        W = scipy.sparse.coo_matrix(
+            (np.concatenate(w_vals), (np.concatenate(w_rows), np.concatenate(w_cols))),
+            shape=(n, n),
+        ).tocsr()
+        G = scipy.sparse.coo_matrix(
+            (np.concatenate(g_vals), (np.concatenate(g_rows), np.concatenate(g_cols))),
+            shape=(n, n),
+        ).tocsr()
+        return W, G, h
+
+    def _petsc(self, mat: scipy.sparse.csr_matrix, cols: tuple[int, int], offset: int) -> PETSc.Mat:
+        """The owned rows ``mat`` (columns shifted by ``offset``) as a PETSc AIJ matrix."""
+        mat = mat.tocsr()
+        mat.sort_indices()
+        out = PETSc.Mat().createAIJ(
+            size=((mat.shape[0], None), cols),
+            csr=(
+                mat.indptr.astype(PETSc.IntType),
+                (mat.indices + offset).astype(PETSc.IntType),
+                mat.data,
+            ),
+            comm=self.disc.comm,
+        )
+        out.assemble()
+        return out
+
+    def newton_matrix(self, active: np.ndarray, couplings: list[Coupling]) -> PETSc.Mat:
+        """The Newton matrix [K, N^T; W N, G] of the step (module docstring); a new matrix."""
+        W, G, _ = self._blocks(active, couplings)
+        B = self._petsc(W @ self._N, self.N.getSizes()[1], 0)
+        G_mat = self._petsc(G, (self.n_lam, None), self._lo)
+        nest = PETSc.Mat().createNest([[self.K, self.NT], [B, G_mat]], comm=self.disc.comm)
+        A = PETSc.Mat()
+        nest.convert("aij", out=A)
+        for obj in (nest, B, G_mat):
+            obj.destroy()
+        return A
+
+    def solve_active(
+        self, active: np.ndarray, free: np.ndarray | None = None,
+        couplings: list[Coupling] | None = None,
+    ) -> None:
+        """One Newton step: the constrained rows, the free values and the coupled facets.
+
+        Raises:
+            numpy.linalg.LinAlgError: MUMPS found null pivots (a singular Newton matrix).
+            LinearSolveError: The solve failed.
+        """
+        couplings = list(couplings or [])
+        with timed("assemble"):
+            self.active = active.copy()
+            self.couplings = couplings
+            self.free = np.zeros(self.n_lam) if free is None else np.where(active, 0.0, free)
+            for cp in couplings:
+                self.free[cp.rows.ravel()] = 0.0
+            _, _, h = self._blocks(active, couplings)
+            self.write(self.b, self.f.array, h)
+            if self.A is not None:
+                self.A.destroy()
+            self.A = self.newton_matrix(active, couplings)
+        with timed("factorize"):
+            set_up(self.ksp, self.A)
+        self.factorizations += 1
+        count = null_pivots(self.ksp)
+        if count > 0:
+            raise np.linalg.LinAlgError(
+                f"MUMPS found {count} null pivots: the Newton matrix is singular"
+            )
+        with timed("newton solve"):
+            self.ksp.solve(self.b, self.x)
+        self._check("linear solve of the Newton step")
+        self.solved = True
+
+    def _check(self, what: str) -> None:
+        """LinearSolveError if the last solve failed (with MUMPS's reason)."""
+        reason = self.ksp.getConvergedReason()
+        if reason < 0:
+            cause = mumps_failure(self.ksp)
+            raise LinearSolveError(
+                f"{what} failed (KSP reason {reason})" + (f": {cause}" if cause else "")
+            )
+
+    def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
+        """Solve A^T z = rhs with the factors of the last step (the dual problem)."""
+        self.check_solved()
+        self.ksp.solveTranspose(rhs, z)
+        self._check("the dual solve")
+
+    def solve_forward(self, rhs: PETSc.Vec, x: PETSc.Vec) -> None:
+        """Solve A x = rhs with the factors of the last step."""
+        self.check_solved()
+        self.ksp.solve(rhs, x)
+        self._check("the solve with the Newton matrix")
+
+    @property
+    def n_lam_global(self) -> int:
+        """Multiplier rows on all ranks."""
+        return self.disc.comm.allreduce(self.n_lam, op=MPI.SUM)
