@@ -334,19 +334,6 @@ def test_four_argument_goal_on_a_frictionless_problem_is_rejected():
             ds.estimate(sol, ex.goal_friction_force())
 
 
-def test_tresca_in_3d_is_not_yet_supported():
-    msh = mesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2, ghost_mode=mesh.GhostMode.none)
-    msh.topology.create_connectivity(2, 3)
-    bottom = mesh.locate_entities_boundary(msh, 2, lambda x: np.isclose(x[2], 0.0))
-    top = mesh.locate_entities_boundary(msh, 2, lambda x: np.isclose(x[2], 1.0))
-    facets = np.concatenate([bottom, top])
-    values = np.concatenate([np.full(len(bottom), 1, np.int32), np.full(len(top), 2, np.int32)])
-    order = np.argsort(facets)
-    tags = mesh.meshtags(msh, 2, facets[order], values[order])
-    with pytest.raises(NotImplementedError, match="2D"):
-        ds.SignoriniProblem(msh, tags, contact=1, dirichlet=(2,), friction=ds.Tresca(1.0))
-
-
 def test_three_argument_goal_serves_a_frictional_problem():
     """A goal without lam_t works with friction (its derivative in lam_t is zero)."""
     with ds.solve(ex.friction_problem(MPI.COMM_SELF, nx=5, ny=3)) as sol:

@@ -1,4 +1,4 @@
-"""A frictional example: a block pressed onto a rigid cylinder and sheared (Tresca's law).
+"""A frictional example: a block pressed onto a rigid cylinder (sphere) and sheared (Tresca).
 
 The block (0, 1) x (0, 1/2) in plane strain (E = 10, nu = 0.3) lies with its bottom Gamma_C on a
 rigid cylinder of radius R, whose top touches the block at x = 1/2 (the paraboloid gap of
@@ -8,6 +8,11 @@ centre and slip towards its ends, where the pressure falls and friction cannot h
 zones of Cattaneo and Mindlin's problem, with Tresca's threshold s instead of Coulomb's
 mu lambda_n). The quantity of interest is the total friction force,
 ``J(u, lambda, lambda_t) = int_GC lambda_t ds`` (:func:`goal_friction_force`).
+
+With ``dim=3`` the block is (0, 1) x (0, 1) x (0, 1/2) on a rigid sphere of radius R touching
+its bottom at (1/2, 1/2), the top displaced by ``(shear, 0, -press)``: a stick disc in a slip
+annulus, with the slip direction turning round the annulus; the goal is the friction force
+along x, ``int_GC lambda_t . e_x ds``.
 """
 
 from __future__ import annotations
@@ -35,11 +40,17 @@ __all__ = [
 FRICTION_DEFAULTS = {"radius": 1.0, "press": 0.02, "shear": 0.01, "s": 0.2}
 
 
-def friction_gap(radius: float) -> Any:
-    """The gap to a cylinder of ``radius`` touching the bottom at x = 1/2 (a parabola)."""
+def friction_gap(radius: float, dim: int = 2) -> Any:
+    """The gap to a cylinder (2D) or sphere (3D) of ``radius`` touching the bottom's centre.
+
+    A paraboloid: ``|x' - x'_0|^2 / (2 R)`` in the bottom's coordinates x' = x (2D), (x, y) (3D).
+    """
 
     def gap(x: Any) -> Any:
-        return (x[0] - 0.5) ** 2 / (2.0 * radius)
+        out = (x[0] - 0.5) ** 2
+        if dim == 3:
+            out = out + (x[1] - 0.5) ** 2
+        return out / (2.0 * radius)
 
     return gap
 
@@ -52,35 +63,50 @@ def friction_problem(
     press: float = FRICTION_DEFAULTS["press"],
     shear: float = FRICTION_DEFAULTS["shear"],
     s: float = FRICTION_DEFAULTS["s"],
+    dim: int = 2,
 ) -> SignoriniProblem:
-    """The sheared block on a cylinder (module docstring), on an nx x ny triangle macro mesh.
+    """The sheared block on a cylinder or sphere (module docstring).
 
-    The default nx, ny give macro triangles without two edges of the same length (dolfinx's
-    refinement orders edges by length, and ties broken by round-off would refine serial and
-    parallel runs differently).
+    In 2D an nx x ny triangle macro mesh; the default nx, ny give macro triangles without two
+    edges of the same length (dolfinx's refinement orders edges by length, and ties broken by
+    round-off would refine serial and parallel runs differently). In 3D an nx x nx x ny
+    tetrahedral macro mesh.
     """
-    msh = dmesh.create_rectangle(
-        comm, [np.array([0.0, 0.0]), np.array([1.0, 0.5])], [nx, ny],
-        dmesh.CellType.triangle, ghost_mode=dmesh.GhostMode.none,
-    )
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
+    top = 0.5
+    if dim == 2:
+        msh = dmesh.create_rectangle(
+            comm, [np.array([0.0, 0.0]), np.array([1.0, top])], [nx, ny],
+            dmesh.CellType.triangle, ghost_mode=dmesh.GhostMode.none,
+        )
+    else:
+        msh = dmesh.create_box(
+            comm, [np.array([0.0, 0.0, 0.0]), np.array([1.0, 1.0, top])], [nx, nx, ny],
+            dmesh.CellType.tetrahedron, ghost_mode=dmesh.GhostMode.none,
+        )
 
     def classify(x: np.ndarray) -> np.ndarray:
         tags = np.full(x.shape[1], NEUMANN, dtype=np.int32)
-        tags[np.isclose(x[1], 0.5)] = DIRICHLET
-        tags[np.isclose(x[1], 0.0)] = CONTACT
+        tags[np.isclose(x[dim - 1], top)] = DIRICHLET
+        tags[np.isclose(x[dim - 1], 0.0)] = CONTACT
         return tags
 
+    moved = (shear, -press) if dim == 2 else (shear, 0.0, -press)
     return SignoriniProblem(
         msh, tag_exterior_facets(msh, classify), contact=CONTACT,
-        dirichlet={DIRICHLET: (shear, -press)}, E=10.0, nu=0.3,
-        gap=friction_gap(radius), friction=Tresca(s),
+        dirichlet={DIRICHLET: moved}, E=10.0, nu=0.3,
+        gap=friction_gap(radius, dim), friction=Tresca(s),
     )
 
 
 def goal_friction_force() -> Any:
-    """``goal(u, lam, m, lam_t) = int_GC lambda_t ds``, the total friction force on the body."""
+    """``goal(u, lam, m, lam_t) = int_GC lambda_t ds``, the total friction force on the body.
+
+    In 3D (lam_t the traction vector) its x component, ``int_GC lambda_t . e_x ds``.
+    """
 
     def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> ufl.Form:
-        return lam_t * m.ds_contact
+        return (lam_t if lam_t.ufl_shape == () else lam_t[0]) * m.ds_contact
 
     return goal
