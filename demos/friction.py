@@ -1,4 +1,4 @@
-# # Friction: a block pressed onto a cylinder and sheared (Tresca's law)
+# # Friction: a block pressed onto a cylinder (or sphere) and sheared (Tresca's law)
 #
 # Contact with friction adds a tangential traction $\lambda_t$ on $\Gamma_C$ and one more
 # nonlinear complementarity condition. This demo solves it with the same semi-smooth Newton
@@ -24,6 +24,14 @@
 # Tresca's threshold $s$ is given: it acts on all of $\Gamma_C$, also where the block has left
 # the cylinder (Coulomb's law, $s = \mu \lambda_n$, is the one that follows contact).
 #
+# With `--dim 3` the block $(0, 1)^2 \times (0, 1/2)$ lies on a sphere of radius $R = 4$ and its
+# top is displaced by $(\delta_t, 0, -\delta_n)$. Now $\lambda_t$ is a vector in the tangent
+# plane and $P$ is the projection onto the disc $|\lambda_t| \le s$, whose derivative on a
+# slipping facet, $(s / |x|)(I - q q^T)$ with $q = x / |x|$, couples the two tangential
+# directions: the Newton matrix is no longer symmetric and is factored by LU, and the dual
+# problem is its transpose. The goal is the friction force along $x$,
+# $\int_{\Gamma_C} \lambda_t \cdot e_x \, ds$.
+#
 # ## Quantity of interest and its error bar
 #
 # $J(u, \lambda_n, \lambda_t) = \int_{\Gamma_C} \lambda_t \, ds$, the total friction force, a
@@ -37,6 +45,7 @@
 # ```
 # python3 demos/friction.py                   # or: mpirun -n 2 python3 demos/friction.py
 # python3 demos/friction.py --levels 12 --s 0.1
+# mpirun -n 2 python3 demos/friction.py --dim 3
 # ```
 #
 # and find the tables (CSV, JSON), pictures (PNG) and fields (XDMF) in `results/friction/`.
@@ -68,7 +77,8 @@ def print0(*args: object) -> None:
 
 # ## Options
 #
-# The defaults finish in about a minute, serial or on two processes.
+# The defaults finish in about a minute, serial or on two processes (2D), and in a few
+# minutes in 3D.
 
 # +
 defaults = ex.FRICTION_DEFAULTS
@@ -77,33 +87,54 @@ parser = argparse.ArgumentParser(
     "refinement for the friction force.",
     formatter_class=argparse.ArgumentDefaultsHelpFormatter,
 )
-parser.add_argument("--levels", type=int, default=9, help="levels (solves) per run")
+parser.add_argument("--dim", type=int, choices=(2, 3), default=2,
+                    help="2: a cylinder under the block (plane strain); 3: a sphere")
+parser.add_argument("--levels", type=int, default=None,
+                    help="levels (solves) per run (default 9 in 2D, 5 in 3D)")
 parser.add_argument("--refinement", choices=("adaptive", "uniform", "both"), default="both")
-parser.add_argument("--s", type=float, default=defaults["s"], help="Tresca's slip threshold")
+parser.add_argument("--s", type=float, default=None,
+                    help="Tresca's slip threshold (default 0.2 in 2D, 0.1 in 3D)")
 parser.add_argument("--shear", type=float, default=defaults["shear"],
                     help="tangential displacement of the top")
 parser.add_argument("--press", type=float, default=defaults["press"],
                     help="normal displacement of the top (into the cylinder)")
-parser.add_argument("--fraction", type=float, default=0.2, help="marking fraction")
+parser.add_argument("--fraction", type=float, default=None,
+                    help="marking fraction (default: solve_adaptive's, 0.2 in 2D)")
+parser.add_argument("--growth", type=float, default=None,
+                    help="cell count growth per adaptive level instead of a fraction "
+                         "(default: solve_adaptive's, 2 in 3D)")
 parser.add_argument("--weights", choices=ds.WEIGHTS, default="auto",
                     help="weights of the estimator")
 parser.add_argument("--max-cells", type=int, default=400_000,
                     help="stop a run before a level with more fine cells")
 parser.add_argument("--reference", type=float, default=None,
                     help="reference value of J (default: the finest adaptive level's J_h)")
-parser.add_argument("--mesh-level", type=int, default=6, help="adaptive level whose mesh is drawn")
+parser.add_argument("--radius", type=float, default=None,
+                    help="radius of the cylinder/sphere (default 1 in 2D, 4 in 3D)")
+parser.add_argument("--mesh-level", type=int, default=None,
+                    help="adaptive level whose mesh is drawn (default 6 in 2D, the last in 3D)")
 parser.add_argument("--output", type=Path, default=Path("results/friction"))
 parser.add_argument("--no-plots", action="store_true", help="write tables and fields only")
 args = parser.parse_args([] if "ipykernel" in sys.modules else None)
+args.levels = args.levels if args.levels is not None else (9 if args.dim == 2 else 5)
+args.s = args.s if args.s is not None else (
+    defaults["s"] if args.dim == 2 else ex.FRICTION_DEFAULTS_3D["s"])
+args.radius = args.radius if args.radius is not None else (
+    defaults["radius"] if args.dim == 2 else ex.FRICTION_DEFAULTS_3D["radius"])
+args.mesh_level = args.mesh_level if args.mesh_level is not None else (
+    6 if args.dim == 2 else args.levels - 1)
 if args.levels < 2:
     parser.error(f"--levels must be at least 2, got {args.levels}")
 refinements = ("adaptive", "uniform") if args.refinement == "both" else (args.refinement,)
 out = args.output
-print0(f"Tresca friction (s = {args.s:g}) on {comm.size} process(es); output in {out}/")
+print0(f"Tresca friction (s = {args.s:g}) in {args.dim}D on {comm.size} process(es); "
+       f"output in {out}/")
 
 
 def problem() -> ds.SignoriniProblem:
-    return ex.friction_problem(comm, s=args.s, shear=args.shear, press=args.press)
+    size = {} if args.dim == 2 else {k: ex.FRICTION_DEFAULTS_3D[k] for k in ("nx", "ny")}
+    return ex.friction_problem(comm, s=args.s, shear=args.shear, press=args.press,
+                               radius=args.radius, dim=args.dim, **size)
 
 
 goal = ex.goal_friction_force()
@@ -130,7 +161,7 @@ for refinement in refinements:
 
     tic = time.perf_counter()
     results[refinement] = ds.solve_adaptive(
-        problem(), goal, refinement=refinement, fraction=args.fraction,
+        problem(), goal, refinement=refinement, fraction=args.fraction, growth=args.growth,
         max_levels=args.levels, max_cells=args.max_cells, weights=args.weights,
         output_dir=out / refinement, callback=keep_mesh,
     )
@@ -194,12 +225,16 @@ if not args.no_plots:
     plotting.plot_interval(runs, out / "interval.png", reference=reference,
                            title="the friction force J and its interval", comm=comm)
     for x, name in (("num_cells", "convergence_cells.png"), ("time", "convergence_time.png")):
-        plotting.plot_convergence(runs, out / name, x=x, reference=reference, dim=2,
+        plotting.plot_convergence(runs, out / name, x=x, reference=reference, dim=args.dim,
                                   title="error in the friction force", comm=comm)
     plotting.plot_effectivity(runs, out / "effectivity.png",
                               title="effectivity of eta (judged levels)", comm=comm)
-    plotting.plot_solution_2d(best.solution, out / "solution.png", scale=5.0,
-                              color="von_mises", title="deformed block (x5), von Mises stress")
+    if args.dim == 2:
+        plotting.plot_solution_2d(best.solution, out / "solution.png", scale=5.0,
+                                  color="von_mises", title="deformed block (x5), von Mises stress")
+    else:
+        plotting.plot_solution_3d(best.solution, out / "solution.png", scale=5.0,
+                                  title="deformed block (x5)")
     for level, snap in snapshots.items():
         plotting.plot_mesh(snap, out / f"mesh_level{level:02d}.png",
                            title=f"adaptive mesh, level {level}: "

@@ -82,6 +82,12 @@ rows in the constrained block (:mod:`dwr_signorini.dual`). The remainder R_A gai
 remainder of P_t's expansion at the reconstruction, which for P_n = max(0, .) is the normal R_A
 below. :func:`primal_residual`, :func:`dual_residual`, :func:`contact_term` and
 :func:`active_set_remainder` sum over the law's components and do not branch on the law.
+
+In 3D lambda_t has two components in the tangent basis and P_t projects onto the disc of
+radius s; its derivative J = P_t' is a 2 x 2 matrix (alpha (I - q q^T) where the facet slips),
+and the forms above hold with chi_t replaced by J: b_t(xi_t, v) = (c xi_t, J v_t),
+c_t(xi_t, mu) = (xi_t, (I - J) mu) and the remainder's P_t'(x^+) (x_h - x^+) a matrix-vector
+product (:meth:`~dwr_signorini.laws.ContactLaw.ncp_arguments` gives each component's row of J).
 """
 
 from __future__ import annotations

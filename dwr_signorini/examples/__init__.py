@@ -69,6 +69,7 @@ from .bar_2d import (
 )
 from .friction_2d import (
     FRICTION_DEFAULTS,
+    FRICTION_DEFAULTS_3D,
     friction_gap,
     friction_problem,
     goal_friction_force,
@@ -91,6 +92,7 @@ __all__ = [
     "CONTACT",
     "DIRICHLET",
     "FRICTION_DEFAULTS",
+    "FRICTION_DEFAULTS_3D",
     "NEUMANN",
     "OBSTACLE_MATERIAL",
     "CellType",

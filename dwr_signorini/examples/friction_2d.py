@@ -31,6 +31,7 @@ from ._mesh import CONTACT, DIRICHLET, NEUMANN, tag_exterior_facets
 
 __all__ = [
     "FRICTION_DEFAULTS",
+    "FRICTION_DEFAULTS_3D",
     "friction_gap",
     "friction_problem",
     "goal_friction_force",
@@ -38,6 +39,11 @@ __all__ = [
 
 #: The data of :func:`friction_problem`: cylinder radius, top displacement, Tresca threshold.
 FRICTION_DEFAULTS = {"radius": 1.0, "press": 0.02, "shear": 0.01, "s": 0.2}
+
+#: The 3D demo's sphere radius, macro mesh (nx x nx x ny) and threshold, the displacements as
+#: in 2D: the contact disc spans a few macro facets (a sphere of radius 1 would touch about one)
+#: and, with s = 0.1, a stick disc lies in a slip annulus (with s = 0.2 the disc sticks).
+FRICTION_DEFAULTS_3D = {"radius": 4.0, "nx": 6, "ny": 3, "s": 0.1}
 
 
 def friction_gap(radius: float, dim: int = 2) -> Any:

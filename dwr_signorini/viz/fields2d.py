@@ -276,10 +276,13 @@ def plot_friction(
     threshold: float | None = None,
     title: str | None = None,
 ) -> Path | None:
-    """lambda_n and lambda_t along Gamma_C (2D) with the stick and slip zones. Collective.
+    """lambda_n and lambda_t on Gamma_C with the stick and slip zones. Collective.
+
+    In 2D both tractions along Gamma_C; in 3D a map of the contact face: lambda_n in colour,
+    the stick and slip facets outlined, lambda_t as arrows.
 
     Args:
-        sol: A :class:`~dwr_signorini.Solution` of a 2D frictional problem.
+        sol: A :class:`~dwr_signorini.Solution` of a frictional problem.
         path: The PNG to write (on rank 0).
         threshold: Tresca's s, drawn as +-s, if given.
         title: Figure title.
@@ -288,15 +291,17 @@ def plot_friction(
         The path on rank 0, ``None`` on the other ranks.
 
     Raises:
-        ValueError: A frictionless or 3D solution.
+        ValueError: A frictionless solution.
     """
-    if sol.lam_t is None or sol.disc.mesh.topology.dim != 2:
-        raise ValueError("plot_friction draws the tractions of a 2D frictional solution")
+    if sol.lam_t is None:
+        raise ValueError("plot_friction draws the tractions of a frictional solution")
     data = gather_friction(sol)
     del sol
     if data is None:
         return None
     x, lam_n, lam_t, stick, slip = data
+    if lam_t.ndim == 2:
+        return _friction_map(x, lam_n, lam_t, stick, slip, path, threshold, title)
     k = int(np.argmax(np.ptp(x.reshape(-1, 3), axis=0)))
     ends = np.sort(x[:, :, k], axis=1)
     order = np.argsort(ends[:, 0])
@@ -326,4 +331,44 @@ def plot_friction(
     ax.grid(True, alpha=0.3)
     ax.set_title(title if title is not None else
                  rf"tractions on $M_C = {len(lam_n)}$ contact elements")
+    return save_figure(fig, path)
+
+
+def _friction_map(
+    x: np.ndarray, lam_n: np.ndarray, lam_t: np.ndarray, stick: np.ndarray, slip: np.ndarray,
+    path: str | os.PathLike, threshold: float | None, title: str | None,
+) -> Path:
+    """The 3D picture of :func:`plot_friction`: the contact face seen along its normal."""
+    from matplotlib.collections import PolyCollection
+    from matplotlib.lines import Line2D
+
+    pts = x.reshape(-1, 3)
+    i, j = sorted(int(a) for a in np.argsort(np.ptp(pts, axis=0))[::-1][:2])
+    polys = x[:, :, [i, j]]
+    fig = new_figure((6.4, 5.4))
+    ax = fig.add_subplot()
+    coll = PolyCollection(polys, array=lam_n, cmap="Blues", edgecolors="none")
+    ax.add_collection(coll)
+    fig.colorbar(coll, ax=ax, label=r"contact force $\lambda_{n,H}$")
+    for mask, color in ((stick, "C2"), (slip, "C1")):
+        if mask.any():
+            ax.add_collection(PolyCollection(polys[mask], facecolors="none", edgecolors=color,
+                                             linewidths=0.8))
+    mid = polys.mean(axis=1)
+    contact = stick | slip
+    if contact.any():
+        ax.quiver(mid[contact, 0], mid[contact, 1], lam_t[contact, i], lam_t[contact, j],
+                  color="C3", angles="xy", width=0.003)
+    ax.set_xlim(pts[:, i].min(), pts[:, i].max())
+    ax.set_ylim(pts[:, j].min(), pts[:, j].max())
+    ax.set_aspect("equal")
+    names = ("$x_1$", "$x_2$", "$x_3$")
+    ax.set_xlabel(names[i])
+    ax.set_ylabel(names[j])
+    handles = [Line2D([], [], color="C2", label="stick"), Line2D([], [], color="C1", label="slip"),
+               Line2D([], [], color="C3", marker=">", label=r"$\lambda_{t,H}$ (in contact)")]
+    ax.legend(handles=handles, fontsize="small", loc="upper right")
+    limit = "" if threshold is None else f", $|\\lambda_t| \\le s = {threshold:g}$"
+    ax.set_title(title if title is not None else
+                 rf"tractions on $M_C = {len(lam_n)}$ contact facets{limit}")
     return save_figure(fig, path)

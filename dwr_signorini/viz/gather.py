@@ -255,8 +255,8 @@ def gather_friction(sol: Any) -> list[np.ndarray] | None:
 
     Returns:
         On rank 0 the vertex coordinates of the macro facets, shape (facets, vertices, 3),
-        lambda_n and lambda_t on each, and whether it sticks and whether it slips (in contact);
-        ``None`` elsewhere.
+        lambda_n and lambda_t on each (in 3D the traction vector, shape (facets, 3)), and
+        whether it sticks and whether it slips (in contact); ``None`` elsewhere.
     """
     sub = sol.disc.contact_mesh
     sdim = sub.topology.dim
@@ -269,8 +269,12 @@ def gather_friction(sol: Any) -> list[np.ndarray] | None:
         out = np.zeros(n, dtype=bool)
         out[owned] = np.asarray(rows, dtype=bool)[dofs[owned]]
         sets.append(out)
+    space = sol.lam_t.function_space
+    bs = space.dofmap.index_map_bs
+    lam_t = sol.lam_t.x.array.reshape(-1, bs)[space.dofmap.list[:n, 0]]
     return _gather_arrays(
-        sub.comm, x, sol.lam.x.array[dofs].copy(), sol.lam_t.x.array[dofs].copy(), *sets
+        sub.comm, x, sol.lam.x.array[dofs].copy(), lam_t[:, 0].copy() if bs == 1 else lam_t,
+        *sets,
     )
 
 
