@@ -14,6 +14,10 @@ reference value of J obtained without any estimate:
 * ``friction``: the friction demo's problem (Tresca, ``examples.friction_problem``), goal the
   friction force, adaptive and uniform, against the finest J_h of a longer adaptive run (12
   levels, 1.6M cells, patch weights), whose last change is the uncertainty;
+* ``friction3d``: the friction demo's 3D problem (a block on a sphere, Tresca with s = 0.1,
+  ``FRICTION_DEFAULTS_3D``), goal the friction force along x, adaptive and uniform, against the
+  finest J_h of a longer adaptive run (growth 2, 8 levels), whose last change is the
+  uncertainty;
 * ``obstacle``, ``indentation8``, ``indentation12``: example 5.3 from 1 x 4 x 4 boxes and the
   3D indentation of ``reference_3d.py`` from 8 x 8 x 4 and 12 x 12 x 6 boxes, against the
   references of ``reference_3d.py`` (from J_h alone; ``reference_3d.stored_reference``).
@@ -26,6 +30,7 @@ counted as resolved, and the times of the solve and of the estimate. JSON to
 
     scripts/fenicsx python3 benchmarks/interval_coverage.py --problems analytic block bar
     scripts/fenicsx mpirun -n 2 python3 benchmarks/interval_coverage.py --problems friction
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/interval_coverage.py --problems friction3d
     scripts/fenicsx mpirun -n 2 python3 benchmarks/interval_coverage.py \\
         --problems obstacle indentation8 indentation12
     scripts/fenicsx python3 benchmarks/interval_coverage.py --tables-from \\
@@ -82,6 +87,20 @@ def _friction_reference(comm: MPI.Comm, levels: int) -> tuple[float, float]:
     return J[-1], abs(J[-1] - J[-2])
 
 
+def _friction_3d(comm: MPI.Comm) -> ds.SignoriniProblem:
+    """The friction demo's 3D problem."""
+    d = ex.FRICTION_DEFAULTS_3D
+    return ex.friction_problem(comm, nx=d["nx"], ny=d["ny"], radius=d["radius"], s=d["s"], dim=3)
+
+
+def _friction_3d_reference(comm: MPI.Comm, levels: int) -> tuple[float, float]:
+    """The finest J_h of a longer adaptive run of the 3D friction problem; its last change."""
+    with ds.solve_adaptive(_friction_3d(comm), ex.goal_friction_force(), weights="patch",
+                           max_levels=levels, verbose=True) as res:
+        J = [r.J_h for r in res.levels]
+    return J[-1], abs(J[-1] - J[-2])
+
+
 def problems(comm: MPI.Comm, quick: bool) -> dict[str, dict[str, Any]]:
     """Per problem: builder, goal, reference (a callable), levels, and whether to run uniform."""
     return {
@@ -100,6 +119,10 @@ def problems(comm: MPI.Comm, quick: bool) -> dict[str, dict[str, Any]]:
             build=lambda: ex.friction_problem(comm), goal=ex.goal_friction_force(),
             reference=lambda: _friction_reference(comm, 8 if quick else 12),
             levels=5 if quick else 8, uniform=True),
+        "friction3d": dict(
+            build=lambda: _friction_3d(comm), goal=ex.goal_friction_force(),
+            reference=lambda: _friction_3d_reference(comm, 6 if quick else 8),
+            levels=4 if quick else 6, uniform=True),
         "obstacle": dict(
             build=lambda: ex.obstacle_problem(comm, (1, 4, 4)), goal=ex.goal_obstacle(),
             reference=lambda: stored_reference("obstacle"),

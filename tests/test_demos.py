@@ -379,6 +379,27 @@ def test_friction_parallel(runs):
                       1e-9, f"friction {run} 2 processes vs serial")
 
 
+def test_friction_3d_serial_and_parallel(tmp_path):
+    """``--dim 3``: the files; the rows are the library's for the same problem (serial), and
+    2 processes give the serial rows."""
+    extra = ("--dim", "3", "--levels", "2", "--mesh-level", "1")
+    outs = {}
+    for nprocs in (1, 2):
+        outs[nprocs] = tmp_path / f"np{nprocs}"
+        _run("friction", outs[nprocs], nprocs, extra)
+    _check_files(outs[1], ["tractions.png", "interval.png", "solution.png"], FRICTION_RUNS)
+    d = ex.FRICTION_DEFAULTS_3D
+    problem = ex.friction_problem(MPI.COMM_SELF, nx=d["nx"], ny=d["ny"], radius=d["radius"],
+                                  s=d["s"], dim=3)
+    with ds.solve_adaptive(problem, ex.goal_friction_force(), max_levels=2,
+                           verbose=False) as res:
+        _compare_rows(_csv(outs[1] / "adaptive" / "adaptive.csv"), res.levels, 1e-10,
+                      "friction 3D adaptive")
+    for run in FRICTION_RUNS:
+        _compare_rows(_csv(outs[2] / run / f"{run}.csv"), _csv(outs[1] / run / f"{run}.csv"),
+                      1e-9, f"friction 3D {run} 2 processes vs serial")
+
+
 def test_cli_list(capsys):
     assert cli.main(["list"]) == 0
     text = capsys.readouterr().out

@@ -23,7 +23,10 @@ constrained rows), and the coupled rows are those of the NCP itself, whose dual 
 xi (the form b_h carries c, :mod:`dwr_signorini.residuals`).
 
 The block matrix is assembled per step from K, N^T and the rows W N, G (scipy on the owned
-rows), so its pattern follows the step's sets; each step is a new factorisation.
+rows) in one sparsity pattern for all steps: a multiplier row holds the displacement columns
+of every component's row of its facet and the multiplier columns of its facet, zeros kept. So
+the factorisation's analysis (ordering, symbolic factorisation) is done once per mesh, and
+each step is a numerical factorisation.
 """
 
 from __future__ import annotations
@@ -44,6 +47,14 @@ from .mumps import mumps_failure, null_pivots, set_up
 from .schur import owned_rows
 
 __all__ = ["CoupledNewtonSystem"]
+
+
+def _pattern(mat: scipy.sparse.csr_matrix) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
+    """A sparsity pattern (sorted CSR) and its entries' keys row * columns + column."""
+    mat = mat.tocsr()
+    mat.sort_indices()
+    rows = np.repeat(np.arange(mat.shape[0], dtype=np.int64), np.diff(mat.indptr))
+    return mat, rows * mat.shape[1] + mat.indices
 
 
 class CoupledNewtonSystem(NewtonLinearSystem):
@@ -86,6 +97,15 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         self._N = owned_rows(self.N).tocsr()
         self._lo = self.N.getOwnershipRange()[0]
         self.b = self.x.duplicate()
+        # the fixed patterns: facet blocks F (all components of a facet), and F |N|
+        n, k = self.n_lam, len(self.algebra.components)
+        n_q = self.algebra.n_q
+        rows = (np.arange(k)[:, None] * n_q + np.arange(n_q)[None, :]).T  # (n_q, k)
+        F = scipy.sparse.coo_matrix(
+            (np.ones(n_q * k * k), (np.repeat(rows, k, axis=1).ravel(),
+                                    np.tile(rows, (1, k)).ravel())), shape=(n, n)).tocsr()
+        self._G_pattern = _pattern(F)
+        self._B_pattern = _pattern(F @ abs(self._N))
 
     def _blocks(
         self, active: np.ndarray, couplings: list[Coupling]
@@ -124,16 +144,26 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         ).tocsr()
         return W, G, h
 
-    def _petsc(self, mat: scipy.sparse.csr_matrix, cols: tuple[int, int], offset: int) -> PETSc.Mat:
-        """The owned rows ``mat`` (columns shifted by ``offset``) as a PETSc AIJ matrix."""
-        mat = mat.tocsr()
-        mat.sort_indices()
+    def _petsc(
+        self, pattern: tuple[scipy.sparse.csr_matrix, np.ndarray], mat: scipy.sparse.csr_matrix,
+        cols: tuple[int, int | None], offset: int,
+    ) -> PETSc.Mat:
+        """``mat`` (owned rows) in the fixed ``pattern`` as a PETSc AIJ matrix, zeros kept.
+
+        Columns are shifted by ``offset`` (the multiplier block's first global row).
+        """
+        shape, keys = pattern
+        mat = mat.tocoo()
+        values = np.zeros(len(keys))
+        values[np.searchsorted(keys, mat.row.astype(np.int64) * mat.shape[1] + mat.col)] = (
+            mat.data
+        )
         out = PETSc.Mat().createAIJ(
-            size=((mat.shape[0], None), cols),
+            size=((shape.shape[0], None), cols),
             csr=(
-                mat.indptr.astype(PETSc.IntType),
-                (mat.indices + offset).astype(PETSc.IntType),
-                mat.data,
+                shape.indptr.astype(PETSc.IntType),
+                (shape.indices + offset).astype(PETSc.IntType),
+                values,
             ),
             comm=self.disc.comm,
         )
@@ -141,10 +171,13 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         return out
 
     def newton_matrix(self, active: np.ndarray, couplings: list[Coupling]) -> PETSc.Mat:
-        """The Newton matrix [K, N^T; W N, G] of the step (module docstring); a new matrix."""
+        """The Newton matrix [K, N^T; W N, G] of the step (module docstring); a new matrix.
+
+        Its pattern is the same for every step (module docstring).
+        """
         W, G, _ = self._blocks(active, couplings)
-        B = self._petsc(W @ self._N, self.N.getSizes()[1], 0)
-        G_mat = self._petsc(G, (self.n_lam, None), self._lo)
+        B = self._petsc(self._B_pattern, W @ self._N, self.N.getSizes()[1], 0)
+        G_mat = self._petsc(self._G_pattern, G, (self.n_lam, None), self._lo)
         nest = PETSc.Mat().createNest([[self.K, self.NT], [B, G_mat]], comm=self.disc.comm)
         A = PETSc.Mat()
         nest.convert("aij", out=A)
@@ -171,9 +204,12 @@ class CoupledNewtonSystem(NewtonLinearSystem):
                 self.free[cp.rows.ravel()] = 0.0
             _, _, h = self._blocks(active, couplings)
             self.write(self.b, self.f.array, h)
-            if self.A is not None:
-                self.A.destroy()
-            self.A = self.newton_matrix(active, couplings)
+            A = self.newton_matrix(active, couplings)
+            if self.A is None:
+                self.A = A
+            else:  # the same pattern: the factorisation's analysis is kept
+                A.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+                A.destroy()
         with timed("factorize"):
             set_up(self.ksp, self.A)
         self.factorizations += 1
