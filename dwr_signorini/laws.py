@@ -512,11 +512,17 @@ class Tresca(ContactLaw):
 def tangent_basis(n: Any) -> tuple[Any, Any]:
     """An orthonormal basis (t_1, t_2) of the plane normal to the unit vector n (3D, UFL).
 
-    t_1 is the unit projection of e_1 onto that plane (of e_2 where |n_1| >= 0.9, so that the
+    t_1 is the unit projection of e_1 onto that plane (of e_2 where ``|n_1| >= 0.9``, so that the
     projection is not short) and t_2 = n x t_1; (t_1, t_2, n) is right-handed. On a flat face
     the basis is constant; the switch between e_1 and e_2 is a jump of the basis where the
-    normal crosses |n_1| = 0.9, so a contact zone should not straddle it (a face with normal
-    +-e_1 and one with |n_1| < 0.9 are each fine).
+    normal crosses ``|n_1| = 0.9``, so a contact zone should not straddle it (a face with normal
+    +-e_1 and one with ``|n_1| < 0.9`` are each fine).
+
+    Args:
+        n: The unit normal (a UFL vector of length 3).
+
+    Returns:
+        (t_1, t_2) as UFL vectors.
     """
     use_e1 = ufl.lt(abs(n[0]), 0.9)
     a = ufl.as_vector((ufl.conditional(use_e1, 1.0, 0.0), ufl.conditional(use_e1, 0.0, 1.0), 0.0))

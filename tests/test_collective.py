@@ -208,8 +208,8 @@ def test_a_linear_solve_failing_on_one_rank_first(monkeypatch, reference):
     """A MUMPS failure that one rank reports (here: after its solve, on the last rank only)."""
     solve_active = NewtonSystem.solve_active
 
-    def mumps_fails(self, active, free=None):
-        solve_active(self, active, free)
+    def mumps_fails(self, active, free=None, couplings=None):
+        solve_active(self, active, free, couplings)
         if COMM.rank == LAST:
             raise PETSc.Error(76)
 
