@@ -171,7 +171,7 @@ def _higher_order_solutions(
     try:
         with timed("higher-order solve"):
             system2.solve_active(
-                sol.system.active, sol.system.free, getattr(sol.system, "couplings", None)
+                sol.system.active, sol.system.free, sol.system.couplings
             )
             z2 = solve_dual(system2, goal)
         w2 = None

@@ -462,7 +462,7 @@ def _solution(
     stick = slip = lam_t = None
     if len(sets) > 1:
         coupled = np.zeros(len(system.active), dtype=bool)
-        for cp in getattr(system, "couplings", ()):
+        for cp in system.couplings:
             coupled[cp.rows.ravel()] = True
         moving = (free[1] != 0.0) | algebra.components_of(coupled)[1]
         stick, slip = sets[1] & sets[0], ~sets[1] & sets[0] & moving

@@ -67,6 +67,8 @@ class NewtonLinearSystem:
         ksp: The linear solver (prefix :attr:`prefix`).
         x: Block vector [u; lam] of the last Newton step (split it with :meth:`split`).
         active: Active set of the last Newton step (owned multiplier rows).
+        couplings: The coupled facets of the last step (:class:`~dwr_signorini.laws.Coupling`;
+            empty on the symmetric paths).
         solved: Whether a Newton step was solved, so that :meth:`solve_transpose` can reuse
             its factorisation.
     """
@@ -99,6 +101,7 @@ class NewtonLinearSystem:
             self.x = PETSc.Vec().createMPI((n, None), comm=disc.comm)
             self.active = np.zeros(self.algebra.n_lam, dtype=bool)
             self.free = np.zeros(self.algebra.n_lam)
+            self.couplings: list[Any] = []  # coupled facets of the last step (laws.Coupling)
             self._setup()
         except BaseException:
             self.destroy()

@@ -92,7 +92,6 @@ class CoupledNewtonSystem(NewtonLinearSystem):
                 "constrained; factor it by LU (pc_type='lu', the default)"
             )
         self.A: PETSc.Mat | None = None
-        self.couplings: list[Coupling] = []
         self.factorizations = self.reused = 0
         self._N = owned_rows(self.N).tocsr()
         self._lo = self.N.getOwnershipRange()[0]
@@ -170,12 +169,11 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         out.assemble()
         return out
 
-    def newton_matrix(self, active: np.ndarray, couplings: list[Coupling]) -> PETSc.Mat:
+    def newton_matrix(self, W: scipy.sparse.csr_matrix, G: scipy.sparse.csr_matrix) -> PETSc.Mat:
         """The Newton matrix [K, N^T; W N, G] of the step (module docstring); a new matrix.
 
         Its pattern is the same for every step (module docstring).
         """
-        W, G, _ = self._blocks(active, couplings)
         B = self._petsc(self._B_pattern, W @ self._N, self.N.getSizes()[1], 0)
         G_mat = self._petsc(self._G_pattern, G, (self.n_lam, None), self._lo)
         nest = PETSc.Mat().createNest([[self.K, self.NT], [B, G_mat]], comm=self.disc.comm)
@@ -202,9 +200,9 @@ class CoupledNewtonSystem(NewtonLinearSystem):
             self.free = np.zeros(self.n_lam) if free is None else np.where(active, 0.0, free)
             for cp in couplings:
                 self.free[cp.rows.ravel()] = 0.0
-            _, _, h = self._blocks(active, couplings)
+            W, G, h = self._blocks(active, couplings)
             self.write(self.b, self.f.array, h)
-            A = self.newton_matrix(active, couplings)
+            A = self.newton_matrix(W, G)
             if self.A is None:
                 self.A = A
             else:  # the same pattern: the factorisation's analysis is kept
