@@ -11,9 +11,10 @@ from . import obstacles
 from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
 from .collective import CollectiveError
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
-from .laws import Frictionless, Tresca
+from .laws import Coulomb, Frictionless, Tresca
 from .mesh_io import read_mesh
 from .newton import ConvergenceError, Solution, solve
+from .path import PathResult, StepRecord, solve_path
 from .problem import SignoriniProblem
 from .spaces import Discretization, Measures, discretize
 
@@ -25,13 +26,16 @@ __all__ = [
     "AdaptiveResult",
     "CollectiveError",
     "ConvergenceError",
+    "Coulomb",
     "Discretization",
     "Estimate",
     "Frictionless",
     "LevelRecord",
     "Measures",
+    "PathResult",
     "SignoriniProblem",
     "Solution",
+    "StepRecord",
     "Tresca",
     "__version__",
     "discretize",
@@ -40,4 +44,5 @@ __all__ = [
     "read_mesh",
     "solve",
     "solve_adaptive",
+    "solve_path",
 ]

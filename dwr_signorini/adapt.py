@@ -254,14 +254,16 @@ def _validate(
         )
 
 
-def _progress(comm: MPI.Comm, record: LevelRecord) -> None:
+def _progress(comm: MPI.Comm, record: LevelRecord, label: str | None = None) -> None:
+    """The progress line of a level (or of a load step, ``label``) on rank 0."""
     if comm.rank == 0:
         friction = (
             "" if record.num_stick is None
             else f"stick/slip {record.num_stick:d}/{record.num_slip:d}  "
         )
+        label = f"level {record.level:2d}" if label is None else label
         print(
-            f"level {record.level:2d}  cells {record.num_cells:8d}  dofs {record.num_dofs:8d}  "
+            f"{label}  cells {record.num_cells:8d}  dofs {record.num_dofs:8d}  "
             f"J_h {record.J_h: .6e}  J in [{record.J_low: .6e}, {record.J_high: .6e}]  "
             f"estimate {record.estimate: .3e} ({record.weights})  {friction}"
             f"newton {record.newton_iterations:2d}  {record.time['total']:7.2f} s",

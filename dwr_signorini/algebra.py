@@ -140,6 +140,11 @@ class ContactAlgebra:
             "M": form(mu * m.ds_contact),
             "g": form(with_quadrature_degrees(problem.gap_expr(m.x, m.n) * mu * m.ds_contact)),
         }
+        if disc.u_old is not None:  # the slip increment of a load step: g_k = B_k u_old
+            forms["u_old"] = [
+                form(ufl.dot(disc.u_old, comp.direction(m.n)) * mu * m.ds_contact)
+                for comp in self.components[1:]
+            ]
         bound = problem.law.bound_expr(problem, m.x)
         if bound is not None:
             forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact))
@@ -180,7 +185,8 @@ class ContactAlgebra:
                 bc.set(self.f.array_w)
             M = self._vector(forms["M"])
             g = [self._vector(forms["g"], forms["N"][0] if lift else None, self.prescribed_bcs)]
-            g += [self._offset(forms["M"], forms["N"][k] if lift else None)
+            g += [self._offset(forms["M"], forms["N"][k] if lift else None,
+                               forms["u_old"][k - 1] if "u_old" in forms else None)
                   for k in range(1, len(self.components))]
             M_owned = M.array.copy()
             self.M = self._stacked_vector([M] * len(self.components))
@@ -200,18 +206,23 @@ class ContactAlgebra:
             c_n = np.full(len(M_owned), self.ncp_scale)
         self.c_n = np.tile(c_n, len(self.components))
 
-    def _offset(self, layout: fem.Form, lifting: fem.Form | None) -> PETSc.Vec:
-        """g_k of a component without a gap: 0, and -B_k u_D with prescribed values.
+    def _offset(
+        self, layout: fem.Form, lifting: fem.Form | None, u_old: fem.Form | None = None
+    ) -> PETSc.Vec:
+        """g_k of a tangential component: B_k u_old (0 outside a load path), -B_k u_D.
 
         Args:
             layout: A linear form on Lambda_H (for the vector's layout, with ghosts).
             lifting: The component's coupling form B_k, or None without prescribed values.
+            u_old: The form (u_old . e_k, psi)_GC of a load step's slip increment, or None.
         """
-        vec = fem_petsc.assemble_vector(layout)
-        with vec.localForm() as local:
-            local.set(0.0)
+        vec = fem_petsc.assemble_vector(layout if u_old is None else u_old)
+        if u_old is None:
+            with vec.localForm() as local:
+                local.set(0.0)
         if lifting is not None:
             fem_petsc.apply_lifting(vec, [lifting], bcs=[list(self.prescribed_bcs)])
+        if lifting is not None or u_old is not None:
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return vec
 
@@ -316,10 +327,15 @@ class ContactAlgebra:
         return out
 
     def _bound(self, idx: tuple[int, ...], active: np.ndarray) -> np.ndarray | None:
-        """The threshold on the rows of the condition of components ``idx`` (None: normal)."""
-        if idx[0] == 0:
+        """The threshold data on the rows of the condition of components ``idx``.
+
+        None for the normal condition alone; a condition on tangential components gets the
+        law's :meth:`~dwr_signorini.laws.ContactLaw.row_bound`.
+        """
+        if idx == (0,):
             return None
-        return self.disc.problem.law.row_bound(self.bounds[idx[0]], active)
+        M = self.M.array[: self.n_q]
+        return self.disc.problem.law.row_bound(self.bounds[idx[-1]], active, M)
 
     def newton_sets(
         self, u: PETSc.Vec, lam: np.ndarray, u_max: float

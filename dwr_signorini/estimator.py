@@ -213,7 +213,8 @@ def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
         if not sol.disc.problem.law.symmetric(sol.disc.mesh.topology.dim):
             raise ValueError(
                 "weights='hierarchical': the two-level P2 solver works on symmetric Newton "
-                "matrices; Tresca friction in 3D has coupled rows on slipping facets: use "
+                "matrices; Tresca friction in 3D and Coulomb friction have coupled rows on "
+                "slipping facets: use "
                 "weights='higher_order' (the P2 system factored by LU) or 'patch'"
             )
         z2, w2 = hierarchical_solutions(sol, inp.goal_forms, z, rec.V2h, want_eta)
@@ -311,9 +312,9 @@ def estimate(
         weights: ``"auto"`` (the default: the patch weights, and the hierarchical P2 weights
             instead on a level whose contact set is not resolved, see
             :mod:`~dwr_signorini.interval`; the factored P2 ones, ``"higher_order"``, for a law
-            with coupled rows, Tresca friction in 3D), ``"patch"`` (the paper's patch-wise
-            reconstructions), ``"higher_order"`` (dual, and for eta the primal, solved in P2
-            with Lambda_H and the final active set, by a factorisation) or ``"hierarchical"``
+            with coupled rows: Tresca friction in 3D, Coulomb friction), ``"patch"`` (the
+            paper's patch-wise reconstructions), ``"higher_order"`` (dual, and for eta the
+            primal, solved in P2 with Lambda_H and the final active set, by a factorisation) or ``"hierarchical"``
             (the same P2 solutions by a two-level iteration on the Newton factors,
             :mod:`~dwr_signorini.hierarchical`).
         petsc_options: Linear solver options for the higher-order solves, which use the

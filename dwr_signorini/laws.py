@@ -68,6 +68,8 @@ from ufl.domain import extract_unique_domain
 __all__ = [
     "Component",
     "ContactLaw",
+    "Coulomb",
+    "CoulombCone",
     "Coupling",
     "Frictionless",
     "Normal",
@@ -234,8 +236,10 @@ class Coupling:
 
     J = P'(x) the generalised derivative of the group's projection at the iterate x and
     r = P(x) - J x (eq. 20 linearised; the offsets g are those of the system that solves the
-    step, so that a P2 system of the same step uses its own). Rows that the step constrains
-    or frees (slopes 0 and 1) are not coupled rows.
+    step, so that a P2 system of the same step uses its own). A row of a coupled facet that
+    the step constrains (the normal row of a facet slipping under Coulomb's law, whose row of
+    J is that of an active facet) keeps the constrained row's equation; the other rows couple
+    to its column.
 
     Attributes:
         rows: (m, k) owned multiplier rows of the m coupled facets.
@@ -333,6 +337,115 @@ class TangentialBall:
         return constrained, np.zeros_like(Mlam), ncp, size + bound, (slip, J, r)
 
 
+class CoulombCone:
+    """Coulomb's law on a facet: the normal condition and the tangential one in a cone.
+
+    The projection of Coulomb's NCP acts on all components of a facet, x = (x_n, x_t):
+    P_n(x) = max(0, x_n) (Signorini) and P_t(x) = the projection of x_t onto the interval
+    [-s, s] (2D) or the disc of radius s (3D), s = mu max(0, x_n) (module docstring of
+    :class:`Coulomb`). Where the facet is active and slips, P_t depends on x_n through s:
+    dP_t / dx_n = mu d, with d = sign(x_t) (2D) or q = x_t / ``|x_t|`` (3D), and the facet is a
+    :class:`Coupling`: its normal row is constrained (active), its tangential rows are
+    lambda_t = mu d lambda_n linearised (2D) or the ball's rows with the column mu q (3D).
+    Active and sticking: every row constrained; inactive: every row free (lambda = 0).
+
+    Args:
+        tangential: The tangential projection: :class:`Tangential` (2D) or
+            :class:`TangentialBall` (3D).
+    """
+
+    def __init__(self, tangential: Tangential | TangentialBall) -> None:
+        self.tangential = tangential
+        self.size = 1 + getattr(tangential, "size", 1)
+
+    def _threshold(self, x_n: Any, mu: Any) -> Any:
+        return mu * ufl.max_value(0.0, x_n)
+
+    def projection(self, xs: Any, mu: Any) -> list:
+        """P(x) in UFL, one entry per component (normal first); ``mu`` the coefficient."""
+        s = self._threshold(xs[0], mu)
+        xt = list(xs[1:])
+        if self.size == 2:
+            tangential = [self.tangential.projection(xt[0], s)]
+        else:
+            tangential = self.tangential.projection(xt, s)
+        return [Normal().projection(xs[0], None), *tangential]
+
+    def derivative(self, xs: Any, mu: Any) -> list:
+        """P'(x) in UFL, a list of rows (normal first)."""
+        s = self._threshold(xs[0], mu)
+        active = ufl.conditional(ufl.gt(xs[0], 0.0), 1.0, 0.0)
+        xt = list(xs[1:])
+        if self.size == 2:
+            stick = self.tangential.derivative(xt[0], s)
+            rows = [[stick]]
+            direction = [(1.0 - stick) * ufl.sign(xt[0])]
+        else:
+            rows = self.tangential.derivative(xt, s)
+            norm = ufl.sqrt(xt[0] ** 2 + xt[1] ** 2)
+            slip = ufl.conditional(ufl.gt(norm, s), 1.0, 0.0)
+            direction = [slip * x / ufl.max_value(norm, ufl.max_value(s, 1e-300)) for x in xt]
+        normal_row = [active] + [0.0] * (self.size - 1)
+        return [normal_row] + [
+            [mu * active * d, *row] for d, row in zip(direction, rows, strict=True)
+        ]
+
+    def _project(self, x: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """P_t on the rows: x of shape (k - 1, m), the thresholds s (m,)."""
+        if self.size == 2:
+            return np.clip(x, -s, s)
+        return TangentialBall.project(x, s)
+
+    def ncp(self, Mlam: np.ndarray, x: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        """(M lam) - P(x) on the rows, shape (k, m), with the facet coefficients mu_i."""
+        s = mu * np.maximum(0.0, x[0])
+        return np.concatenate(
+            [[Mlam[0] - np.maximum(0.0, x[0])], Mlam[1:] - self._project(x[1:], s)]
+        )
+
+    def newton_set(
+        self, Mlam: np.ndarray, residual: np.ndarray, c: np.ndarray, M: np.ndarray,
+        g: np.ndarray, u_max: float, force_size: float, bound: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+        """The set test of a facet's rows (as :meth:`TangentialBall.newton_set`, arrays (k, m)).
+
+        ``bound`` is the friction coefficient mu_i of each facet (its facet mean).
+
+        Returns:
+            ``(constrained, free, ncp, size, (slip, J, r))``: active rows and sticking
+            facets' tangential rows constrained, no free value other than 0, and the active
+            slipping facets (mask ``slip``) with their derivative blocks J (m_slip, k, k) and
+            r = P(x) - J x = 0 (P is positively homogeneous).
+        """
+        k = self.size
+        parts = [_cleaned(Mlam[i], residual[i], c, M, g[i], u_max, force_size) for i in range(k)]
+        clean = np.array([p[0] for p in parts])
+        test = np.array([p[1] for p in parts])
+        size = np.array([p[2] for p in parts])
+        mu = bound
+        active = clean[0] > 0.0
+        s = mu * np.maximum(clean[0], 0.0)
+        xt = clean[1:]
+        norm = np.abs(xt[0]) if k == 2 else np.hypot(xt[0], xt[1])
+        stick = active & (norm < s)
+        slip = active & ~stick
+        m = int(slip.sum())
+        J = np.zeros((m, k, k))
+        J[:, 0, 0] = 1.0
+        d = xt[:, slip] / np.where(norm[slip] > 0, norm[slip], 1.0)
+        J[:, 1:, 0] = (mu[slip] * d).T
+        if k == 3:
+            alpha = s[slip] / np.where(norm[slip] > 0, norm[slip], 1.0)
+            J[:, 1:, 1:] = alpha[:, None, None] * (
+                np.eye(2)[None] - np.einsum("im,jm->mij", d, d)
+            )
+        constrained = np.array([active] + [stick] * (k - 1))
+        ncp = np.abs(self.ncp(Mlam, test, mu))
+        size = size.copy()
+        size[1:] += mu * size[0]
+        return constrained, np.zeros_like(Mlam), ncp, size, (slip, J, np.zeros((m, k)))
+
+
 class ContactLaw:
     """A contact law: its components and the threshold data (module docstring).
 
@@ -356,16 +469,19 @@ class ContactLaw:
         """The tangential threshold in UFL from the data and the normal NCP argument x_n."""
         return None
 
-    def row_bound(self, data: np.ndarray | None, active: np.ndarray) -> np.ndarray | None:
-        """The tangential threshold on the rows, None without one.
+    def row_bound(
+        self, data: np.ndarray | None, active: np.ndarray, M: np.ndarray
+    ) -> np.ndarray | None:
+        """The threshold data of the tangential conditions on the rows, None without one.
 
         Args:
-            data: The integrated threshold data, (M s)_i.
-            active: The active rows of the normal component (a threshold that follows contact,
-                as Coulomb's, needs them).
+            data: The integrated threshold data, (M s)_i (Tresca) or (M mu)_i (Coulomb).
+            active: The active rows of the normal component.
+            M: M_i, the sizes of the macro contact facets.
 
         Returns:
-            (M s)_i per tangential row, or None.
+            What the law's tangential condition takes as ``bound``: (M s)_i (Tresca), mu_i
+            (Coulomb), or None.
         """
         return None
 
@@ -380,11 +496,15 @@ class ContactLaw:
         """Whether the law's Newton matrices are symmetric (no :class:`Coupling` rows)."""
         return all(len(idx) == 1 for idx, _ in self.conditions(tdim))
 
-    def ncp_arguments(self, u: Any, lams: Any, gap: Any, n: Any, c: Any, problem: Any) -> list:
+    def ncp_arguments(
+        self, u: Any, lams: Any, gap: Any, n: Any, c: Any, problem: Any, u_old: Any = None
+    ) -> list:
         """Each component's UFL (x_k, P_k(x), J_k), x_k = lambda_k + c (u . e_k - g_k).
 
         J_k is row k of the derivative P'(x) of the law's projections: a tuple with an entry
-        per component (the number 0.0 where P_k does not depend on x_l).
+        per component (the number 0.0 where P_k does not depend on x_l). With ``u_old`` (the
+        displacement at the end of the previous load step) a tangential component's argument
+        holds the slip increment, x_k = lambda_k + c (u - u_old) . e_k.
 
         Args:
             u: The displacement.
@@ -393,6 +513,7 @@ class ContactLaw:
             n: The outward unit normal.
             c: The scale of the NCP.
             problem: The problem (for the threshold data).
+            u_old: The displacement of the previous load step, or None (zero).
 
         Returns:
             One tuple per component, normal first.
@@ -402,12 +523,13 @@ class ContactLaw:
         data = self.bound_expr(problem, extract_x(n)) if len(comps) > 1 else None
         xs = [
             lam + c * (ufl.dot(u, comp.direction(n)) - comp.offset(gap))
-            for comp, lam in zip(comps, lams, strict=True)
+            - (0.0 if u_old is None or k == 0 else c * ufl.dot(u_old, comp.direction(n)))
+            for k, (comp, lam) in enumerate(zip(comps, lams, strict=True))
         ]
         P: list[Any] = [None] * len(comps)
         J: list[list[Any]] = [[0.0] * len(comps) for _ in comps]
         for idx, cond in self.conditions(tdim):
-            bound = None if idx[0] == 0 else self.bound(data, xs[0])
+            bound = None if idx == (0,) else self.bound(data, xs[0])
             if len(idx) == 1:
                 k = idx[0]
                 P[k], J[k][k] = cond.projection(xs[k], bound), cond.derivative(xs[k], bound)
@@ -440,7 +562,66 @@ class Frictionless(ContactLaw):
         return "Frictionless()"
 
 
-class Tresca(ContactLaw):
+class _Friction(ContactLaw):
+    """What the frictional laws share: the components and the data given per contact tag.
+
+    Attributes:
+        data: The law's data (Tresca's s, Coulomb's mu), validated.
+    """
+
+    frictional = True
+    #: The data's name in messages, e.g. ``"Tresca(s)"``.
+    label = ""
+
+    def components(self, tdim: int) -> tuple[Component, ...]:
+        """See the base class: in 3D the two coordinates of lambda_t in the tangent basis."""
+        if tdim == 2:
+            return (Normal(), Tangential())
+        return (Normal(), Tangential(0), Tangential(1))
+
+    def check(self, problem: Any) -> _Friction:
+        """Tags of data given per tag are the contact tags; a callable returns a scalar."""
+        label, data = self.label, self.data
+        values = data.items() if isinstance(data, Mapping) else [(None, data)]
+        if isinstance(data, Mapping):
+            keys = set(data)
+            extra = keys - set(problem.contact_tags)
+            if extra:
+                raise ValueError(
+                    f"friction={label}: {self.symbol} has tag(s) {sorted(extra)} that are not "
+                    f"contact tags {problem.contact_tags}"
+                )
+            missing = set(problem.contact_tags) - keys
+            if missing:
+                raise ValueError(
+                    f"friction={label}: {self.symbol} is given per contact tag but misses the "
+                    f"contact tag(s) {sorted(missing)}"
+                )
+        for tag, value in values:
+            if callable(value):
+                name = label if tag is None else f"{label}[{tag}]"
+                problem._check_callable(value, name, ())
+        return self
+
+    @property
+    def symbol(self) -> str:
+        """The data's symbol (``s``, ``mu``)."""
+        return self.label[self.label.index("(") + 1 : -1]
+
+    def bound_expr(self, problem: Any, x: Any) -> Any:
+        """The data as UFL on the mesh of ``x`` (per tag by contact-tag indicators)."""
+        return problem.contact_expr(self.data, x, self.label)
+
+    def bound(self, data: Any, x_normal: Any) -> Any:
+        """The data as the tangential condition takes it (s; mu for Coulomb's cone)."""
+        return data
+
+    def __repr__(self) -> str:
+        """The law as it is constructed."""
+        return f"{type(self).__name__}({self.data!r})"
+
+
+class Tresca(_Friction):
     """Tresca friction with slip threshold s > 0 (module docstring).
 
     Args:
@@ -452,20 +633,10 @@ class Tresca(ContactLaw):
     """
 
     name = "tresca"
-    frictional = True
+    label = "Tresca(s)"
 
     def __init__(self, s: ThresholdData) -> None:
-        self.s = _check_threshold(s, "Tresca(s)")
-
-    def __repr__(self) -> str:
-        """The law as it is constructed."""
-        return f"Tresca({self.s!r})"
-
-    def components(self, tdim: int) -> tuple[Component, ...]:
-        """See the base class: in 3D the two coordinates of lambda_t in the tangent basis."""
-        if tdim == 2:
-            return (Normal(), Tangential())
-        return (Normal(), Tangential(0), Tangential(1))
+        self.s = self.data = _check_threshold(s, self.label)
 
     def conditions(self, tdim: int) -> list[tuple[tuple[int, ...], Any]]:
         """See the base class: in 3D the ball projection acts on both tangential rows."""
@@ -473,40 +644,58 @@ class Tresca(ContactLaw):
             return super().conditions(tdim)
         return [((0,), Normal()), ((1, 2), TangentialBall())]
 
-    def check(self, problem: Any) -> Tresca:
-        """Tags of a per-tag threshold are the contact tags; a callable returns a scalar."""
-        values = self.s.items() if isinstance(self.s, Mapping) else [(None, self.s)]
-        if isinstance(self.s, Mapping):
-            keys = set(self.s)
-            extra = keys - set(problem.contact_tags)
-            if extra:
-                raise ValueError(
-                    f"friction=Tresca(s): s has tag(s) {sorted(extra)} that are not contact "
-                    f"tags {problem.contact_tags}"
-                )
-            missing = set(problem.contact_tags) - keys
-            if missing:
-                raise ValueError(
-                    f"friction=Tresca(s): s is given per contact tag but misses the contact "
-                    f"tag(s) {sorted(missing)}"
-                )
-        for tag, value in values:
-            if callable(value):
-                name = "Tresca(s)" if tag is None else f"Tresca(s)[{tag}]"
-                problem._check_callable(value, name, ())
-        return self
-
-    def bound_expr(self, problem: Any, x: Any) -> Any:
-        """The threshold s as UFL on the mesh of ``x`` (per tag by contact-tag indicators)."""
-        return problem.contact_expr(self.s, x, "Tresca(s)")
-
-    def bound(self, data: Any, x_normal: Any) -> Any:
-        """The threshold s, whatever the normal state."""
-        return data
-
-    def row_bound(self, data: np.ndarray | None, active: np.ndarray) -> np.ndarray | None:
+    def row_bound(
+        self, data: np.ndarray | None, active: np.ndarray, M: np.ndarray
+    ) -> np.ndarray | None:
         """The integrated threshold (M s)_i on every row."""
         return data
+
+
+class Coulomb(_Friction):
+    """Coulomb friction with friction coefficient mu >= 0: slip threshold mu lambda_n.
+
+    The NCP of the tangential traction (with the slip increment of a load step,
+    u_t - u_t^old; :func:`~dwr_signorini.path.solve_path` carries u^old from step to step,
+    a single solve has u^old = 0)
+
+        lambda_t - P_B(mu max(0, x_n))(lambda_t + c (u_t - u_t^old)) = 0,
+        x_n = lambda_n + c (u_n - g),
+
+    with P_B(s) the projection onto [-s, s] (2D) or the disc of radius s (3D). The normal and
+    tangential conditions form one projection onto the Coulomb cone (:class:`CoulombCone`):
+    where a facet is active and slips, its tangential rows depend on x_n, so the Newton matrix
+    couples the normal and tangential blocks and is not symmetric (LU,
+    :mod:`dwr_signorini.linalg.coupled`); the dual problem is its transpose. The threshold
+    follows contact, so the discrete problem is a quasi-variational inequality: unique for
+    mu small enough (the classical bound of Necas, Jarusek and Haslinger in the continuum,
+    mu < sqrt(3 - 4 nu) / (2 - 2 nu) for the discrete problems of Haslinger's analysis),
+    possibly not above. mu = 0 gives lambda_t = 0: the frictionless problem.
+
+    Args:
+        mu: The friction coefficient: a number >= 0, a callable x -> UFL scalar, or
+            ``{contact tag: number | callable}``.
+
+    Raises:
+        TypeError, ValueError: ``mu`` of the wrong type, or a number that is not finite and
+            >= 0.
+    """
+
+    name = "coulomb"
+    label = "Coulomb(mu)"
+
+    def __init__(self, mu: ThresholdData) -> None:
+        self.mu = self.data = _check_threshold(mu, self.label, zero=True)
+
+    def conditions(self, tdim: int) -> list[tuple[tuple[int, ...], Any]]:
+        """See the base class: one projection onto the Coulomb cone on all components."""
+        tangential = Tangential() if tdim == 2 else TangentialBall()
+        return [(tuple(range(tdim)), CoulombCone(tangential))]
+
+    def row_bound(
+        self, data: np.ndarray | None, active: np.ndarray, M: np.ndarray
+    ) -> np.ndarray | None:
+        """The facet mean of mu, (M mu)_i / M_i."""
+        return data / M
 
 
 def tangent_basis(n: Any) -> tuple[Any, Any]:
@@ -545,28 +734,40 @@ def extract_x(n: Any) -> Any:
     return ufl.SpatialCoordinate(extract_unique_domain(n))
 
 
-def _check_threshold(s: Any, name: str) -> Any:
-    """A threshold validated: a finite number > 0, a callable, or a dict of them per tag."""
+def _check_threshold(s: Any, name: str, zero: bool = False) -> Any:
+    """A law's data validated: a number > 0 (>= 0 with ``zero``), a callable, or a dict.
+
+    The dict holds the data per contact tag; ``name`` (as ``"Tresca(s)"``) names the data in
+    the messages.
+    """
+    symbol = name[name.index("(") + 1 : name.index(")")]
+    what = "friction coefficient" if zero else "slip threshold"
     if isinstance(s, Mapping):
         if not s:
-            raise ValueError(f"{name}: s is an empty dict; give a threshold per contact tag")
+            raise ValueError(f"{name}: {symbol} is an empty dict; give a {what} per contact tag")
         out = {}
         for k, v in s.items():
             if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-                raise TypeError(f"{name}: the keys of s must be integer contact tags, got {k!r}")
-            out[int(k)] = _check_threshold(v, f"{name}[{k}]")
+                raise TypeError(
+                    f"{name}: the keys of {symbol} must be integer contact tags, got {k!r}"
+                )
+            out[int(k)] = _check_threshold(v, f"{name}[{k}]", zero)
         return out
     if callable(s):
         return s
     if isinstance(s, bool) or not isinstance(s, (int, float, np.integer, np.floating)):
         raise TypeError(
-            f"{name}: s must be a number, a callable x -> UFL scalar or a dict per contact tag, "
-            f"got {type(s).__name__}"
+            f"{name}: {symbol} must be a number, a callable x -> UFL scalar or a dict per "
+            f"contact tag, got {type(s).__name__}"
         )
-    if not (math.isfinite(float(s)) and float(s) > 0.0):
+    if zero and not (math.isfinite(float(s)) and float(s) >= 0.0):
         raise ValueError(
-            f"{name}: the slip threshold s must be a finite number > 0 (s -> 0 is frictionless: "
-            f"use friction=None), got {s!r}"
+            f"{name}: the {what} {symbol} must be a finite number >= 0, got {s!r}"
+        )
+    if not zero and not (math.isfinite(float(s)) and float(s) > 0.0):
+        raise ValueError(
+            f"{name}: the {what} {symbol} must be a finite number > 0 ({symbol} -> 0 is "
+            f"frictionless: use friction=None), got {s!r}"
         )
     return float(s)
 
@@ -577,7 +778,7 @@ def check_law(law: Any, problem: Any) -> ContactLaw:
         return Frictionless()
     if not isinstance(law, ContactLaw):
         raise TypeError(
-            "friction must be None, ds.Frictionless() or ds.Tresca(s), got "
+            "friction must be None, ds.Frictionless(), ds.Tresca(s) or ds.Coulomb(mu), got "
             f"{type(law).__name__}"
         )
     return law.check(problem)

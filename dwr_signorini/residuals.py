@@ -136,7 +136,9 @@ def _tuple(mu: Any) -> tuple:
 def ncp_terms(sol: Any, u: Any, lams: Any, c: Any) -> list:
     """Each component's (x_k, P_k(x_k), P_k'(x_k)) at (u, lams) (:mod:`~dwr_signorini.laws`)."""
     problem, m = sol.disc.problem, sol.disc.m
-    return problem.law.ncp_arguments(u, _tuple(lams), problem.gap_expr(m.x), m.n, c, problem)
+    return problem.law.ncp_arguments(
+        u, _tuple(lams), problem.gap_expr(m.x), m.n, c, problem, sol.disc.u_old
+    )
 
 
 def contact_term(sol: Any, mus: Any, c: Any) -> ufl.Form:

@@ -220,7 +220,8 @@ class NewtonLoop:
             self.history[-1]["safeguard"] = True
         self.seen[key] = it
         self.last_key = key
-        couplings = [c.restricted(~new[c.rows].any(axis=1)) for c in self.couplings]
+        # a facet whose rows are all constrained (stick) is not coupled in this step
+        couplings = [c.restricted(~new[c.rows].all(axis=1)) for c in self.couplings]
         return new, new_free, couplings
 
     def _key(self, new: np.ndarray, free: np.ndarray) -> tuple[bytes, ...]:

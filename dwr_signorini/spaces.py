@@ -104,6 +104,9 @@ class Discretization:
         prescribed_bcs: The Dirichlet conditions with their prescribed values on V.
         cell_tags: Cell tags of T_h (those of the parent macro cells), or None.
         m: The :class:`Measures` on T_h.
+        u_old: The displacement at the end of the previous load step (a function on V), whose
+            tangential part a frictional law's slip is measured from (u_t - u_t^old); None
+            (zero) outside a load path. Set it with :meth:`set_u_old` before solving.
 
     Args:
         problem: The problem; its mesh is the macro mesh T_H (collective: T_h is refined on
@@ -154,6 +157,7 @@ class Discretization:
         self._dirichlet_facets = {
             t: self.facet_tags.find(t).astype(np.int32) for t in problem.dirichlet
         }
+        self.u_old: fem.Function | None = None
         self.bcs = self.dirichlet_bcs(self.V)
         self.prescribed_bcs = self.dirichlet_bcs(self.V, homogeneous=False)
         self._register_data()
@@ -170,6 +174,35 @@ class Discretization:
             mesh=fine,
             problem=problem,
         )
+
+    def set_u_old(self, u_old: fem.Function | None) -> None:
+        """Measure the slip of this discretisation's solves from ``u_old`` (a load step's start).
+
+        Args:
+            u_old: A displacement on V (copied), or on another mesh of the same body
+                (interpolated: exact for P1 on a mesh that T_h refines), or None (zero).
+
+        Raises:
+            TypeError: ``u_old`` is not a vector function of the mesh's dimension.
+        """
+        if u_old is None:
+            self.u_old = None
+            return
+        if not isinstance(u_old, fem.Function) or u_old.ufl_shape != self.V.value_shape:
+            raise TypeError(
+                f"u_old must be a dolfinx Function with values of shape {self.V.value_shape} "
+                f"(a displacement), got {type(u_old).__name__}"
+            )
+        out = fem.Function(self.V, name="u_old")
+        if u_old.function_space == self.V:
+            out.x.array[:] = u_old.x.array
+        else:
+            tdim = self.mesh.topology.dim
+            cells = np.arange(self.mesh.topology.index_map(tdim).size_local, dtype=np.int32)
+            data = fem.create_interpolation_data(self.V, u_old.function_space, cells, 1e-10)
+            out.interpolate_nonmatching(u_old, cells, data)
+            out.x.scatter_forward()
+        self.u_old = out
 
     def _register_data(self) -> None:
         """Cell tags of T_h (from the parents) and contact-tag indicators for the problem."""

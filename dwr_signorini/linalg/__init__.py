@@ -7,7 +7,7 @@
 * :mod:`~dwr_signorini.linalg.block`: the block Newton matrix by LDL^T (``method="block"``);
 * :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``);
 * :mod:`~dwr_signorini.linalg.coupled`: the nonsymmetric block matrix by LU (``method="block"``
-  for a law with coupled rows, Tresca friction in 3D).
+  for a law with coupled rows: Tresca friction in 3D, Coulomb friction).
 """
 
 from .base import NewtonLinearSystem
@@ -48,7 +48,8 @@ def system_class(method: str, symmetric: bool = True) -> type[NewtonLinearSystem
     if method == "schur":
         raise ValueError(
             "method='schur' solves symmetric Newton matrices; the Newton matrix of Tresca "
-            "friction in 3D is not symmetric on slipping facets: use method='block' (LU)"
+            "friction in 3D and of Coulomb friction is not symmetric on slipping facets: use "
+            "method='block' (LU)"
         )
     return CoupledNewtonSystem
 

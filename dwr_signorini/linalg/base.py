@@ -209,7 +209,7 @@ class NewtonLinearSystem:
         if any(len(c.rows) for c in couplings or ()):
             raise ValueError(
                 f"{type(self).__name__} solves symmetric Newton matrices; coupled rows (Tresca "
-                "friction in 3D) need CoupledNewtonSystem (method='block')"
+                "friction in 3D, Coulomb friction) need CoupledNewtonSystem (method='block')"
             )
 
     def _set_free(self, active: np.ndarray, free: np.ndarray | None) -> PETSc.Vec | None:

@@ -1,8 +1,9 @@
-"""The Newton step of a law with coupled rows (3D Tresca friction): the block matrix by LU.
+"""The Newton step of a law with coupled rows (3D friction, Coulomb's law) by LU.
 
 Where a law's projection acts on several multipliers at once (the ball of Tresca's law in
-3D, :class:`~dwr_signorini.laws.TangentialBall`), the generalised derivative J of the NCP on a
-slipping facet is a full block, and the Newton step (eq. 20 linearised) reads
+3D, :class:`~dwr_signorini.laws.TangentialBall`; Coulomb's cone, whose threshold is
+mu lambda_n, :class:`~dwr_signorini.laws.CoulombCone`), the generalised derivative J of the
+NCP on a slipping facet is a full block, and the Newton step (eq. 20 linearised) reads
 
     [ K      N^T ] [u  ]   [ f ]
     [ W N    G   ] [lam] = [ h ]
@@ -12,10 +13,12 @@ with, per row of the multipliers,
 * constrained (active, stick): W = -1, G = 0, h = -g (the rows of the symmetric paths);
 * free (inactive): W = 0, G = M, h = M free;
 * coupled facet f of the components k, l (:class:`~dwr_signorini.laws.Coupling`):
-  W_kl = -c_f J_kl, G_kl = (delta_kl - J_kl) M_f, h_k = r_k - c_f sum_l J_kl g_l.
+  W_kl = -c_f J_kl, G_kl = (delta_kl - J_kl) M_f, h_k = r_k - c_f sum_l J_kl g_l, on its rows
+  k that are not constrained (the normal row of a facet slipping under Coulomb's law is).
 
 J = alpha (I - q q^T) on a slipping facet is symmetric, but its rows multiply c N and its
-columns meet N^T: the matrix is not symmetric, and it is factored by LU (MUMPS, the default
+columns meet N^T (and Coulomb's J has the column mu q under the normal row): the matrix is
+not symmetric, and it is factored by LU (MUMPS, the default
 ``pc_type="lu"`` of this system). The dual problem A^T z = r is solved with the same factors
 (``KSPSolveTranspose``); the constrained rows keep the scaling of the symmetric paths, so that
 :func:`~dwr_signorini.dual.solve_dual` maps the dual multipliers alike (xi = xi^(1) / c on the
@@ -87,9 +90,9 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         pc_type = self.ksp.getPC().getType()
         if pc_type == "cholesky" or pc_type in MULTIGRID:
             raise ValueError(
-                f"pc_type {pc_type!r}: the Newton matrix of this contact law (Tresca friction "
-                "in 3D) is not symmetric and has a zero multiplier block where facets are "
-                "constrained; factor it by LU (pc_type='lu', the default)"
+                f"pc_type {pc_type!r}: the Newton matrix of this contact law (friction in 3D, "
+                "Coulomb friction) is not symmetric and has a zero multiplier block where "
+                "facets are constrained; factor it by LU (pc_type='lu', the default)"
             )
         self.A: PETSc.Mat | None = None
         self.factorizations = self.reused = 0
@@ -124,15 +127,17 @@ class CoupledNewtonSystem(NewtonLinearSystem):
             k = cp.rows.shape[1]
             rows = np.repeat(cp.rows, k, axis=1).ravel()
             cols = np.tile(cp.rows, (1, k)).ravel()
+            own = ~active[rows]  # a constrained row of a coupled facet keeps its equation
             J = cp.J.reshape(len(cp.rows), k * k)
-            w_rows.append(rows)
-            w_cols.append(cols)
-            w_vals.append((-c[cp.rows[:, :1]] * J).ravel())
+            w_rows.append(rows[own])
+            w_cols.append(cols[own])
+            w_vals.append((-c[cp.rows[:, :1]] * J).ravel()[own])
             eye = np.eye(k).ravel()[None, :]
-            g_rows.append(rows)
-            g_cols.append(cols)
-            g_vals.append(((eye - J) * M[cp.rows[:, :1]]).ravel())
-            h[cp.rows] = cp.r - c[cp.rows] * np.einsum("mkl,ml->mk", cp.J, g[cp.rows])
+            g_rows.append(rows[own])
+            g_cols.append(cols[own])
+            g_vals.append(((eye - J) * M[cp.rows[:, :1]]).ravel()[own])
+            coupled_h = cp.r - c[cp.rows] * np.einsum("mkl,ml->mk", cp.J, g[cp.rows])
+            h[cp.rows] = np.where(active[cp.rows], h[cp.rows], coupled_h)
         W = scipy.sparse.coo_matrix(
             (np.concatenate(w_vals), (np.concatenate(w_rows), np.concatenate(w_cols))),
             shape=(n, n),
