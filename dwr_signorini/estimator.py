@@ -315,8 +315,8 @@ def estimate(
             with coupled rows: Tresca friction in 3D, Coulomb friction), ``"patch"`` (the
             paper's patch-wise reconstructions), ``"higher_order"`` (dual, and for eta the
             primal, solved in P2 with Lambda_H and the final active set, by a factorisation)
-            or ``"hierarchical"`` (the same P2 solutions by a two-level iteration on the Newton factors,
-            :mod:`~dwr_signorini.hierarchical`).
+            or ``"hierarchical"`` (the same P2 solutions by a two-level iteration on the
+            Newton factors, :mod:`~dwr_signorini.hierarchical`).
         petsc_options: Linear solver options for the higher-order solves, which use the
             primal's kind of Newton system (block, or Schur complement with these options for
             K, e.g. :func:`~dwr_signorini.newton.iterative_petsc_options`), under the
