@@ -154,6 +154,7 @@ def solve_path(
     method: str | None = None,
     ncp_scale: str | float = "physical",
     verbose: bool = True,
+    initial_guess: tuple[Any, ...] | None = None,
 ) -> PathResult:
     """Solve a quasi-static load path step by step, each step from the last (module docstring).
 
@@ -178,6 +179,10 @@ def solve_path(
         method: The Newton steps' linear algebra (as :func:`~dwr_signorini.solve`).
         ncp_scale: c of the NCP function (as :func:`~dwr_signorini.solve`).
         verbose: Print a progress line per step on rank 0.
+        initial_guess: The first step's initial iterate, ``(u0, lam0, ...)`` on its
+            discretisation's spaces (as :func:`~dwr_signorini.solve`); e.g. for a body that
+            only contact and friction hold in place, whose first Newton step needs the contact
+            active (a floating body's stiffness matrix is singular).
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -205,7 +210,7 @@ def solve_path(
         check_output_dir(output_dir, comm)
         out = OutputDirectory(output_dir, comm, name="path")
     result = PathResult(levels=[], meta=meta, comm=comm)
-    state = _PathState()
+    state = _PathState(first_guess=initial_guess)
     try:
         for k, problem in enumerate(problems):
             record = _step(k, problem, goals[k], state, adaptive and k < len(problems) - 1,
@@ -238,6 +243,7 @@ class _PathState:
     current: SignoriniProblem | None = None
     level: int = 0
     macro_parent: Any = None
+    first_guess: tuple[Any, ...] | None = None
 
     def destroy(self) -> None:
         for obj in (self.estimate, self.solution):
@@ -258,7 +264,7 @@ def _step(
     previous = state.solution
     with timed("transfer"):
         disc.set_u_old(None if previous is None else previous.u)
-        guess = None if previous is None else _warm_start(previous, disc)
+        guess = state.first_guess if previous is None else _warm_start(previous, disc)
     state.destroy()
     t_setup = time.perf_counter() - t_start
     tic = time.perf_counter()

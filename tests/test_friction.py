@@ -60,21 +60,23 @@ def _square_tags(msh):
     return mesh.meshtags(msh, 1, facets[order], values[order])
 
 
-def patch_problem(s, comm=COMM, n=6, cell_type=mesh.CellType.triangle):
+def patch_problem(s, comm=COMM, n=6, cell_type=mesh.CellType.triangle, law=None):
     """The unit square on a rigid plane y = 0, its top displaced by (SHEAR, -PRESS).
 
     The exact solution is linear: u = (a + (SHEAR - a) y, -PRESS y) with the rigid slip a = 0
     (stick) when mu SHEAR < s, else a = SHEAR - s / mu (slip): sigma_xy = mu (SHEAR - a),
     sigma_yy = -(lambda + 2 mu) PRESS, sigma_xx = -lambda PRESS (plane strain), which the sides
     carry as tractions. On Gamma_C (n = (0, -1), t = (1, 0)): lambda_n = (lambda + 2 mu) PRESS,
-    lambda_t = sigma_xy.
+    lambda_t = sigma_xy. ``law`` replaces Tresca(s) by a law whose threshold on this problem
+    is s (Coulomb(s / lambda_n)).
     """
     msh = mesh.create_unit_square(comm, n, n, cell_type, ghost_mode=mesh.GhostMode.none)
     a = 0.0 if MU * SHEAR < s else SHEAR - s / MU
     sxx, sxy = -LMBDA * PRESS, MU * (SHEAR - a)
     problem = ds.SignoriniProblem(
         msh, _square_tags(msh), contact=BOTTOM, dirichlet={TOP: (SHEAR, -PRESS)}, E=E, nu=NU,
-        traction={RIGHT: (sxx, sxy), LEFT: (-sxx, -sxy)}, gap=0.0, friction=ds.Tresca(s),
+        traction={RIGHT: (sxx, sxy), LEFT: (-sxx, -sxy)}, gap=0.0,
+        friction=ds.Tresca(s) if law is None else law,
     )
     return problem, a, sxy
 
@@ -129,15 +131,19 @@ def test_huge_threshold_under_a_tangential_load_sticks():
 @pytest.mark.parametrize("cell_type", [mesh.CellType.triangle, mesh.CellType.quadrilateral],
                          ids=["tri", "quad"])
 @pytest.mark.parametrize("s", [1.0, 0.05], ids=["stick", "slip"])
-def test_patch_test_is_exact(s, cell_type):
+@pytest.mark.parametrize("law", ["tresca", "coulomb"])
+def test_patch_test_is_exact(s, cell_type, law):
     """Full stick (mu SHEAR = 0.077 < s = 1) and full slip (s = 0.05): lambda_n, lambda_t and
-    u on Gamma_C are the exact ones to round-off, the friction force's estimate is round-off."""
-    problem, a, sxy = patch_problem(s, cell_type=cell_type)
+    u on Gamma_C are the exact ones to round-off, the friction force's estimate is round-off.
+    With Coulomb's law the threshold is mu_f lambda_n, mu_f = s / lambda_n: the same solution
+    (its normal and tangential rows coupled on the slipping facets)."""
+    lam_n = (LMBDA + 2 * MU) * PRESS
+    coulomb = ds.Coulomb(s / lam_n) if law == "coulomb" else None
+    problem, a, sxy = patch_problem(s, cell_type=cell_type, law=coulomb)
     with ds.solve(problem) as sol:
         n_contact = sol.disc.num_contact_elements
         assert sol.num_active == n_contact
         assert (sol.num_stick, sol.num_slip) == ((n_contact, 0) if a == 0 else (0, n_contact))
-        lam_n = (LMBDA + 2 * MU) * PRESS
         assert global_max(sol.lam.x.array - lam_n) <= 1e-12 * lam_n
         assert global_max(sol.lam_t.x.array - sxy) <= 1e-12 * sxy
         bottom = _bottom_displacement(sol)

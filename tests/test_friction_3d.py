@@ -60,7 +60,7 @@ def _cube_tags(msh):
     return mesh.meshtags(msh, 2, facets[order], values[order])
 
 
-def patch_problem(s, n=4):
+def patch_problem(s, n=4, law=None):
     """The unit cube on a rigid plane z = 0, its top displaced by (SHEAR, -PRESS).
 
     The exact solution is linear: u = (a + (SHEAR - a) z, -PRESS z) with the rigid slip a = 0
@@ -68,7 +68,8 @@ def patch_problem(s, n=4):
     of magnitude s along the slip): sigma_xz, sigma_yz = mu (SHEAR - a),
     sigma_zz = -(lambda + 2 mu) PRESS, sigma_xx = sigma_yy = -lambda PRESS, which the sides
     carry as tractions. On Gamma_C (n = -e_z): lambda_n = (lambda + 2 mu) PRESS and the
-    tangential traction vector lambda_t = (sigma_xz, sigma_yz, 0).
+    tangential traction vector lambda_t = (sigma_xz, sigma_yz, 0). ``law`` replaces Tresca(s)
+    by a law whose threshold on this problem is s (Coulomb(s / lambda_n)).
     """
     msh = mesh.create_unit_cube(COMM, n, n, n, ghost_mode=mesh.GhostMode.none)
     magnitude = np.linalg.norm(SHEAR)
@@ -79,7 +80,7 @@ def patch_problem(s, n=4):
                 Y0: (0.0, -sxx, -syz)}
     problem = ds.SignoriniProblem(
         msh, _cube_tags(msh), contact=BOTTOM, dirichlet={TOP: (*SHEAR, -PRESS)}, E=E, nu=NU,
-        traction=traction, gap=0.0, friction=ds.Tresca(s),
+        traction=traction, gap=0.0, friction=ds.Tresca(s) if law is None else law,
     )
     return problem, a, np.array([sxz, syz, 0.0])
 
@@ -96,11 +97,14 @@ def example(comm=COMM, s=0.2, **kwargs):
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("s", [1.0, 0.05], ids=["stick", "slip"])
-def test_patch_test_is_exact(s):
+@pytest.mark.parametrize("law", ["tresca", "coulomb"])
+def test_patch_test_is_exact(s, law):
     """Full stick (mu |SHEAR| = 0.077 < s = 1) and full slip (s = 0.05) under an oblique shear:
     lambda_n, the traction vector lambda_t and u on Gamma_C are the exact ones to round-off; the
-    estimate of the friction force along x is round-off and its interval holds the exact one."""
-    problem, a, traction = patch_problem(s)
+    estimate of the friction force along x is round-off and its interval holds the exact one.
+    With Coulomb's law the threshold is mu_f lambda_n, mu_f = s / lambda_n: the same solution."""
+    coulomb = ds.Coulomb(s / ((LMBDA + 2 * MU) * PRESS)) if law == "coulomb" else None
+    problem, a, traction = patch_problem(s, law=coulomb)
     with ds.solve(problem, rtol=1e-13) as sol:  # Newton on the slip direction: to round-off
         n_contact = sol.disc.num_contact_elements
         assert sol.method == "block" and sol.num_active == n_contact
@@ -122,10 +126,13 @@ def test_patch_test_is_exact(s):
 
 
 @pytest.mark.mpi
-def test_slipping_facets_converge_quadratically():
-    """The slip direction is found by Newton's method on the ball's derivative: the NCP residual
-    of the full-slip patch test falls at least quadratically once it is below 0.02."""
-    problem, _, _ = patch_problem(0.05)
+@pytest.mark.parametrize("law", ["tresca", "coulomb"])
+def test_slipping_facets_converge_quadratically(law):
+    """The slip direction is found by Newton's method on the ball's derivative (with Coulomb's
+    law, the cone's, whose threshold moves with lambda_n): the NCP residual of the full-slip
+    patch test falls at least quadratically once it is below 0.02."""
+    coulomb = ds.Coulomb(0.05 / ((LMBDA + 2 * MU) * PRESS)) if law == "coulomb" else None
+    problem, _, _ = patch_problem(0.05, law=coulomb)
     with ds.solve(problem) as sol:
         residuals = [h["residual_ncp"] for h in sol.history]
     tail = [r for r in residuals if 1e-14 < r < 0.02]

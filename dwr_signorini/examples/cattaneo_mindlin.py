@@ -1,0 +1,466 @@
+"""Cattaneo-Mindlin in 2D: a cylinder pressed onto a rigid flat, then sheared (Coulomb friction).
+
+The body is the half-disc of ``meshes/cattaneo_2d.py`` (radius R centred at (0, R), cut at
+y = R; plane strain, E, nu), its lower arc Gamma_C in possible contact with the rigid half-plane
+y <= 0 (:class:`~dwr_signorini.obstacles.Plane`), Coulomb friction with coefficient mu
+(:class:`~dwr_signorini.laws.Coulomb`). The top y = R is displaced by ``(0, -press)`` in the
+first load step (the press: a Hertz line contact of half-width a and total normal force P) and
+by ``(k shear / steps, -press)`` in steps k = 1, ..., ``steps`` (the shear: a tangential force
+Q < mu P). :func:`cattaneo_mindlin_path` builds these ``steps + 1`` problems on one mesh for
+:func:`~dwr_signorini.solve_path`.
+
+Theory (a half-plane, a << R; Johnson, *Contact Mechanics*, 1985, eqs. (4.43)-(4.45) and
+(7.7)-(7.11)): for a rigid flat, with E* = E / (1 - nu^2) and the force per unit length P,
+
+    (H1)  a = sqrt(4 P R / (pi E*)),        (H2)  p0 = 2 P / (pi a),
+    (H3)  p(x) = p0 sqrt(1 - x^2 / a^2),    |x| <= a,
+
+and under a monotonically growing tangential force Q < mu P the contact sticks on |x| <= c and
+slips on c <= |x| <= a with
+
+    (CM1) c = a sqrt(1 - Q / (mu P)),
+    (CM2) q(x) = mu p0 / a (sqrt(a^2 - x^2) - sqrt(c^2 - x^2)),  |x| <= c,
+          q(x) = mu p(x),                                        c <= |x| <= a,
+
+x measured from the first contact point (0, 0). The theory assumes that the normal and the
+tangential problems decouple, which holds exactly for nu = 1/2 (rigid flat): Dundurs' constant
+beta = (1 - 2 nu) / (2 (1 - nu)) vanishes (:func:`dundurs_beta`). With nu = 0.49 (the default;
+nu = 1/2 itself is not admissible in the displacement formulation) beta = 0.0196: the press
+alone leaves a small tangential traction (Poisson's ratio draws the contact surface inwards and
+friction resists it), a measured fraction of a per cent of mu p0 (:attr:`CMMeasure.max_lam_t`).
+
+The measurements (:func:`measure_cattaneo_mindlin`) read a solution as a user would: P and Q
+are the integrals of lambda_n and lambda_t over Gamma_C (Q with its sign: the goal
+:func:`~dwr_signorini.examples.goal_friction_force` is Q), the computed stick half-width c_h
+is half the extent along x of the sticking macro facets (their outer vertices), and the
+relative L2 error of lambda_t against q(x) is integrated facet by facet (Gauss-Legendre on
+every straight macro facet). All of them are collective: the facets are gathered on rank 0 and
+the results broadcast.
+
+The mesh builder reads the gmsh script ``meshes/cattaneo_2d.py`` of the project's checkout (the
+folder next to the package); pass ``mesh=(msh, cell_tags, facet_tags)`` with the script's tags
+to use another mesh.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from mpi4py import MPI
+
+import numpy as np
+import numpy.typing as npt
+from dolfinx import mesh as dmesh
+
+from ..laws import Coulomb
+from ..mesh_io import read_mesh
+from ..obstacles import Plane
+from ..problem import SignoriniProblem
+from ..viz.gather import gather_friction
+
+__all__ = [
+    "CM_CONTACT",
+    "CM_DEFAULTS",
+    "CM_TOP",
+    "CMMeasure",
+    "ContactProfile",
+    "cattaneo_mindlin_mesh",
+    "cattaneo_mindlin_path",
+    "cm_traction",
+    "dundurs_beta",
+    "gather_contact_profile",
+    "hertz_half_width",
+    "hertz_pressure",
+    "measure_cattaneo_mindlin",
+    "stick_half_width",
+]
+
+#: Facet tags of ``meshes/cattaneo_2d.py``: the arc Gamma_C and the top.
+CM_CONTACT, CM_TOP = 1, 2
+
+#: The data of :func:`cattaneo_mindlin_path`: geometry, material, friction, the top's
+#: displacements, load steps and the gmsh mesh sizes. ``press`` gives a / R = 0.10 and
+#: ``shear`` a final Q / (mu P) of about 0.65 (c / a about 0.6), with four shear steps.
+CM_DEFAULTS: dict[str, float] = {
+    "radius": 1.0, "E": 1.0, "nu": 0.49, "mu": 0.3, "press": 0.012, "shear": 0.0035,
+    "steps": 4, "h": 0.2, "h_contact": 0.01, "refine_radius": 0.15,
+}
+
+_MESH_SCRIPT = Path(__file__).resolve().parents[2] / "meshes" / "cattaneo_2d.py"
+
+
+# --------------------------------------------------------------------------------------------------
+# Theory
+# --------------------------------------------------------------------------------------------------
+
+
+def dundurs_beta(nu: float) -> float:
+    """Dundurs' second constant for an elastic body on a rigid flat: (1 - 2 nu) / (2 (1 - nu)).
+
+    beta = 0 decouples the normal and the tangential contact problems (Johnson 1985, eq. 5.4).
+    """
+    return (1.0 - 2.0 * nu) / (2.0 * (1.0 - nu))
+
+
+def hertz_half_width(P: float, radius: float, E: float, nu: float) -> tuple[float, float]:
+    """Hertz's line contact of a cylinder on a rigid flat, eqs. (H1), (H2) of the module.
+
+    Args:
+        P: The normal force per unit length.
+        radius: The cylinder's radius R.
+        E: Young's modulus of the cylinder.
+        nu: Its Poisson's ratio (plane strain: E* = E / (1 - nu^2)).
+
+    Returns:
+        ``(a, p0)``: the half-width and the peak pressure.
+    """
+    e_star = E / (1.0 - nu**2)
+    a = math.sqrt(4.0 * abs(P) * radius / (math.pi * e_star))
+    return a, (2.0 * abs(P) / (math.pi * a) if a > 0 else 0.0)
+
+
+def hertz_pressure(x: npt.ArrayLike, a: float, p0: float) -> np.ndarray:
+    """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on |x| <= a, 0 outside, eq. (H3)."""
+    x = np.asarray(x, dtype=float)
+    return p0 * np.sqrt(np.clip(1.0 - (x / a) ** 2, 0.0, None)) if a > 0 else 0.0 * x
+
+
+def stick_half_width(a: float, Q: float, mu: float, P: float) -> float:
+    """Cattaneo-Mindlin's stick half-width c = a sqrt(1 - |Q| / (mu P)), eq. (CM1).
+
+    Raises:
+        ValueError: If ``|Q| > mu P`` (the whole contact slides, no stick zone) or P <= 0.
+    """
+    if P <= 0 or mu <= 0:
+        raise ValueError(f"stick_half_width needs P > 0 and mu > 0, got P = {P}, mu = {mu}")
+    ratio = abs(Q) / (mu * P)
+    if ratio > 1.0:
+        raise ValueError(f"|Q| / (mu P) = {ratio:.4g} > 1: the contact slides as a whole")
+    return a * math.sqrt(1.0 - ratio)
+
+
+def cm_traction(x: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> np.ndarray:
+    """Cattaneo-Mindlin's tangential traction q(x), eq. (CM2) (positive, the sign of Q).
+
+    Args:
+        x: Positions along the flat, measured from the first contact point.
+        a: The contact half-width.
+        c: The stick half-width, 0 <= c <= a.
+        p0: Hertz's peak pressure.
+        mu: The friction coefficient.
+
+    Returns:
+        q at ``x``: mu p0 / a (sqrt(a^2 - x^2) - sqrt(c^2 - x^2)) (the second root only where
+        |x| < c), zero outside the contact |x| > a.
+    """
+    x = np.asarray(x, dtype=float)
+    if a <= 0:
+        return 0.0 * x
+    outer = np.sqrt(np.clip(a**2 - x**2, 0.0, None))
+    inner = np.sqrt(np.clip(c**2 - x**2, 0.0, None))
+    return mu * p0 / a * (outer - inner)
+
+
+# --------------------------------------------------------------------------------------------------
+# The problem
+# --------------------------------------------------------------------------------------------------
+
+
+def _mesh_script() -> Any:
+    """The module ``meshes/cattaneo_2d.py`` of the checkout."""
+    if not _MESH_SCRIPT.is_file():
+        raise FileNotFoundError(
+            f"cattaneo_mindlin_mesh reads the gmsh script {_MESH_SCRIPT}, which is missing (an "
+            "installed package has no meshes/ folder): pass mesh=(msh, cell_tags, facet_tags)"
+        )
+    spec = importlib.util.spec_from_file_location("meshes_cattaneo_2d", _MESH_SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    if (module.CONTACT, module.TOP) != (CM_CONTACT, CM_TOP):
+        raise RuntimeError(f"{_MESH_SCRIPT}: tags differ from CM_CONTACT, CM_TOP")
+    return module
+
+
+def cattaneo_mindlin_mesh(
+    comm: MPI.Comm,
+    h_contact: float = CM_DEFAULTS["h_contact"],
+    h: float = CM_DEFAULTS["h"],
+    refine_radius: float = CM_DEFAULTS["refine_radius"],
+    radius: float = CM_DEFAULTS["radius"],
+) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
+    """The half-disc of ``meshes/cattaneo_2d.py``, built by gmsh on rank 0 and distributed.
+
+    Collective. Uses the running gmsh session if there is one (in a model of its own, removed
+    afterwards), else starts and ends one.
+
+    Args:
+        comm: The communicator.
+        h_contact: Macro facet length on the arc within ``refine_radius`` R of (0, 0).
+        h: Mesh size away from the contact.
+        refine_radius: Radius (relative to R) of the zone of size ``h_contact``.
+        radius: The radius R.
+
+    Returns:
+        ``(mesh, cell_tags, facet_tags)`` with the facet tags :data:`CM_CONTACT`, :data:`CM_TOP`.
+    """
+    import gmsh
+
+    script = _mesh_script()
+    started = not gmsh.isInitialized()
+    if started:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        if comm.rank == 0:
+            gmsh.model.add("cattaneo_2d")
+            script.build(gmsh.model, radius=radius, h=h, h_contact=h_contact,
+                         refine_radius=refine_radius)
+        return read_mesh(gmsh.model, comm)
+    finally:
+        if started:
+            gmsh.finalize()
+        elif comm.rank == 0:
+            gmsh.model.remove()
+
+
+def cattaneo_mindlin_path(
+    comm: MPI.Comm,
+    h_contact: float = CM_DEFAULTS["h_contact"],
+    mu: float = CM_DEFAULTS["mu"],
+    nu: float = CM_DEFAULTS["nu"],
+    steps: int = int(CM_DEFAULTS["steps"]),
+    press: float = CM_DEFAULTS["press"],
+    shear: float = CM_DEFAULTS["shear"],
+    E: float = CM_DEFAULTS["E"],
+    radius: float = CM_DEFAULTS["radius"],
+    h: float = CM_DEFAULTS["h"],
+    refine_radius: float = CM_DEFAULTS["refine_radius"],
+    mesh: tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags] | None = None,
+) -> list[SignoriniProblem]:
+    """The load path of the module docstring: a press step, then ``steps`` shear steps.
+
+    All problems live on one macro mesh (for :func:`~dwr_signorini.solve_path`); the arc is
+    projected onto the circle when the mesh is refined (``boundary_projection``).
+
+    Args:
+        comm: The communicator (collective).
+        h_contact: Macro facet length at the contact (:func:`cattaneo_mindlin_mesh`).
+        mu: Coulomb's friction coefficient.
+        nu: Poisson's ratio (0.49: Dundurs' beta = 0.0196, module docstring).
+        steps: The number of shear steps (at least 1).
+        press: The top's downward displacement (a / R = 0.10 at the defaults).
+        shear: The top's final horizontal displacement, reached in ``steps`` equal increments.
+        E: Young's modulus.
+        radius: The radius R.
+        h: Mesh size away from the contact.
+        refine_radius: Radius (relative to R) of the zone of size ``h_contact``.
+        mesh: ``(msh, cell_tags, facet_tags)`` to use instead of building one (tags
+            :data:`CM_CONTACT`, :data:`CM_TOP`).
+
+    Returns:
+        ``steps + 1`` problems: the press ``(0, -press)``, then ``(k shear / steps, -press)``.
+    """
+    if int(steps) != steps or steps < 1:
+        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    msh, cell_tags, facet_tags = mesh if mesh is not None else cattaneo_mindlin_mesh(
+        comm, h_contact=h_contact, h=h, refine_radius=refine_radius, radius=radius)
+    flat = Plane((0.0, 0.0), (0.0, -1.0))
+    center = np.array([0.0, radius, 0.0])[:, None]
+
+    def onto_circle(x: np.ndarray) -> np.ndarray:
+        d = x - center
+        d[2] = 0.0
+        return center + radius * d / np.linalg.norm(d, axis=0)
+
+    law = Coulomb(mu)
+    return [
+        SignoriniProblem(
+            msh, facet_tags, contact=CM_CONTACT, dirichlet={CM_TOP: (k * shear / steps, -press)},
+            E=E, nu=nu, model="plane_strain", gap=flat, friction=law, cell_tags=cell_tags,
+            boundary_projection={CM_CONTACT: onto_circle},
+        )
+        for k in range(int(steps) + 1)
+    ]
+
+
+# --------------------------------------------------------------------------------------------------
+# Measurements
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ContactProfile:
+    """The macro contact facets of a 2D solution, gathered on rank 0 and sorted along x.
+
+    Attributes:
+        x0, x1: The x of each facet's left and right vertex (straight facets).
+        length: Each facet's length.
+        lam: lambda_n on each facet.
+        lam_t: lambda_t on each facet.
+        stick, slip: Whether each facet is in contact and sticks, slips.
+    """
+
+    x0: np.ndarray
+    x1: np.ndarray
+    length: np.ndarray
+    lam: np.ndarray
+    lam_t: np.ndarray
+    stick: np.ndarray
+    slip: np.ndarray
+
+    @property
+    def mid(self) -> np.ndarray:
+        """The facets' midpoints' x."""
+        return 0.5 * (self.x0 + self.x1)
+
+
+def gather_contact_profile(sol: Any) -> ContactProfile | None:
+    """The macro contact facets of a 2D frictional solution on rank 0 (``None`` elsewhere).
+
+    Collective (:func:`~dwr_signorini.viz.gather.gather_friction`).
+    """
+    data = gather_friction(sol)
+    if data is None:
+        return None
+    x, lam, lam_t, stick, slip = data
+    if x.shape[1:] != (2, 3):
+        raise ValueError("gather_contact_profile: a 2D problem (facets with two vertices) only")
+    x0, x1 = np.minimum(x[:, 0, 0], x[:, 1, 0]), np.maximum(x[:, 0, 0], x[:, 1, 0])
+    length = np.linalg.norm(x[:, 1, :] - x[:, 0, :], axis=1)
+    order = np.argsort(x0 + x1, kind="stable")
+    return ContactProfile(x0[order], x1[order], length[order], lam[order], lam_t[order],
+                          stick[order].astype(bool), slip[order].astype(bool))
+
+
+@dataclass(frozen=True)
+class CMMeasure:
+    """A solution of the Cattaneo-Mindlin path measured against the theory (module docstring).
+
+    Attributes:
+        P: int_GC lambda_n ds, the normal force per unit length.
+        Q: int_GC lambda_t ds, the tangential force (with its sign).
+        ratio: |Q| / (mu P).
+        a: Hertz's half-width for P, eq. (H1).
+        p0: Hertz's peak pressure for P, eq. (H2).
+        c: Cattaneo-Mindlin's stick half-width for P and Q, eq. (CM1) (nan if |Q| > mu P).
+        a_h: Half the extent along x of the macro facets in contact (outer vertices).
+        c_h: Half the extent along x of the sticking macro facets (outer vertices; 0 if none).
+        stick_center: The middle of the sticking facets' extent (0 in the theory).
+        h_facet: The longest macro facet of the contact zone |x| <= a: the unit of "within
+            one macro facet".
+        c_error_facets: (c_h - c) / h_facet.
+        a_error_facets: (a_h - a) / h_facet.
+        num_stick, num_slip: The numbers of sticking and slipping macro facets.
+        l2_lam_t: ||lambda_t - sign(Q) q||_L2(GC) / ||q||_L2(GC), eq. (CM2).
+        l2_lam: ||lambda_n - p||_L2(GC) / ||p||_L2(GC), eq. (H3).
+        max_lam_t: max |lambda_t| / (mu p0): the coupling measure of the press step.
+    """
+
+    P: float
+    Q: float
+    ratio: float
+    a: float
+    p0: float
+    c: float
+    a_h: float
+    c_h: float
+    stick_center: float
+    h_facet: float
+    c_error_facets: float
+    a_error_facets: float
+    num_stick: int
+    num_slip: int
+    l2_lam_t: float
+    l2_lam: float
+    max_lam_t: float
+
+    def as_dict(self) -> dict[str, float]:
+        """The fields as a dict (a table row)."""
+        return asdict(self)
+
+
+def _facet_l2(profile: ContactProfile, values: np.ndarray, exact: Any, points: int) -> tuple:
+    """(||values - exact||^2, ||exact||^2) over the facets, Gauss-Legendre per facet.
+
+    ``values`` are constant per facet; ``exact`` is a function of x. The facets are straight,
+    so ds = (length / (x1 - x0)) dx along each.
+    """
+    s, w = np.polynomial.legendre.leggauss(points)
+    dx = profile.x1 - profile.x0
+    x = 0.5 * (profile.x0 + profile.x1)[:, None] + 0.5 * dx[:, None] * s[None, :]
+    f = exact(x)
+    weights = 0.5 * profile.length[:, None] * w[None, :]
+    return (float(np.sum(weights * (values[:, None] - f) ** 2)),
+            float(np.sum(weights * f**2)))
+
+
+def _measure_on_root(
+    profile: ContactProfile, mu: float, E: float, nu: float, radius: float, points: int
+) -> CMMeasure:
+    """:func:`measure_cattaneo_mindlin` on the gathered facets."""
+    P = float(np.sum(profile.lam * profile.length))
+    Q = float(np.sum(profile.lam_t * profile.length))
+    a, p0 = hertz_half_width(P, radius, E, nu)
+    ratio = abs(Q) / (mu * P) if P > 0 else math.nan
+    c = stick_half_width(a, Q, mu, P) if ratio <= 1.0 else math.nan
+    active = profile.stick | profile.slip
+    a_h = 0.5 * (profile.x1[active].max() - profile.x0[active].min()) if active.any() else 0.0
+    if profile.stick.any():
+        left, right = profile.x0[profile.stick].min(), profile.x1[profile.stick].max()
+        c_h, center = 0.5 * (right - left), 0.5 * (right + left)
+    else:
+        c_h, center = 0.0, math.nan
+    zone = np.abs(profile.mid) <= max(a, a_h)
+    h_facet = float(profile.length[zone].max()) if zone.any() else math.nan
+    sign = 1.0 if Q >= 0 else -1.0
+    err_t, norm_t = _facet_l2(
+        profile, sign * profile.lam_t, lambda x: sign * cm_traction(x, a, c, p0, mu), points)
+    err_n, norm_n = _facet_l2(profile, profile.lam, lambda x: hertz_pressure(x, a, p0), points)
+    return CMMeasure(
+        P=P, Q=Q, ratio=ratio, a=a, p0=p0, c=c, a_h=a_h, c_h=c_h, stick_center=center,
+        h_facet=h_facet, c_error_facets=(c_h - c) / h_facet,
+        a_error_facets=(a_h - a) / h_facet,
+        num_stick=int(profile.stick.sum()), num_slip=int(profile.slip.sum()),
+        l2_lam_t=math.sqrt(err_t / norm_t) if norm_t > 0 else math.nan,
+        l2_lam=math.sqrt(err_n / norm_n) if norm_n > 0 else math.nan,
+        max_lam_t=float(np.abs(profile.lam_t).max() / (mu * p0)) if p0 > 0 else math.nan,
+    )
+
+
+def measure_cattaneo_mindlin(
+    sol: Any,
+    mu: float = CM_DEFAULTS["mu"],
+    E: float = CM_DEFAULTS["E"],
+    nu: float = CM_DEFAULTS["nu"],
+    radius: float = CM_DEFAULTS["radius"],
+    points: int = 16,
+) -> CMMeasure:
+    """Measure a solution of the path against Hertz and Cattaneo-Mindlin (module docstring).
+
+    Collective: the facets are gathered on rank 0, measured there, the result broadcast.
+
+    Args:
+        sol: A :class:`~dwr_signorini.Solution` of one step of :func:`cattaneo_mindlin_path`
+            (e.g. in the ``callback`` of :func:`~dwr_signorini.solve_path`).
+        mu, E, nu, radius: The data of the path.
+        points: Gauss-Legendre points per macro facet of the L2 errors.
+
+    Returns:
+        The :class:`CMMeasure`, the same on every rank.
+    """
+    comm = sol.disc.comm
+    profile = gather_contact_profile(sol)
+    result: CMMeasure | Exception | None = None
+    if comm.rank == 0:
+        try:
+            result = _measure_on_root(profile, mu, E, nu, radius, points)
+        except Exception as error:  # raised on every rank below
+            result = error
+    result = comm.bcast(result, root=0)
+    if isinstance(result, Exception):
+        raise result
+    return result

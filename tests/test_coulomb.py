@@ -1,0 +1,314 @@
+"""Coulomb friction and load paths (dwr_signorini.laws.Coulomb, dwr_signorini.path) against truth.
+
+* mu = 0 is the frictionless problem, to round-off (2D and 3D); the patch tests of Tresca's law
+  with Coulomb's threshold are in tests/test_friction.py and tests/test_friction_3d.py;
+* the dual solution: adjoint consistency of the nonsymmetric Newton matrix for a linear goal
+  (J(w_h) = z_h . F, F the last step's right-hand side), and the derivative of the friction force
+  with respect to a load against finite differences of re-solved problems;
+* load paths: a path that stays fully stuck ends where a single step does (the problem is then
+  linear); where the contact zone grows under partial slip the path matters; shearing and
+  unshearing leaves a residual tangential traction (hysteresis) that a stuck body has not;
+* global sliding of a block on an inclined plane: it holds below the force ratio
+  F / G = (tan(alpha) + mu) / (1 - mu tan(alpha)) and has no equilibrium above it;
+* serial = 2 ranks on a load path.
+"""
+
+import math
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import mesh
+from dolfinx.fem import petsc as fem_petsc
+
+import dwr_signorini as ds
+from dwr_signorini import examples as ex
+
+from .test_friction import BOTTOM, LEFT, RIGHT, TOP, _square_tags, global_max, global_sum
+
+COMM = MPI.COMM_WORLD
+MU_F = 0.3
+
+
+def cylinder(comm=COMM, mu=MU_F, top=(0.01, -0.02), dim=2, **kwargs):
+    """The sheared block on a cylinder (examples.friction_problem) with Coulomb friction."""
+    base = ex.friction_problem(comm, dim=dim, **kwargs)
+    moved = top if dim == 2 else (top[0], 0.0, top[1])
+    return ds.SignoriniProblem(
+        base.mesh, base.facet_tags, contact=ex.CONTACT, dirichlet={ex.DIRICHLET: moved},
+        E=10.0, nu=0.3, gap=base.gap, friction=ds.Coulomb(mu),
+    )
+
+
+def path(tops, comm=COMM, mu=MU_F):
+    """One problem per top displacement, on one mesh."""
+    first = cylinder(comm, mu, tops[0])
+    return [first] + [
+        ds.SignoriniProblem(first.mesh, first.facet_tags, contact=ex.CONTACT,
+                            dirichlet={ex.DIRICHLET: top}, E=10.0, nu=0.3, gap=first.gap,
+                            friction=first.law)
+        for top in tops[1:]
+    ]
+
+
+def final_state(problems, goal=None):
+    """(u, lam, lam_t) arrays and the records of a path's last step."""
+    out = {}
+
+    def keep(record, sol, est):
+        out["state"] = [f.x.array.copy() for f in (sol.u, sol.lam, sol.lam_t)]
+
+    goal = goal or ex.goal_friction_force()
+    with ds.solve_path(problems, goal, callback=keep, verbose=False) as res:
+        return out["state"], res.steps
+
+
+# --------------------------------------------------------------------------------------------------
+# Limits
+# --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("dim", [2, 3])
+def test_zero_friction_is_frictionless(dim):
+    """mu = 0: lambda_t = 0 and (u, lambda_n) the frictionless solution to round-off."""
+    coulomb = cylinder(mu=0.0, dim=dim, **({"nx": 6, "ny": 3, "radius": 4.0} if dim == 3 else {}))
+    free = ds.SignoriniProblem(
+        coulomb.mesh, coulomb.facet_tags, contact=ex.CONTACT,
+        dirichlet=coulomb.dirichlet_values, E=10.0, nu=0.3, gap=coulomb.gap,
+    )
+    with ds.solve(coulomb, rtol=1e-12) as a, ds.solve(free, rtol=1e-12) as b:
+        assert a.num_active > 0 and a.num_active == b.num_active
+        assert global_max(a.u.x.array - b.u.x.array) <= 1e-10 * global_max(b.u.x.array)
+        assert global_max(a.lam.x.array - b.lam.x.array) <= 1e-10 * global_max(b.lam.x.array)
+        assert global_max(a.lam_t.x.array) == 0.0
+
+
+# --------------------------------------------------------------------------------------------------
+# The dual problem: the transposed nonsymmetric Newton matrix
+# --------------------------------------------------------------------------------------------------
+
+
+def linear_goal(u, lam, m, lam_t):
+    return (lam_t + 0.5 * lam + ufl.dot(u, ufl.as_vector((1.0, 2.0)))) * m.ds_contact
+
+
+@pytest.mark.mpi
+def test_adjoint_consistency_for_a_linear_goal():
+    """With the final sets the primal map is linear, A w_h = F (F = [f; h], h the multiplier
+    rows of the last Newton step's right-hand side, coupled rows included); the dual solves
+    A^T z_h = J', so for a linear goal J(w_h) = z_h . F to round-off (1e-10)."""
+    with ds.solve(cylinder(), rtol=1e-12) as sol, ds.estimate(sol, linear_goal) as est:
+        assert est.goal_is_linear and sol.num_stick > 0 and sol.num_slip > 0
+        s = sol.system
+        xi = sol.stacked(est.dual.multipliers)
+        xi_1 = np.where(s.active, xi * s.c_n, xi)  # solve_dual's map of the constrained rows
+        h = s.b.array[s.n_u:]
+        y = est.dual.y.x.array[: s.n_u]
+        total = global_sum(y @ s.f.array) + global_sum(xi_1 @ h)
+        assert total == pytest.approx(est.J_h, rel=1e-10, abs=0.0)
+        coupled = np.zeros(len(h), dtype=bool)
+        for cp in s.couplings:
+            coupled[cp.rows[:, 1:].ravel()] = True
+        assert global_sum(coupled.sum()) == sol.num_slip  # the slipping facets' rows
+
+
+@pytest.mark.mpi
+def test_dual_is_the_derivative_of_J_against_finite_differences():
+    """d/de J(w_h(e)) for the body force (e, 0) at e = 0, by central differences of re-solved
+    problems (whose sets do not change), equals z_h . [int e_x . v; 0]: the dual sees the
+    coupling of the slipping facets' tangential rows to lambda_n."""
+    goal = ex.goal_friction_force()
+
+    def solve(eps):
+        base = cylinder()
+        problem = ds.SignoriniProblem(
+            base.mesh, base.facet_tags, contact=ex.CONTACT, dirichlet=base.dirichlet_values,
+            E=10.0, nu=0.3, gap=base.gap, friction=base.law, body_force=(eps, 0.0),
+        )
+        return ds.solve(problem, rtol=1e-12)
+
+    eps = 1e-5
+    with solve(0.0) as sol, ds.estimate(sol, goal, estimator="eta_p") as est:
+        assert sol.num_slip > 0
+        v = ufl.TestFunction(sol.disc.V)
+        load = fem_petsc.assemble_vector(sol.disc.form(v[0] * sol.disc.m.dx))
+        load.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem_petsc.set_bc(load, sol.system.bcs)
+        predicted = global_sum(est.dual.y.x.array[: sol.system.n_u] @ load.array)
+        load.destroy()
+        values = []
+        for sign in (1.0, -1.0):
+            with solve(sign * eps) as other:
+                assert np.array_equal(other.system.active, sol.system.active)
+                with ds.estimate(other, goal, estimator="eta_p") as e:
+                    values.append(e.J_h)
+        fd = (values[0] - values[1]) / (2 * eps)
+        assert abs(predicted) > 1e-3
+        assert fd == pytest.approx(predicted, rel=1e-6)
+
+
+# --------------------------------------------------------------------------------------------------
+# Load paths
+# --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.mpi
+def test_a_path_that_stays_stuck_ends_where_one_step_does():
+    """Press and shear a block on a flat rigid plane in proportion, in one step and in ten:
+    every facet in contact and stuck on every step, the problem is linear and the end states
+    agree to 1e-10."""
+    msh = mesh.create_unit_square(COMM, 6, 6, ghost_mode=mesh.GhostMode.none)
+    tags = _square_tags(msh)
+
+    def problem(k, n):
+        return ds.SignoriniProblem(
+            msh, tags, contact=BOTTOM, dirichlet={TOP: (0.01 * k / n, -0.01 * k / n)}, E=10.0,
+            nu=0.3, gap=0.0, friction=ds.Coulomb(10.0))
+
+    goal = ex.goal_friction_force()
+    one, steps_one = final_state([problem(1, 1)], goal)
+    ten, steps_ten = final_state([problem(k, 10) for k in range(1, 11)], goal)
+    n_contact = steps_one[0].num_contact_elements
+    assert all(r.num_stick == n_contact for r in steps_one + steps_ten)
+    for a, b in zip(one, ten, strict=True):
+        assert global_max(a - b) <= 1e-10 * global_max(a)
+
+
+@pytest.mark.mpi
+def test_partial_slip_makes_the_path_matter():
+    """On the cylinder, pressing and shearing in proportion in one step or in ten ends in
+    different states: points that come into contact late stick where they arrive."""
+    one, _ = final_state(path([(0.01, -0.02)]))
+    ten, steps = final_state(path([(0.001 * k, -0.002 * k) for k in range(1, 11)]))
+    assert any(r.num_slip > 0 and r.num_stick > 0 for r in steps)
+    lam_t_one, lam_t_ten = one[2], ten[2]
+    assert global_max(lam_t_one - lam_t_ten) >= 0.02 * global_max(lam_t_one)
+
+
+@pytest.mark.mpi
+def test_shear_and_unshear_leave_a_residual_traction():
+    """Press, shear (partial slip), shear back to zero: a tangential traction stays locked in
+    (hysteresis); the same path with mu = 100 (stuck throughout) returns to the pressed state,
+    lambda_t = 0 where it was 0 after pressing (to 1e-10 of its peak)."""
+    tops = [(0.0, -0.02), (0.005, -0.02), (0.01, -0.02), (0.005, -0.02), (0.0, -0.02)]
+    peaks, ends, pressed = {}, {}, {}
+    for mu in (MU_F, 100.0):
+        states = []
+
+        def keep(record, sol, est, states=states):
+            states.append(sol.lam_t.x.array.copy())
+
+        with ds.solve_path(path(tops, mu=mu), ex.goal_friction_force(), callback=keep,
+                           verbose=False) as res:
+            if mu == MU_F:
+                assert res.steps[2].num_slip > 0
+        pressed[mu], peaks[mu], ends[mu] = states[0], states[2], states[-1]
+    locked = global_max(ends[MU_F] - pressed[MU_F])
+    assert locked >= 0.1 * global_max(peaks[MU_F] - pressed[MU_F])
+    assert global_max(ends[100.0] - pressed[100.0]) <= 1e-10 * global_max(peaks[100.0])
+
+
+@pytest.mark.mpi
+def test_serial_and_parallel_paths_agree():
+    """A three-step path with partial slip on COMM_WORLD and on COMM_SELF: the same sets,
+    J_h and estimates to round-off."""
+    tops = [(0.0, -0.02), (0.005, -0.02), (0.01, -0.02)]
+    runs = {}
+    for name, comm in (("world", COMM), ("self", MPI.COMM_SELF)):
+        with ds.solve_path(path(tops, comm=comm), ex.goal_friction_force(), weights="patch",
+                           verbose=False) as res:
+            runs[name] = res.steps
+    for p, s in zip(runs["world"], runs["self"], strict=True):
+        assert (p.num_active, p.num_stick, p.num_slip) == (s.num_active, s.num_stick,
+                                                           s.num_slip)
+        assert p.J_h == pytest.approx(s.J_h, rel=1e-10)
+        assert p.eta == pytest.approx(s.eta, rel=1e-8, abs=1e-14)
+    assert runs["self"][-1].num_slip > 0
+
+
+# --------------------------------------------------------------------------------------------------
+# Global sliding on an inclined plane
+# --------------------------------------------------------------------------------------------------
+
+
+def incline_path(pushes, alpha, mu, press=0.01, comm=COMM):
+    """A square block on an incline of angle alpha, in the incline's frame (contact y = 0), its
+    top clamped to a plate that moves down by ``press`` and sideways by each push (global
+    directions: horizontal e_h = (cos alpha, -sin alpha), vertical e_v = (sin alpha,
+    cos alpha)). The plate's force on the block has the horizontal part F and the downward
+    part G; in full slip up the slope F / G = (tan alpha + mu) / (1 - mu tan alpha)."""
+    msh = mesh.create_unit_square(comm, 6, 6, ghost_mode=mesh.GhostMode.none)
+    tags = _square_tags(msh)
+    e_h = np.array([math.cos(alpha), -math.sin(alpha)])
+    e_v = np.array([math.sin(alpha), math.cos(alpha)])
+    return [
+        ds.SignoriniProblem(
+            msh, tags, contact=BOTTOM, E=10.0, nu=0.3, gap=0.0, friction=ds.Coulomb(mu),
+            dirichlet={TOP: tuple(float(c) for c in push * e_h - press * e_v)},
+            traction={t: (0.0, 0.0) for t in (LEFT, RIGHT)},
+        )
+        for push in pushes
+    ]
+
+
+@pytest.mark.mpi
+def test_global_sliding_force_on_an_incline():
+    """Push the plate sideways step by step: while a facet sticks, the plate's force ratio
+    F / G stays below r* = (tan(alpha) + mu) / (1 - mu tan(alpha)); once every facet slips it
+    is r* (to 1e-10: statics and Coulomb's law on every facet), so the steps bracket the
+    sliding force. F, G from the contact resultants (Lambda_t, Lambda_n) = int (lambda_t,
+    lambda_n): F = Lambda_t cos(alpha) + Lambda_n sin(alpha), G = Lambda_n cos(alpha) -
+    Lambda_t sin(alpha)."""
+    alpha, mu = 0.2, MU_F
+    r_star = (math.tan(alpha) + mu) / (1 - mu * math.tan(alpha))
+    pushes = [0.0, 0.01, 0.02, 0.025, 0.03, 0.04, 0.06]
+    rows = []
+
+    def resultants(record, sol, est):
+        n = sol.system.algebra.n_q
+        M = sol.system.M.array[:n]
+        lam_n, lam_t = (global_sum(M @ f.x.array[:n]) for f in (sol.lam, sol.lam_t))
+        F = lam_t * math.cos(alpha) + lam_n * math.sin(alpha)
+        G = lam_n * math.cos(alpha) - lam_t * math.sin(alpha)
+        rows.append((record.num_stick, record.num_slip, F / G))
+
+    with ds.solve_path(incline_path(pushes, alpha, mu), ex.goal_friction_force(),
+                       callback=resultants, weights="patch", verbose=False):
+        pass
+    stuck = [r for s, _, r in rows if s > 0]
+    sliding = [r for s, _, r in rows if s == 0]
+    assert stuck and sliding, rows
+    assert rows[0][2] < r_star and all(r < r_star * (1 - 1e-6) for r in stuck), rows
+    assert all(abs(r - r_star) <= 1e-10 * r_star for r in sliding), rows
+    assert [s > 0 for s, _, _ in rows] == sorted([s > 0 for s, _, _ in rows], reverse=True)
+
+
+# --------------------------------------------------------------------------------------------------
+# Bad input
+# --------------------------------------------------------------------------------------------------
+
+
+def test_bad_paths_are_rejected_by_name():
+    one = path([(0.0, -0.02)])[0]
+    other = cylinder()  # another mesh
+    goal = ex.goal_friction_force()
+    with pytest.raises(ValueError, match="problems is empty"):
+        ds.solve_path([], goal)
+    with pytest.raises(TypeError, match="problems must be a sequence"):
+        ds.solve_path(one, goal)
+    with pytest.raises(ValueError, match=r"problems\[1\] lives on another mesh"):
+        ds.solve_path([one, other], goal)
+    tresca = ds.SignoriniProblem(one.mesh, one.facet_tags, contact=ex.CONTACT,
+                                 dirichlet=one.dirichlet_values, E=10.0, nu=0.3, gap=one.gap,
+                                 friction=ds.Tresca(0.1))
+    with pytest.raises(ValueError, match=r"problems\[1\] has another contact boundary or "
+                                         "contact law"):
+        ds.solve_path([one, tresca], goal)
+    with pytest.raises(TypeError, match="goal must be a callable"):
+        ds.solve_path([one, one], [goal])
+    with pytest.raises(TypeError, match="adaptive must be True or False"):
+        ds.solve_path([one], goal, adaptive="yes")
