@@ -21,7 +21,7 @@ from petsc4py import PETSc
 import numpy as np
 import pytest
 import ufl
-from dolfinx import mesh
+from dolfinx import fem, mesh
 from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
@@ -312,3 +312,43 @@ def test_bad_paths_are_rejected_by_name():
         ds.solve_path([one, one], [goal])
     with pytest.raises(TypeError, match="adaptive must be True or False"):
         ds.solve_path([one], goal, adaptive="yes")
+
+
+# --------------------------------------------------------------------------------------------------
+# Adaptivity along a path: the history on the refined mesh
+# --------------------------------------------------------------------------------------------------
+
+
+def _slip_integral(disc, u):
+    """int_GC u . t ds on the fine mesh of ``disc`` (collective)."""
+    m = disc.m
+    t = ufl.as_vector((-m.n[1], m.n[0]))
+    return disc.comm.allreduce(
+        fem.assemble_scalar(fem.form(ufl.dot(u, t) * m.ds_contact)), op=MPI.SUM)
+
+
+@pytest.mark.mpi
+def test_refined_path_carries_the_history_exactly():
+    """adaptive=True: the step after a refinement measures its slip from the previous step's
+    displacement interpolated onto the refined mesh, which is exact (nested P1): int u_old . t
+    over Gamma_C is the old step's to round-off. The refined path ends nearer to the same path
+    solved on the refined mesh from the start than the path that never refines."""
+    tops = [(0.0, -0.02), (0.005, -0.02), (0.01, -0.02)]
+    slips, carried = [], []
+
+    def record(rec, sol, est):
+        slips.append(_slip_integral(sol.disc, sol.u))
+        if sol.disc.u_old is not None:
+            carried.append(_slip_integral(sol.disc, sol.disc.u_old))
+
+    goal = ex.goal_friction_force()
+    with ds.solve_path(path(tops), goal, adaptive=True, callback=record,
+                       verbose=False) as res:
+        refined = [r.J_h for r in res.steps]
+        assert [r.level for r in res.steps] == [0, 1, 2]
+        assert res.steps[1].num_cells > res.steps[0].num_cells
+        fine = res.problem
+    assert carried == pytest.approx(slips[:-1], rel=1e-12, abs=1e-15)
+    coarse = final_state(path(tops))[1]
+    on_fine = final_state([p.with_mesh(fine.mesh, fine.facet_tags) for p in path(tops)])[1]
+    assert abs(refined[-1] - on_fine[-1].J_h) < abs(coarse[-1].J_h - on_fine[-1].J_h)
