@@ -68,8 +68,16 @@ class StepRecord(LevelRecord):
 class PathResult(AdaptiveResult):
     """The steps of a load path, and the last step's solution and estimate.
 
-    As :class:`~dwr_signorini.adapt.AdaptiveResult` (its ``levels`` are the steps' records,
-    :class:`StepRecord`); release it with :meth:`destroy` or use it as a context manager.
+    As :class:`~dwr_signorini.adapt.AdaptiveResult`; release it with :meth:`destroy` or use it
+    as a context manager.
+
+    Attributes:
+        levels: One :class:`StepRecord` per load step (also :attr:`steps`).
+        solution: The last step's :class:`~dwr_signorini.Solution`.
+        estimate: The last step's :class:`~dwr_signorini.Estimate`.
+        problem: The last step's problem, on its (refined) macro mesh.
+        meta: The path's settings (written by :meth:`to_json`).
+        comm: The mesh communicator.
     """
 
     @property

@@ -352,3 +352,23 @@ def test_refined_path_carries_the_history_exactly():
     coarse = final_state(path(tops))[1]
     on_fine = final_state([p.with_mesh(fine.mesh, fine.facet_tags) for p in path(tops)])[1]
     assert abs(refined[-1] - on_fine[-1].J_h) < abs(coarse[-1].J_h - on_fine[-1].J_h)
+
+
+@pytest.mark.mpi
+def test_path_writes_its_table_and_fields(mpi_tmp_path, capsys):
+    """output_dir: path.csv and path.json with one row per step, the fields per step; verbose:
+    one progress line per step on rank 0."""
+    import json
+
+    tops = [(0.0, -0.02), (0.01, -0.02)]
+    with ds.solve_path(path(tops), ex.goal_friction_force(), output_dir=mpi_tmp_path) as res:
+        assert len(res.steps) == 2
+    COMM.barrier()
+    lines = (mpi_tmp_path / "path.csv").read_text().splitlines()
+    assert len(lines) == 3 and "J_low" in lines[0] and "step" in lines[0]
+    data = json.loads((mpi_tmp_path / "path.json").read_text())
+    assert [r["step"] for r in data["levels"]] == [0, 1]
+    assert data["meta"]["law"] == "Coulomb(0.3)"
+    assert any(p.suffix in (".xdmf", ".bp") for p in mpi_tmp_path.iterdir())
+    out = capsys.readouterr().out
+    assert out.count("step ") == (2 if COMM.rank == 0 else 0)
