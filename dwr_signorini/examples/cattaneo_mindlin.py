@@ -25,9 +25,15 @@ slips on c <= |x| <= a with
 x measured from the first contact point (0, 0). The theory assumes that the normal and the
 tangential problems decouple, which holds exactly for nu = 1/2 (rigid flat): Dundurs' constant
 beta = (1 - 2 nu) / (2 (1 - nu)) vanishes (:func:`dundurs_beta`). With nu = 0.49 (the default;
-nu = 1/2 itself is not admissible in the displacement formulation) beta = 0.0196: the press
-alone leaves a small tangential traction (Poisson's ratio draws the contact surface inwards and
-friction resists it), a measured fraction of a per cent of mu p0 (:attr:`CMMeasure.max_lam_t`).
+nu = 1/2 itself is not admissible in the displacement formulation) beta = 0.0196, and the press
+alone leaves an odd tangential traction (Poisson's ratio draws the contact surface inwards and
+friction resists it; :attr:`CMMeasure.coupling`). Measured at the defaults (mu = 0.3, macro
+facets of 0.02 to 0.0025 at the contact): the mean friction on either half of the contact is
+within 3.5 % of its Coulomb limit, with a sign that changes with the mesh, while lambda_t
+oscillates from facet to facet (rms 0.17-0.2 of mu p, up to 0.4 mu p0 at the ends of the
+contact). The oscillation does not shrink under refinement: it is the P1 displacement's
+response to nu = 0.49 (lambda / mu = 49, near-incompressible), seen in lambda_n too, and it
+also rides on lambda_t in the shear steps (about +-0.08 mu p0 in the stick zone).
 
 The measurements (:func:`measure_cattaneo_mindlin`) read a solution as a user would: P and Q
 are the integrals of lambda_n and lambda_t over Gamma_C (Q with its sign: the goal
@@ -60,7 +66,7 @@ from ..laws import Coulomb
 from ..mesh_io import read_mesh
 from ..obstacles import Plane
 from ..problem import SignoriniProblem
-from ..viz.gather import gather_friction
+from ..viz.gather import gather_contact_force, gather_friction
 
 __all__ = [
     "CM_CONTACT",
@@ -83,10 +89,10 @@ __all__ = [
 CM_CONTACT, CM_TOP = 1, 2
 
 #: The data of :func:`cattaneo_mindlin_path`: geometry, material, friction, the top's
-#: displacements, load steps and the gmsh mesh sizes. ``press`` gives a / R = 0.10 and
-#: ``shear`` a final Q / (mu P) of about 0.65 (c / a about 0.6), with four shear steps.
+#: displacements, load steps and the gmsh mesh sizes. ``press`` gives a / R = 0.094 and
+#: ``shear`` a final Q / (mu P) of 0.69 (c / a = 0.56), in four shear steps.
 CM_DEFAULTS: dict[str, float] = {
-    "radius": 1.0, "E": 1.0, "nu": 0.49, "mu": 0.3, "press": 0.012, "shear": 0.0035,
+    "radius": 1.0, "E": 1.0, "nu": 0.49, "mu": 0.3, "press": 0.012, "shear": 0.0055,
     "steps": 4, "h": 0.2, "h_contact": 0.01, "refine_radius": 0.15,
 }
 
@@ -301,6 +307,7 @@ class ContactProfile:
         length: Each facet's length.
         lam: lambda_n on each facet.
         lam_t: lambda_t on each facet.
+        active: Whether each facet is in contact (the normal active set).
         stick, slip: Whether each facet is in contact and sticks, slips.
     """
 
@@ -309,6 +316,7 @@ class ContactProfile:
     length: np.ndarray
     lam: np.ndarray
     lam_t: np.ndarray
+    active: np.ndarray
     stick: np.ndarray
     slip: np.ndarray
 
@@ -321,19 +329,23 @@ class ContactProfile:
 def gather_contact_profile(sol: Any) -> ContactProfile | None:
     """The macro contact facets of a 2D frictional solution on rank 0 (``None`` elsewhere).
 
-    Collective (:func:`~dwr_signorini.viz.gather.gather_friction`).
+    Collective (:func:`~dwr_signorini.viz.gather.gather_friction` and
+    :func:`~dwr_signorini.viz.gather.gather_contact_force`, which gather in the same order).
     """
     data = gather_friction(sol)
+    normal = gather_contact_force(sol)
     if data is None:
         return None
     x, lam, lam_t, stick, slip = data
+    active = normal[2]
     if x.shape[1:] != (2, 3):
         raise ValueError("gather_contact_profile: a 2D problem (facets with two vertices) only")
     x0, x1 = np.minimum(x[:, 0, 0], x[:, 1, 0]), np.maximum(x[:, 0, 0], x[:, 1, 0])
     length = np.linalg.norm(x[:, 1, :] - x[:, 0, :], axis=1)
     order = np.argsort(x0 + x1, kind="stable")
     return ContactProfile(x0[order], x1[order], length[order], lam[order], lam_t[order],
-                          stick[order].astype(bool), slip[order].astype(bool))
+                          active[order].astype(bool), stick[order].astype(bool),
+                          slip[order].astype(bool))
 
 
 @dataclass(frozen=True)
@@ -356,8 +368,15 @@ class CMMeasure:
         a_error_facets: (a_h - a) / h_facet.
         num_stick, num_slip: The numbers of sticking and slipping macro facets.
         l2_lam_t: ||lambda_t - sign(Q) q||_L2(GC) / ||q||_L2(GC), eq. (CM2).
+        l2_best: The relative L2 error of the best approximation of q by macro-facet constants
+            (the facet means of q): what lambda_t's P0 space allows at best.
         l2_lam: ||lambda_n - p||_L2(GC) / ||p||_L2(GC), eq. (H3).
-        max_lam_t: max |lambda_t| / (mu p0): the coupling measure of the press step.
+        max_lam_t: max |lambda_t| / (mu p0): a coupling measure of the press step.
+        rms_lam_t: ||lambda_t||_L2(GC) / ||mu p||_L2(GC), eq. (H3): another one.
+        coupling: int_{GC, x > 0} lambda_t ds / (mu int_{GC, x > 0} lambda_n ds): the mean
+            friction on one half of the contact in units of its Coulomb limit, the coupling
+            measure of the press step (the press alone gives an odd lambda_t, zero for
+            beta = 0).
     """
 
     P: float
@@ -375,8 +394,11 @@ class CMMeasure:
     num_stick: int
     num_slip: int
     l2_lam_t: float
+    l2_best: float
     l2_lam: float
     max_lam_t: float
+    rms_lam_t: float
+    coupling: float
 
     def as_dict(self) -> dict[str, float]:
         """The fields as a dict (a table row)."""
@@ -398,6 +420,14 @@ def _facet_l2(profile: ContactProfile, values: np.ndarray, exact: Any, points: i
             float(np.sum(weights * f**2)))
 
 
+def _facet_means(profile: ContactProfile, exact: Any, points: int) -> np.ndarray:
+    """The mean of ``exact`` (a function of x) on every facet, Gauss-Legendre."""
+    s, w = np.polynomial.legendre.leggauss(points)
+    x = (0.5 * (profile.x0 + profile.x1)[:, None]
+         + 0.5 * (profile.x1 - profile.x0)[:, None] * s[None, :])
+    return 0.5 * np.sum(exact(x) * w[None, :], axis=1)
+
+
 def _measure_on_root(
     profile: ContactProfile, mu: float, E: float, nu: float, radius: float, points: int
 ) -> CMMeasure:
@@ -407,7 +437,7 @@ def _measure_on_root(
     a, p0 = hertz_half_width(P, radius, E, nu)
     ratio = abs(Q) / (mu * P) if P > 0 else math.nan
     c = stick_half_width(a, Q, mu, P) if ratio <= 1.0 else math.nan
-    active = profile.stick | profile.slip
+    active = profile.active
     a_h = 0.5 * (profile.x1[active].max() - profile.x0[active].min()) if active.any() else 0.0
     if profile.stick.any():
         left, right = profile.x0[profile.stick].min(), profile.x1[profile.stick].max()
@@ -419,15 +449,24 @@ def _measure_on_root(
     sign = 1.0 if Q >= 0 else -1.0
     err_t, norm_t = _facet_l2(
         profile, sign * profile.lam_t, lambda x: sign * cm_traction(x, a, c, p0, mu), points)
+    means = _facet_means(profile, lambda x: cm_traction(x, a, c, p0, mu), points)
+    err_b, _ = _facet_l2(profile, means, lambda x: cm_traction(x, a, c, p0, mu), points)
     err_n, norm_n = _facet_l2(profile, profile.lam, lambda x: hertz_pressure(x, a, p0), points)
+    right = profile.mid > 0
+    normal_right = mu * float(np.sum((profile.lam * profile.length)[right]))
     return CMMeasure(
         P=P, Q=Q, ratio=ratio, a=a, p0=p0, c=c, a_h=a_h, c_h=c_h, stick_center=center,
         h_facet=h_facet, c_error_facets=(c_h - c) / h_facet,
         a_error_facets=(a_h - a) / h_facet,
         num_stick=int(profile.stick.sum()), num_slip=int(profile.slip.sum()),
         l2_lam_t=math.sqrt(err_t / norm_t) if norm_t > 0 else math.nan,
+        l2_best=math.sqrt(err_b / norm_t) if norm_t > 0 else math.nan,
         l2_lam=math.sqrt(err_n / norm_n) if norm_n > 0 else math.nan,
         max_lam_t=float(np.abs(profile.lam_t).max() / (mu * p0)) if p0 > 0 else math.nan,
+        rms_lam_t=math.sqrt(float(np.sum(profile.lam_t**2 * profile.length)) / norm_n) / mu
+        if norm_n > 0 else math.nan,
+        coupling=(float(np.sum((profile.lam_t * profile.length)[right])) / normal_right
+                  if normal_right > 0 else math.nan),
     )
 
 
@@ -446,7 +485,10 @@ def measure_cattaneo_mindlin(
     Args:
         sol: A :class:`~dwr_signorini.Solution` of one step of :func:`cattaneo_mindlin_path`
             (e.g. in the ``callback`` of :func:`~dwr_signorini.solve_path`).
-        mu, E, nu, radius: The data of the path.
+        mu: Coulomb's friction coefficient of the path.
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        radius: The radius R.
         points: Gauss-Legendre points per macro facet of the L2 errors.
 
     Returns:
