@@ -50,8 +50,15 @@ slipping facet's rows, (I - J) M lambda - c J (B u), couple the two tangential r
 the transpose of the columns B^T: the Newton matrix is not symmetric and is factored by LU
 (:mod:`dwr_signorini.linalg.coupled`, :class:`Coupling`). In the facet's rotated basis (q, p) the
 step reads lambda_q = s and (B u)_p = (1 - alpha) / (alpha c) M lambda_p, a symmetric form
-with a compliant diagonal; the LU path is the one part 2 (Coulomb's law, whose derivative
-couples the normal and tangential rows) needs anyway.
+with a compliant diagonal; the LU path is the one Coulomb's law needs anyway.
+
+**Coulomb's law** (:class:`Coulomb`) has the threshold mu max(0, x_n), x_n the normal NCP
+argument: one projection onto the Coulomb cone acts on all components of a facet
+(:class:`CoulombCone`), and on a facet in contact that slips the tangential rows depend on x_n
+(the derivative mu d, d = sign(x_t) or x_t / ``|x_t|``). Such a facet is a :class:`Coupling`
+whose normal row is constrained (active) and whose tangential rows couple to the normal
+column; the Newton matrix is not symmetric in 2D either. Its tangential arguments hold the slip
+increment of a load step, x_t = lambda_t + c (u - u_old) . t (:func:`~dwr_signorini.solve_path`).
 """
 
 from __future__ import annotations
