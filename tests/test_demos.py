@@ -441,3 +441,32 @@ def test_read_rows_csv_and_json(tmp_path):
         assert list(plotting.cumulative_time(back)) == [1.5, 3.5]
     with open(tmp_path / "t.csv", newline="") as fh:
         assert "time_total" in next(csv.reader(fh))
+
+
+# --------------------------------------------------------------------------------------------------
+# Cattaneo-Mindlin
+# --------------------------------------------------------------------------------------------------
+
+SMALL_ARGS["cattaneo_mindlin"] = ["--levels", "1", "--steps", "2", "--adaptive"]
+
+
+def test_cattaneo_mindlin_serial_and_parallel(tmp_path):
+    """The files; 2 processes give the serial rows; the stick zone is within two facets of the
+    theory's on the coarse mesh (tests/test_cattaneo_mindlin.py checks the physics)."""
+    outs = {nprocs: tmp_path / f"np{nprocs}" for nprocs in (1, 2)}
+    for nprocs, out in outs.items():
+        _run("cattaneo_mindlin", out, nprocs)
+    for name in ("friction_force.png", "stick_zone.png", "traction_profile.png",
+                 "adaptive_meshes.png"):
+        path = outs[1] / name
+        assert path.is_file() and path.read_bytes()[:8] == PNG_SIGNATURE, name
+    serial, parallel = _csv(outs[1] / "table.csv"), _csv(outs[2] / "table.csv")
+    assert len(serial) == 2 * 3 and len(parallel) == len(serial)
+    for rs, rp in zip(serial, parallel, strict=True):
+        for key in ("num_cells", "num_stick", "num_slip"):
+            assert rs[key] == rp[key], key
+        for key in ("J_h", "J_low", "J_high", "P", "Q", "c_h", "l2_lam_t"):
+            assert _close(rs[key], rp[key], 1e-8), (key, rs[key], rp[key])
+    assert all(abs(r["c_error_facets"]) < 2 for r in serial if r["step"] > 0)
+    for run in ("h0", "adaptive"):
+        assert (outs[1] / run / "path.csv").is_file()

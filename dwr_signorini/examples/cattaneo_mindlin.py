@@ -30,7 +30,7 @@ alone leaves an odd tangential traction (Poisson's ratio draws the contact surfa
 friction resists it; :attr:`CMMeasure.coupling`). Measured at the defaults (mu = 0.3, macro
 facets of 0.02 to 0.0025 at the contact): the mean friction on either half of the contact is
 within 3.5 % of its Coulomb limit, with a sign that changes with the mesh, while lambda_t
-oscillates from facet to facet (rms 0.17-0.2 of mu p, up to 0.4 mu p0 at the ends of the
+oscillates from facet to facet (rms 0.10-0.18 of mu p, up to 0.4 mu p0 at the ends of the
 contact). The oscillation does not shrink under refinement: it is the P1 displacement's
 response to nu = 0.49 (lambda / mu = 49, near-incompressible), seen in lambda_n too, and it
 also rides on lambda_t in the shear steps (about +-0.08 mu p0 in the stick zone).

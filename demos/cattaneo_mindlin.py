@@ -1,0 +1,323 @@
+# # Cattaneo-Mindlin: a cylinder pressed onto a rigid flat and sheared (Coulomb friction)
+#
+# The classical test of frictional contact: a cylinder is pressed onto a flat by a normal
+# force $P$, then pulled sideways by a tangential force $Q < \mu P$. The contact does not slide
+# as a whole: its centre sticks, and slip zones spread in from the ends as $Q$ grows.
+# Cattaneo (1938) and Mindlin (1949) found the zones and tractions in closed form. This demo
+# follows the load path with `ds.solve_path` (each step starts from the last and measures its
+# slip from it), and compares what it computes with their theory.
+#
+# ## The problem
+#
+# The half-disc of `meshes/cattaneo_2d.py` (radius $R = 1$, centre $(0, R)$, cut at $y = R$;
+# plane strain, $E = 1$, $\nu = 0.49$) lies with its lower arc $\Gamma_C$ on the rigid
+# half-plane $y \le 0$ (`ds.obstacles.Plane`), with Coulomb friction $\mu$ (`ds.Coulomb(mu)`).
+# The top is displaced by $(0, -\delta)$ in step 0 (the press) and by
+# $(k\,s/n, -\delta)$ in the shear steps $k = 1, \dots, n$; $\delta = 0.012$ gives
+# $a / R = 0.094$ and the final shear $s = 0.0055$ gives $Q / (\mu P) = 0.69$
+# (`dwr_signorini.examples.cattaneo_mindlin_path`). The macro mesh has facets of $h_C$ on the
+# arc near the first contact point; `--levels` solves the path on meshes with
+# $h_C = 0.02, 0.01, 0.005, \dots$, and `--adaptive` also solves it adaptively
+# (`solve_path(..., adaptive=True)`: the mesh refined after each step for the friction force).
+#
+# ## The theory
+#
+# For a half-plane ($a \ll R$) and a rigid flat, $E^* = E / (1 - \nu^2)$ (Johnson, *Contact
+# Mechanics*, eqs. 4.43-4.45 and 7.7-7.11), with $x$ measured from the first contact point:
+#
+# $$
+# a = \sqrt{\frac{4 P R}{\pi E^*}}, \quad p_0 = \frac{2P}{\pi a}, \quad
+# p(x) = p_0 \sqrt{1 - x^2/a^2}, \qquad c = a \sqrt{1 - \frac{Q}{\mu P}},
+# $$
+#
+# $$
+# q(x) = \frac{\mu p_0}{a}\Big(\sqrt{a^2 - x^2} - \sqrt{c^2 - x^2}\Big) \;(|x| \le c), \qquad
+# q(x) = \mu p(x) \;(c \le |x| \le a).
+# $$
+#
+# $P = \int_{\Gamma_C} \lambda_n$ and $Q = \int_{\Gamma_C} \lambda_t$ are taken from the computed
+# solution. The theory needs the normal and tangential problems to decouple, which they do for
+# $\nu = 1/2$: Dundurs' $\beta = (1 - 2\nu)/(2(1 - \nu))$ is $0.0196$ at $\nu = 0.49$. Step 0
+# measures what is left of the coupling: the press alone should give no friction force and an
+# odd, small $\lambda_t$ (column `coupling`: the mean friction on the half $x > 0$ in units of its
+# Coulomb limit).
+#
+# ## Quantity of interest
+#
+# $J = \int_{\Gamma_C} \lambda_t\, ds = Q$, the friction force
+# (`ex.goal_friction_force()`); every step prints $J_h$ and the interval
+# $[J_{low}, J_{high}]$ of the dual weighted residual estimate.
+#
+# ```
+# python3 demos/cattaneo_mindlin.py                    # or: mpirun -n 2 python3 demos/...
+# python3 demos/cattaneo_mindlin.py --levels 4 --steps 8 --adaptive
+# ```
+#
+# Tables (CSV, JSON), pictures (PNG) and each path's fields (XDMF) go to
+# `results/cattaneo_mindlin/`.
+
+# +
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+
+import dwr_signorini as ds
+from dwr_signorini import examples as ex
+from dwr_signorini.io import write_csv, write_json
+from dwr_signorini.viz.canvas import new_figure, save_figure
+from dwr_signorini.viz.gather import snapshot_mesh
+
+comm = MPI.COMM_WORLD
+
+
+def print0(*args: object) -> None:
+    if comm.rank == 0:
+        print(*args, flush=True)
+
+
+# -
+
+# ## Options
+#
+# The defaults (three meshes, four shear steps) take about 15 s on two processes.
+
+# +
+D = ex.CM_DEFAULTS
+parser = argparse.ArgumentParser(
+    description="Cattaneo-Mindlin: a cylinder pressed onto a rigid flat and sheared, Coulomb "
+    "friction, against the theory",
+    formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+)
+parser.add_argument("--levels", type=int, default=3,
+                    help="meshes: h_contact, h_contact / 2, ... (the path solved on each)")
+parser.add_argument("--h-contact", type=float, default=0.02,
+                    help="macro facet length at the contact on the coarsest mesh")
+parser.add_argument("--steps", type=int, default=int(D["steps"]), help="shear steps")
+parser.add_argument("--mu", type=float, default=D["mu"], help="Coulomb's friction coefficient")
+parser.add_argument("--nu", type=float, default=D["nu"], help="Poisson's ratio")
+parser.add_argument("--press", type=float, default=D["press"],
+                    help="downward displacement of the top")
+parser.add_argument("--shear", type=float, default=None,
+                    help="final sideways displacement of the top (default: 0.0055 mu / 0.3)")
+parser.add_argument("--adaptive", action="store_true",
+                    help="also solve the path adaptively from the coarsest mesh")
+parser.add_argument("--output", type=Path, default=Path("results/cattaneo_mindlin"))
+parser.add_argument("--no-plots", action="store_true")
+args = parser.parse_args([] if "ipykernel" in sys.modules else None)
+if args.levels < 1 or args.steps < 1:
+    parser.error("--levels and --steps must be at least 1")
+shear = args.shear if args.shear is not None else D["shear"] * args.mu / D["mu"]
+out = args.output
+data = {"mu": args.mu, "nu": args.nu, "E": D["E"], "radius": D["radius"]}
+print0(f"Cattaneo-Mindlin on {comm.size} process(es): mu = {args.mu}, nu = {args.nu} "
+       f"(Dundurs' beta = {ex.dundurs_beta(args.nu):.4f}), {args.steps} shear steps; "
+       f"output in {out}/")
+# -
+
+# ## The load paths
+#
+# One path per mesh (and one adaptive path). The callback measures every step against the
+# theory while its solution is alive and keeps the facets' tractions (numpy arrays, gathered on
+# rank 0) and, for the adaptive path, a snapshot of the macro mesh.
+
+# +
+HEADER = (f"{'step':>4} {'cells':>7} {'Q/muP':>6} {'a_h/a':>6} {'c/a':>6} {'c_h/a':>6} "
+          f"{'dc/h':>6} {'L2 q':>6} {'best':>6} {'L2 p':>6} {'coupl':>7} {'stick':>5} "
+          f"{'slip':>5} {'J_h':>11} {'[J_low, J_high]':>25} {'it':>3} {'time':>6}")
+rows: list[dict] = []
+profiles: dict[str, list] = {}
+snapshots: list = []
+
+
+def run(name: str, h_contact: float, adaptive: bool) -> None:
+    problems = ex.cattaneo_mindlin_path(comm, h_contact=h_contact, mu=args.mu, nu=args.nu,
+                                        steps=args.steps, press=args.press, shear=shear)
+    profiles[name] = []
+    tic = time.perf_counter()
+    print0(f"\n--- {name}: h_contact = {h_contact:g}{', adaptive' if adaptive else ''} ---")
+    print0(HEADER)
+
+    def on_step(record: ds.StepRecord, sol: ds.Solution, est: ds.Estimate) -> None:
+        m = ex.measure_cattaneo_mindlin(sol, **data)
+        profiles[name].append(ex.gather_contact_profile(sol))
+        if adaptive and not args.no_plots:
+            snapshots.append(snapshot_mesh(sol.disc.macro_mesh))
+        row = {"run": name, "h_contact": h_contact, "adaptive": adaptive,
+               "step": record.step, "level": record.level, "num_cells": record.num_cells,
+               "num_dofs": record.num_dofs, "M_C": record.num_contact_elements,
+               "J_h": record.J_h, "J_low": record.J_low, "J_high": record.J_high,
+               "eta": record.eta, "newton_iterations": record.newton_iterations,
+               **m.as_dict(), "time_cumulative": time.perf_counter() - tic}
+        rows.append(row)
+        print0(f"{record.step:4d} {record.num_cells:7d} {m.ratio:6.3f} {m.a_h / m.a:6.3f} "
+               f"{m.c / m.a:6.3f} {m.c_h / m.a:6.3f} {m.c_error_facets:+6.2f} "
+               f"{m.l2_lam_t:6.3f} {m.l2_best:6.3f} {m.l2_lam:6.3f} {m.coupling:+7.4f} "
+               f"{m.num_stick:5d} {m.num_slip:5d} {record.J_h:11.4e} "
+               f"[{record.J_low:.4e}, {record.J_high:.4e}] {record.newton_iterations:3d} "
+               f"{row['time_cumulative']:6.1f}")
+
+    ds.solve_path(problems, ex.goal_friction_force(), adaptive=adaptive,
+                  output_dir=out / name, callback=on_step, verbose=False).destroy()
+
+
+runs = {f"h{k}": (args.h_contact / 2**k, False) for k in range(args.levels)}
+if args.adaptive:
+    runs["adaptive"] = (args.h_contact, True)
+tic = time.perf_counter()
+for name, (h_contact, adaptive) in runs.items():
+    run(name, h_contact, adaptive)
+wall = time.perf_counter() - tic
+# -
+
+# ## Convergence on the meshes
+#
+# `L2 q` is $\|\lambda_t - q\| / \|q\|$ on $\Gamma_C$, `best` the same for the best
+# facet-wise constant approximation of $q$ (what the multiplier space allows), `dc/h` the
+# error of the stick half-width in macro facets. On the meshes of the defaults `L2 q` falls
+# by a factor of about 1.4 per halving of $h_C$ (0.32, 0.22, 0.16 at the last step); the stick
+# zone comes out a little small, by 0.2 to 1.2 facets: the discrete traction undershoots $q$'s
+# square-root rise at the stick boundary. On top of it $\lambda_t$ oscillates from facet to
+# facet by about $\pm 0.08\,\mu p_0$ in the stick zone: the response of P1 displacements to
+# $\nu = 0.49$ ($\lambda / \mu = 49$), seen in $\lambda_n$ as well (`L2 p`), and the reason
+# why the press step's $\lambda_t$ is not the small odd profile of the theory.
+
+# +
+last = {name: [r for r in rows if r["run"] == name][-1] for name in runs}
+print0(f"\nlast step ({args.steps}): {'run':>9} {'Q/muP':>6} {'c_h - c':>8} {'facets':>6} "
+       f"{'L2 q':>6} {'best':>6}")
+for name, r in last.items():
+    print0(f"{'':>18}{name:>9} {r['ratio']:6.3f} {r['c_h'] - r['c']:+8.4f} "
+           f"{r['c_error_facets']:+6.2f} {r['l2_lam_t']:6.3f} {r['l2_best']:6.3f}")
+press = [r for r in rows if r["step"] == 0]
+print0(f"press step (coupling, beta = {ex.dundurs_beta(args.nu):.4f}): "
+       + ", ".join(f"{r['run']}: mean {r['coupling']:+.4f}, rms {r['rms_lam_t']:.3f}, "
+                   f"max {r['max_lam_t']:.3f} (of mu p)" for r in press))
+print0(f"{len(runs)} paths in {wall:.1f} s")
+if comm.rank == 0:
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(out / "table.csv", rows)
+    write_json(out / "summary.json", {
+        "args": {k: str(v) for k, v in vars(args).items()}, "num_processes": comm.size,
+        "shear": shear, "dundurs_beta": ex.dundurs_beta(args.nu), "wall_time": wall,
+        "runs": {name: [r for r in rows if r["run"] == name] for name in runs},
+    })
+# -
+
+# ## Pictures
+#
+# The friction force with its interval per step; the stick half-width against the theory's
+# $c/a = \sqrt{1 - Q/(\mu P)}$; the tractions along the contact at the last step against
+# $q(x)$ and $\mu p(x)$; with `--adaptive`, the adaptive path's meshes near the contact.
+
+# +
+if not args.no_plots and comm.rank == 0:
+    finest = f"h{args.levels - 1}"
+    ref_run = "adaptive" if "adaptive" in runs else finest
+    ref = {r["step"]: r["J_h"] for r in rows if r["run"] == ref_run}
+    fig = new_figure((6.4, 6.4))
+    top, bottom = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
+    for i, name in enumerate(runs):
+        rs = [r for r in rows if r["run"] == name]
+        steps = np.array([r["step"] for r in rs]) + 0.08 * (i - len(runs) / 2)
+        J = np.array([r["J_h"] for r in rs])
+        low = np.array([r["J_low"] for r in rs])
+        high = np.array([r["J_high"] for r in rs])
+        top.plot(steps, J, "o-", color=f"C{i}", markersize=4, label=f"{name}: J_h")
+        shear_steps = steps[1:]
+        scale = np.array([ref[r["step"]] for r in rs[1:]])
+        bottom.errorbar(shear_steps, 0.5 * (low + high)[1:] / scale - 1,
+                        yerr=0.5 * (high - low)[1:] / scale, fmt="none", capsize=3,
+                        color=f"C{i}", label=f"{name}: [J_low, J_high]")
+        bottom.plot(shear_steps, J[1:] / scale - 1, "o", color=f"C{i}", markersize=4)
+    top.set_ylabel(r"friction force $J = \int_{\Gamma_C} \lambda_t\,ds$")
+    top.set_title("the friction force per step and its interval")
+    top.legend(fontsize="x-small")
+    bottom.set_xlabel("load step (0: press)")
+    bottom.set_ylabel(f"relative to {ref_run}'s $J_h$")
+    bottom.legend(fontsize="x-small", title="dots: J_h", title_fontsize="x-small")
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+    save_figure(fig, out / "friction_force.png")
+
+    fig = new_figure((6.4, 4.4))
+    ax = fig.add_subplot()
+    r_theory = np.linspace(0.0, 1.0, 200)
+    ax.plot(r_theory, np.sqrt(1 - r_theory), "k-", label=r"theory $\sqrt{1 - Q/(\mu P)}$")
+    for i, name in enumerate(runs):
+        rs = [r for r in rows if r["run"] == name and r["step"] > 0]
+        ax.errorbar([r["ratio"] for r in rs], [r["c_h"] / r["a"] for r in rs],
+                    yerr=[r["h_facet"] / r["a"] for r in rs], fmt="o", capsize=3,
+                    color=f"C{i}", markersize=4, label=f"{name}: $c_h/a$ (bars: one facet)")
+    ax.set_xlabel(r"$Q / (\mu P)$")
+    ax.set_ylabel(r"stick half-width $c / a$")
+    ax.set_xlim(0.0, 1.0)
+    ax.set_ylim(0.0, 1.05)
+    ax.set_title("Cattaneo-Mindlin: the stick zone")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="x-small")
+    save_figure(fig, out / "stick_zone.png")
+
+    r = last[finest]
+    p = profiles[finest][-1]
+    a, c, p0, mu = r["a"], r["c"], r["p0"], args.mu
+    sign = 1.0 if r["Q"] >= 0 else -1.0
+    fig = new_figure((7.0, 4.4))
+    ax = fig.add_subplot()
+    x = np.linspace(-1.2 * a, 1.2 * a, 801)
+    ax.plot(x / a, ex.cm_traction(x, a, c, p0, mu) / (mu * p0), "k-", label="theory $q(x)$")
+    ax.plot(x / a, ex.hertz_pressure(x, a, p0) / p0, "k--", lw=0.8,
+            label=r"theory $\mu p(x)$ (slip limit)")
+    edges = np.stack([p.x0, p.x1], axis=1).ravel() / a
+    ax.plot(edges, np.repeat(sign * p.lam_t / (mu * p0), 2), "-", color="C0",
+            label=r"computed $\lambda_t$ (macro facets)")
+    ax.plot(edges, np.repeat(p.lam / p0, 2), "-", color="C7", lw=0.8,
+            label=r"computed $\mu \lambda_n$")
+    for mask, color, label in ((p.stick, "C2", "stick"), (p.slip, "C1", "slip")):
+        ax.plot(p.mid[mask] / a, np.full(mask.sum(), -0.05), "|", color=color, markersize=8,
+                label=f"computed {label} facets")
+    for s in (-c / a, c / a):
+        ax.axvline(s, color="C2", lw=0.8, ls=":")
+    ax.set_xlim(-1.2, 1.2)
+    ax.set_xlabel("x / a")
+    ax.set_ylabel(r"traction / $(\mu p_0)$")
+    ax.set_title(f"{finest}, step {args.steps}: Q/(mu P) = {r['ratio']:.2f}, "
+                 f"L2 error {r['l2_lam_t']:.3f}")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="x-small", loc="upper right")
+    save_figure(fig, out / "traction_profile.png")
+
+    if snapshots:
+        from matplotlib.collections import PolyCollection
+
+        n = len(snapshots)
+        cols = min(n, 3)
+        fig = new_figure((4.0 * cols, 2.0 * math.ceil(n / cols)))
+        a = last["adaptive"]["a"]
+        for k, snap in enumerate(snapshots):
+            ax = fig.add_subplot(math.ceil(n / cols), cols, k + 1)
+            ax.add_collection(PolyCollection(snap.cells[:, :, :2], facecolor="none",
+                                             edgecolor="k", linewidth=0.2))
+            prof = profiles["adaptive"][k]
+            for mask, color in ((prof.stick, "C2"), (prof.slip, "C1")):
+                ax.plot(np.stack([prof.x0[mask], prof.x1[mask]]),
+                        np.zeros((2, mask.sum())), "-", color=color, lw=3)
+            ax.set_xlim(-2 * a, 2 * a)
+            ax.set_ylim(-0.1 * a, 1.5 * a)
+            ax.set_aspect("equal")
+            ax.set_title(f"step {k}: {snap.num_cells} macro cells", fontsize="small")
+            ax.set_xticks([])
+            ax.set_yticks([])
+        fig.suptitle("adaptive path: macro meshes near the contact (green: stick, orange: slip)")
+        save_figure(fig, out / "adaptive_meshes.png")
+if comm.rank == 0:
+    written = sorted(q.name for q in out.iterdir() if q.is_file())
+    print(f"\nwritten to {out}/: {', '.join(written)}")
+# -
