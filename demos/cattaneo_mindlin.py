@@ -198,8 +198,8 @@ for name, r in last.items():
            f"{r['c_error_facets']:+6.2f} {r['l2_lam_t']:6.3f} {r['l2_best']:6.3f}")
 press = [r for r in rows if r["step"] == 0]
 print0(f"press step (coupling, beta = {ex.dundurs_beta(args.nu):.4f}): "
-       + ", ".join(f"{r['run']}: mean {r['coupling']:+.4f}, rms {r['rms_lam_t']:.3f}, "
-                   f"max {r['max_lam_t']:.3f} (of mu p)" for r in press))
+       + ", ".join(f"{r['run']}: mean {r['coupling']:+.4f}, rms {r['rms_lam_t']:.3f} of mu p, "
+                   f"max {r['max_lam_t']:.3f} mu p0" for r in press))
 print0(f"{len(runs)} paths in {wall:.1f} s")
 if comm.rank == 0:
     out.mkdir(parents=True, exist_ok=True)
