@@ -1,0 +1,126 @@
+"""The estimate along a Coulomb load path: effectivity and coverage on every step and level.
+
+The 2D Cattaneo-Mindlin path (``examples.cattaneo_mindlin_path``: a cylinder pressed onto a
+rigid flat, then sheared in steps, Coulomb friction) is solved with ``ds.solve_path`` on a
+sequence of meshes, each the uniform refinement of the last (the arc projected onto the circle).
+The goal of every step is the friction force Q = int_GC lambda_t. The reference of each step is
+the J_h of the finest mesh, its uncertainty the change from the mesh before (from J_h alone, no
+estimate). A step of a level is judged when its error is at least 10 times that uncertainty;
+for each: J_h, the interval, whether it contains the reference, its width over the error, and
+the effectivity of eta, (J_ref - J_h) / eta. The estimate of a step treats the history (the
+previous step's displacement on the same mesh) as data: the error the history carries is not
+in it, and the table shows what that costs. Also per step: Newton steps and the times of the
+solve and of the estimate (the cost per step).
+
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/path_effectivity.py
+    scripts/fenicsx python3 benchmarks/path_effectivity.py --tables-from \\
+        benchmarks/results/path_effectivity.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from mpi4py import MPI
+
+import dwr_signorini as ds
+from dwr_signorini import examples as ex
+from dwr_signorini.refine import refine_marked
+
+RESULTS = Path("benchmarks/results")
+OUTPUT = RESULTS / "path_effectivity.json"
+
+
+def paths(comm: MPI.Comm, levels: int, weights: str) -> list[list[dict[str, Any]]]:
+    """The path's step records on ``levels`` meshes, each the uniform refinement of the last."""
+    problems = ex.cattaneo_mindlin_path(comm)
+    runs = []
+    for level in range(levels):
+        with ds.solve_path(problems, ex.goal_friction_force(), weights=weights,
+                           verbose=False) as res:
+            rows = [r.as_dict() for r in res.steps]
+        if comm.rank == 0:
+            print(f"level {level}: {rows[0]['num_cells']} cells, "
+                  f"{sum(r['time']['total'] for r in rows):.1f} s", flush=True)
+        runs.append(rows)
+        if level < levels - 1:
+            refined, _ = refine_marked(problems[0], None)
+            problems = [p.with_mesh(refined.mesh, refined.facet_tags, refined.cell_tags)
+                        for p in problems]
+    return runs
+
+
+def judge(runs: list[list[dict[str, Any]]]) -> list[dict[str, Any]]:
+    """Each step of each level but the two finest against the finest's J_h."""
+    finest, before = runs[-1], runs[-2]
+    out = []
+    for level, rows in enumerate(runs[:-2]):
+        for r, ref, prev in zip(rows, finest, before, strict=True):
+            J_ref, unc = ref["J_h"], abs(ref["J_h"] - prev["J_h"])
+            err = J_ref - r["J_h"]
+            out.append({
+                "level": level, "step": r["step"], "cells": r["num_cells"], "J_h": r["J_h"],
+                "J_low": r["J_low"], "J_high": r["J_high"], "J_ref": J_ref, "uncertainty": unc,
+                "error": err, "eta": r["eta"], "weights": r["weights"],
+                "ieff": err / r["eta"] if r["eta"] else float("inf"),
+                "judged": abs(err) >= 10 * unc,
+                "covers": r["J_low"] - unc <= J_ref <= r["J_high"] + unc,
+                "width_over_error": (r["J_high"] - r["J_low"]) / abs(err) if err else None,
+                "newton": r["newton_iterations"], "num_stick": r["num_stick"],
+                "num_slip": r["num_slip"], "t_solve": r["time"]["solve"],
+                "t_estimate": r["time"]["dual"] + r["time"]["estimate"],
+            })
+    return out
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    """The Markdown table of the judged and unjudged steps."""
+    lines = ["| level | step | cells | J_h | [J_low, J_high] | J_ref - J_h | Ieff(eta) | "
+             "covers | width / error | stick/slip | Newton | solve | estimate |",
+             "|---:|---:|---:|---:|---|---:|---:|---|---:|---|---:|---:|---:|"]
+    for r in rows:
+        mark = "" if r["judged"] else " (not judged)"
+        width = "" if r["width_over_error"] is None else f"{r['width_over_error']:.2f}"
+        lines.append(
+            f"| {r['level']} | {r['step']} | {r['cells']:,} | {r['J_h']:.5e} | "
+            f"[{r['J_low']:.5e}, {r['J_high']:.5e}] | {r['error']:.2e}{mark} | "
+            f"{r['ieff']:.2f} | {'yes' if r['covers'] else 'NO'} | {width} | "
+            f"{r['num_stick']}/{r['num_slip']} | {r['newton']} | {r['t_solve']:.2f} s | "
+            f"{r['t_estimate']:.2f} s |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--levels", type=int, default=5)
+    parser.add_argument("--weights", default="auto")
+    parser.add_argument("--tables-from", type=Path, default=None)
+    args = parser.parse_args()
+    comm = MPI.COMM_WORLD
+    if args.tables_from is not None:
+        data = json.loads(args.tables_from.read_text())
+    else:
+        runs = paths(comm, args.levels, args.weights)
+        data = {"levels": args.levels, "weights": args.weights, "processes": comm.size,
+                "rows": judge(runs), "references": [r["J_h"] for r in runs[-1]],
+                "J_h": [[r["J_h"] for r in rows] for rows in runs],
+                "cells": [rows[0]["num_cells"] for rows in runs],
+                "eta": [[r["eta"] for r in rows] for rows in runs],
+                "time": [[r["time"]["total"] for r in rows] for rows in runs]}
+        if comm.rank == 0:
+            RESULTS.mkdir(parents=True, exist_ok=True)
+            OUTPUT.write_text(json.dumps(data, indent=1))
+    if comm.rank == 0:
+        print(table(data["rows"]))
+        judged = [r for r in data["rows"] if r["judged"]]
+        if judged:
+            ieff = [r["ieff"] for r in judged]
+            print(f"judged {len(judged)}: Ieff in [{min(ieff):.2f}, {max(ieff):.2f}], "
+                  f"covered {sum(r['covers'] for r in judged)}/{len(judged)}")
+
+
+if __name__ == "__main__":
+    main()
