@@ -4,8 +4,8 @@ The ball of radius R centred at (0, 0, R), cut at z = R; with ``quarter=True`` (
 x >= 0, y >= 0, with symmetry planes x = 0 and y = 0; with ``half=True`` only y >= 0 (the half a
 load along x keeps symmetric: the Cattaneo-Mindlin shear, ``demos/cattaneo_mindlin.py``). The
 spherical face is the possible contact boundary, the top z = R is pressed down by a prescribed
-displacement. Refined around (0, 0, 0). Tags: 1 ``contact`` (sphere), 2 ``top``, 3 ``symmetry_x`` (x = 0), 4 ``symmetry_y`` (y = 0);
-cells 1 ``body``.
+displacement. Refined around (0, 0, 0). Tags: 1 ``contact`` (sphere), 2 ``top``, 3
+``symmetry_x`` (x = 0), 4 ``symmetry_y`` (y = 0); cells 1 ``body``.
 """
 
 from __future__ import annotations
