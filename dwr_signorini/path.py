@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mpi4py import MPI
-
 import numpy as np
+import ufl
+from dolfinx import fem
 
 from .adapt import (
     AdaptiveResult,
@@ -50,18 +50,25 @@ from .spaces import Discretization, discretize
 from .timing import timed
 from .transfer import transfer_solution
 
-__all__ = ["PathResult", "StepRecord", "solve_path"]
+__all__ = ["PathResult", "StepRecord", "history_estimates", "history_goal", "solve_path"]
 
 
 @dataclass
 class StepRecord(LevelRecord):
     """One row of a load path's table: a :class:`~dwr_signorini.adapt.LevelRecord` of the step.
 
+    ``estimate``, ``J_low`` and ``J_high`` include the error the history carries into the
+    step's goal (:func:`history_estimates`) when it is estimated; ``eta`` and ``eta_p`` are
+    those of the step's own residuals.
+
     Attributes:
         step: The load step, from 0 (``level`` is the refinement level of its mesh).
+        eta_history: The estimated error that the earlier steps carry into this step's goal,
+            or None where it is not estimated (``history=False``, adaptive paths).
     """
 
     step: int = 0
+    eta_history: float | None = None
 
 
 @dataclass
@@ -129,23 +136,17 @@ def _goals(goal: Any, n: int) -> list[Goal]:
 def _warm_start(previous: Solution, disc: Discretization) -> tuple[Any, ...]:
     """Step k's initial guess: step k - 1's solution on this step's discretisation.
 
-    On the same macro mesh the multipliers' layout is the same (copied) and u is u^old; on a
+    On the same mesh (the spaces are shared, :meth:`Discretization.for_problem`) a copy; on a
     refined mesh the solution is transferred as between adaptive levels.
     """
-    old = previous.disc
-    same = old.macro_mesh is disc.macro_mesh and old.Q.dofmap.index_map.size_local == (
-        disc.Q.dofmap.index_map.size_local
-    )
-    if not disc.comm.allreduce(same, op=MPI.LAND):
+    if previous.disc.V is not disc.V:
         return transfer_solution(previous, disc)
-    lams = []
-    for f in previous.multipliers:
-        g = type(f)(disc.Q, name=f.name)
+    copies = []
+    for f in (previous.u, *previous.multipliers):
+        g = fem.Function(f.function_space, name=f.name)
         g.x.array[:] = f.x.array
-        lams.append(g)
-    u0 = type(previous.u)(disc.V, name="u")
-    u0.x.array[:] = disc.u_old.x.array
-    return (u0, *lams)
+        copies.append(g)
+    return tuple(copies)
 
 
 def solve_path(
@@ -163,6 +164,7 @@ def solve_path(
     ncp_scale: str | float = "physical",
     verbose: bool = True,
     initial_guess: tuple[Any, ...] | None = None,
+    history: bool | None = None,
 ) -> PathResult:
     """Solve a quasi-static load path step by step, each step from the last (module docstring).
 
@@ -191,6 +193,11 @@ def solve_path(
             discretisation's spaces (as :func:`~dwr_signorini.solve`); e.g. for a body that
             only contact and friction hold in place, whose first Newton step needs the contact
             active (a floating body's stiffness matrix is singular).
+        history: Estimate the error the earlier steps carry into each step's goal
+            (:func:`history_estimates`, added to the step's estimate and interval): keeps every
+            step's solution (and its factorisation) and costs k more estimates at step k.
+            Default: True on a path on one mesh, False with ``adaptive`` (not available there:
+            the earlier steps live on other meshes).
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -207,23 +214,37 @@ def solve_path(
               callback, "edges", growth, verbose, output_dir)
     if not isinstance(adaptive, bool):
         raise TypeError(f"adaptive must be True or False, got {adaptive!r}")
+    if history is None:
+        history = not adaptive
+    if not isinstance(history, bool):
+        raise TypeError(f"history must be True, False or None, got {history!r}")
+    if history and adaptive:
+        raise ValueError(
+            "history=True needs every step on one mesh: the history's error is not estimated "
+            "on an adaptive path (use history=False or adaptive=False)"
+        )
     comm = problems[0].mesh.comm
     if adaptive:
         fraction, growth = marking_defaults(problems[0], fraction, growth)
     meta = {"steps": len(problems), "adaptive": adaptive, "estimator": estimator,
-            "weights": weights, "fraction": fraction, "growth": growth,
+            "weights": weights, "fraction": fraction, "growth": growth, "history": history,
             "num_processes": comm.size, "law": repr(problems[0].law)}
+    options = {
+        "solve": {"petsc_options": petsc_options, "method": method, "ncp_scale": ncp_scale},
+        "estimate": {"estimator": estimator, "weights": weights,
+                     "petsc_options": petsc_options},
+        "fraction": fraction, "growth": growth,
+    }
     out = None
     if output_dir is not None:
         check_output_dir(output_dir, comm)
         out = OutputDirectory(output_dir, comm, name="path")
     result = PathResult(levels=[], meta=meta, comm=comm)
-    state = _PathState(first_guess=initial_guess)
+    state = _PathState(first_guess=initial_guess, keep=history)
     try:
         for k, problem in enumerate(problems):
             record = _step(k, problem, goals[k], state, adaptive and k < len(problems) - 1,
-                           estimator, weights, fraction, growth, petsc_options, method,
-                           ncp_scale)
+                           options)
             result.levels.append(record)
             sol, est = state.solution, state.estimate
             if out is not None:
@@ -239,61 +260,180 @@ def solve_path(
     except Exception:
         state.destroy()
         raise
+    for kept in state.kept:  # the last step's solution and estimate go with the result
+        kept.destroy()
     return result
 
 
 @dataclass
 class _PathState:
-    """What a step hands to the next: its solution, estimate, and the refined problems."""
+    """What a step hands to the next.
+
+    Its solution and estimate, the discretisation, the earlier steps' solutions (for the
+    history's error) and the refined problems.
+    """
 
     solution: Solution | None = field(default=None, repr=False)
     estimate: Estimate | None = field(default=None, repr=False)
+    disc: Discretization | None = field(default=None, repr=False)
+    kept: list[Solution] = field(default_factory=list, repr=False)
+    keep: bool = False
     current: SignoriniProblem | None = None
     level: int = 0
     macro_parent: Any = None
     first_guess: tuple[Any, ...] | None = None
 
+    def retire(self) -> None:
+        """Release the last step's estimate; its solution too unless the history needs it."""
+        if self.estimate is not None:
+            self.estimate.destroy()
+        if self.solution is not None:
+            if self.keep:
+                self.kept.append(self.solution)
+            else:
+                self.solution.destroy()
+        self.solution = self.estimate = None
+
     def destroy(self) -> None:
-        for obj in (self.estimate, self.solution):
+        for obj in (self.estimate, self.solution, *self.kept):
             if obj is not None:
                 obj.destroy()
 
 
+def _discretization(current: SignoriniProblem, state: _PathState) -> Discretization:
+    """The step's discretisation: the last one with the step's data on the same macro mesh."""
+    if state.disc is not None and state.disc.macro_mesh is current.mesh:
+        return state.disc.for_problem(current)
+    return discretize(current)
+
+
 def _step(
     k: int, problem: SignoriniProblem, goal: Goal, state: _PathState, refine: bool,
-    estimator: str, weights: str, fraction: float | None, growth: float | None,
-    petsc_options: dict[str, Any] | None, method: str | None, ncp_scale: str | float,
+    options: dict[str, Any],
 ) -> StepRecord:
     """Solve and estimate load step ``k`` from the state of step k - 1; refine after it."""
     t_start = time.perf_counter()
     current = problem if state.current is None else _on_mesh(problem, state.current)
     with timed("discretize"):
-        disc = discretize(current)
+        disc = state.disc = _discretization(current, state)
     previous = state.solution
     with timed("transfer"):
         disc.set_u_old(None if previous is None else previous.u)
         guess = state.first_guess if previous is None else _warm_start(previous, disc)
-    state.destroy()
+    state.retire()
     t_setup = time.perf_counter() - t_start
     tic = time.perf_counter()
-    sol = state.solution = solve(disc, petsc_options=petsc_options, initial_guess=guess,
-                                 method=method, ncp_scale=ncp_scale)
+    sol = state.solution = solve(disc, initial_guess=guess, **options["solve"])
     t_solve = time.perf_counter() - tic
-    est = state.estimate = estimate(sol, goal, estimator=estimator, weights=weights,
-                                    petsc_options=petsc_options)
+    est = state.estimate = estimate(sol, goal, **options["estimate"])
+    history = history_estimates(state.kept, sol, est, options["estimate"]) if state.keep else []
     tic = time.perf_counter()
     marked = np.zeros(0, dtype=np.int32)
     level, state.current = state.level, current
     if refine:
         marked, state.current, state.macro_parent = _refine(
-            disc, current, est, "adaptive", "fixed_fraction", fraction, growth, "edges")
+            disc, current, est, "adaptive", "fixed_fraction", options["fraction"],
+            options["growth"], "edges")
         state.level += 1
     record = _record(level, disc, sol, est, marked,
                      {"setup": t_setup, "solve": t_solve, "refine": time.perf_counter() - tic},
                      None)
     step = StepRecord(**record.as_dict(), step=k)
+    if state.keep:
+        _add_history(step, history)
     step.time["total"] = time.perf_counter() - t_start
     return step
+
+
+def history_goal(sol: Solution, est: Estimate) -> Goal:
+    """The sensitivity of a step's goal to its history, as a goal of the step before.
+
+    A step's tangential offsets are g_l = B_l u_old (the slip increment u - u_old,
+    :class:`~dwr_signorini.laws.Coulomb`), so the step's J depends on the previous step's
+    displacement. With the step's final sets, the derivative of its right-hand side in g_l is
+    -1 on a constrained (sticking) row and -c_f J_kl on the rows k of a coupled (slipping)
+    facet, so with the dual solution z (A^T z = J', :func:`~dwr_signorini.dual.solve_dual`)
+
+        J(w(u_old + v)) - J(w(u_old)) = L(v) = - sum_l (w_l, v . e_l)_GC,
+        w_l = z_l on the constrained rows, c_f sum_k z_k J_kl on the coupled ones,
+
+    exactly for the discrete problem while the sets hold (w_l is P0 on the macro facets). Its
+    error at the previous step, L(u - u_h), is the part of the step's error that the history
+    carries (module docstring).
+
+    Args:
+        sol: The step's solution (its discretisation's meshes are the previous step's).
+        est: The estimate of the step's goal (its dual solution).
+
+    Returns:
+        ``goal(u, lam, m, lam_t) -> ufl.Form``, L(u).
+    """
+    system = sol.system
+    algebra = system.algebra
+    xi = sol.stacked(est.dual.multipliers)
+    z = np.where(system.active, xi * system.c_n, xi)  # the raw dual (solve_dual's map undone)
+    w = np.where(system.active, z, 0.0)
+    for cp in system.couplings:
+        own = ~system.active[cp.rows]  # (m, k): the coupled rows that are not constrained
+        zc = np.where(own, z[cp.rows], 0.0)
+        c = system.c_n[cp.rows[:, 0]]
+        w[cp.rows] += c[:, None] * np.einsum("mk,mkl->ml", zc, cp.J)
+    parts = algebra.components_of(w)
+    weights = [sol.multiplier_function(part, f"history_weight_{k}")
+               for k, part in enumerate(parts[1:], start=1)]
+    m = sol.disc.m
+    directions = [comp.direction(m.n) for comp in algebra.components[1:]]
+
+    def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> Any:
+        form = None
+        for w_l, e_l in zip(weights, directions, strict=True):
+            term = -w_l * ufl.dot(u, e_l) * m.ds_contact
+            form = term if form is None else form + term
+        return form
+
+    return goal
+
+
+def history_estimates(
+    kept: list[Solution], sol: Solution, est: Estimate, options: dict[str, Any]
+) -> list[tuple[float, float, float]]:
+    """The error that each earlier step carries into this step's goal, by a backward chain.
+
+    From the last step back to the first: the history goal of the later step
+    (:func:`history_goal`) is estimated at the earlier one (its own residuals, weighted by the
+    dual solution of that goal), and that estimate's dual gives the next goal back. Costs one
+    estimate per earlier step (with the earlier step's factorisation).
+
+    Args:
+        kept: The earlier steps' solutions, first step first (on the same meshes).
+        sol: This step's solution.
+        est: Its estimate.
+        options: The keyword arguments of :func:`~dwr_signorini.estimate`.
+
+    Returns:
+        One ``(estimate, low, high)`` per earlier step (last first): the estimated error of the
+        history goal and its interval's ends relative to the goal's value.
+    """
+    out = []
+    later_sol, later_est, owned = sol, est, None
+    for earlier in reversed(kept):
+        e = estimate(earlier, history_goal(later_sol, later_est), **options)
+        if owned is not None:
+            owned.destroy()
+        low, high = e.interval
+        out.append((e.value, low - e.J_h, high - e.J_h))
+        later_sol, later_est, owned = earlier, e, e
+    if owned is not None:
+        owned.destroy()
+    return out
+
+
+def _add_history(step: StepRecord, history: list[tuple[float, float, float]]) -> None:
+    """The history's estimated error added to the step's estimate and interval."""
+    step.eta_history = sum(h[0] for h in history)
+    step.estimate += step.eta_history
+    step.J_low += sum(h[1] for h in history)
+    step.J_high += sum(h[2] for h in history)
 
 
 def _on_mesh(problem: SignoriniProblem, current: SignoriniProblem) -> SignoriniProblem:

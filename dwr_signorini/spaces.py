@@ -13,6 +13,8 @@ fine P1 values on a patch are the P2 (Q2) nodal values of the macro cell.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -174,6 +176,44 @@ class Discretization:
             mesh=fine,
             problem=problem,
         )
+
+    def for_problem(self, problem: SignoriniProblem) -> Discretization:
+        """This discretisation with another problem's data on the same macro mesh.
+
+        The meshes, spaces and maps are shared (no refinement, the same dof layout: functions
+        of one are functions of the other); the Dirichlet conditions, the measures and the
+        registered data are the new problem's. A load path's steps use it
+        (:func:`~dwr_signorini.solve_path`).
+
+        Args:
+            problem: A problem on this discretisation's macro mesh, with the same contact tags.
+
+        Returns:
+            A new :class:`Discretization` sharing this one's meshes and spaces (``u_old``
+            None).
+
+        Raises:
+            ValueError: ``problem`` lives on another mesh or has other contact tags.
+        """
+        if problem.mesh is not self.macro_mesh or problem.contact_tags != (
+            self.problem.contact_tags
+        ):
+            raise ValueError(
+                "for_problem: the problem must live on this discretisation's macro mesh, with "
+                "the same contact tags"
+            )
+        out = copy.copy(self)
+        out.problem = problem
+        out.u_old = None
+        out._dirichlet_facets = {
+            t: self.facet_tags.find(t).astype(np.int32) for t in problem.dirichlet
+        }
+        out.bcs = out.dirichlet_bcs(out.V)
+        out.prescribed_bcs = out.dirichlet_bcs(out.V, homogeneous=False)
+        out._register_data()
+        out._body_force = None
+        out.m = dataclasses.replace(self.m, problem=problem)
+        return out
 
     def set_u_old(self, u_old: fem.Function | None) -> None:
         """Measure the slip of this discretisation's solves from ``u_old`` (a load step's start).

@@ -372,3 +372,49 @@ def test_path_writes_its_table_and_fields(mpi_tmp_path, capsys):
     assert any(p.suffix in (".xdmf", ".bp") for p in mpi_tmp_path.iterdir())
     out = capsys.readouterr().out
     assert out.count("step ") == (2 if COMM.rank == 0 else 0)
+
+
+# --------------------------------------------------------------------------------------------------
+# The error the history carries
+# --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.mpi
+def test_history_goal_is_the_derivative_of_J_in_u_old():
+    """The sensitivity of a step's J to the previous step's displacement (path.history_goal),
+    L(v), against central differences of the step re-solved from u_old + e v (the sets do
+    not change): to 1e-6."""
+    from dwr_signorini.path import history_goal
+
+    p0, p1 = path([(0.0, -0.02), (0.005, -0.02)])
+    goal = ex.goal_friction_force()
+    disc0 = ds.discretize(p0)
+    sol0 = ds.solve(disc0, rtol=1e-12)
+    v = fem.Function(disc0.V)
+    v.interpolate(lambda x: np.vstack([1e-3 * np.sin(np.pi * x[0]), 1e-3 * x[0] * x[1]]))
+
+    def step(shift):
+        disc = disc0.for_problem(p1)
+        u_old = fem.Function(disc0.V)
+        u_old.x.array[:] = sol0.u.x.array + shift * v.x.array
+        disc.set_u_old(u_old)
+        return ds.solve(disc, rtol=1e-12)
+
+    eps = 1e-4
+    with step(0.0) as sol1, ds.estimate(sol1, goal, estimator="eta_p") as est1:
+        assert sol1.num_stick > 0
+        L = history_goal(sol1, est1)
+        m = sol1.disc.m
+        lam_t = sol1.lam_t
+        predicted = COMM.allreduce(
+            fem.assemble_scalar(sol1.disc.form(L(v, sol1.lam, m, lam_t))), op=MPI.SUM)
+        values = []
+        for sign in (1.0, -1.0):
+            with step(sign * eps) as other:
+                assert np.array_equal(other.system.active, sol1.system.active)
+                with ds.estimate(other, goal, estimator="eta_p") as e:
+                    values.append(e.J_h)
+    sol0.destroy()
+    fd = (values[0] - values[1]) / (2 * eps)
+    assert abs(predicted) > 1e-3 * abs(est1.J_h)
+    assert fd == pytest.approx(predicted, rel=1e-6)
