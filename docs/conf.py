@@ -103,6 +103,12 @@ demo_pages = {
         ("friction_convergence_cells.png", "Error and estimate against the number of cells."),
         ("friction_mesh_level06.png", "The adaptive mesh of level 6."),
     ],
+    "cattaneo_mindlin": [
+        ("cattaneo_mindlin_traction.png",
+         "lambda_t of the last shear step against Cattaneo and Mindlin's traction."),
+        ("cattaneo_mindlin_stick_zone.png", "The stick half-width against the theory, per step."),
+        ("cattaneo_mindlin_friction_force.png", "The friction force per step and its interval."),
+    ],
 }
 
 
