@@ -1,11 +1,12 @@
-# # Cattaneo-Mindlin: a cylinder pressed onto a rigid flat and sheared (Coulomb friction)
+# # Cattaneo-Mindlin: a cylinder or a sphere on a rigid flat, sheared (Coulomb friction)
 #
-# The classical test of frictional contact: a cylinder is pressed onto a flat by a normal
-# force $P$, then pulled sideways by a tangential force $Q < \mu P$. The contact does not slide
-# as a whole: its centre sticks, and slip zones spread in from the ends as $Q$ grows.
-# Cattaneo (1938) and Mindlin (1949) found the zones and tractions in closed form. This demo
-# follows the load path with `ds.solve_path` (each step starts from the last and measures its
-# slip from it), and compares what it computes with their theory.
+# The classical test of frictional contact: a cylinder (or a sphere, `--dim 3`) is pressed onto
+# a flat by a normal force $P$, then pulled sideways by a tangential force $Q < \mu P$. The
+# contact does not slide as a whole: its centre sticks, and slip zones spread in from the ends
+# (an annulus from the rim) as $Q$ grows. Cattaneo (1938) and Mindlin (1949) found the zones and
+# tractions in closed form. This demo follows the load path with `ds.solve_path` (each step
+# starts from the last and measures its slip from it), and compares what it computes with their
+# theory.
 #
 # ## The problem
 #
@@ -19,6 +20,14 @@
 # arc near the first contact point; `--levels` solves the path on meshes with
 # $h_C = 0.02, 0.01, 0.005, \dots$, and `--adaptive` also solves it adaptively
 # (`solve_path(..., adaptive=True)`: the mesh refined after each step for the friction force).
+#
+# In 3D (`--dim 3`) the body is the half $y \ge 0$ of the hemisphere of `meshes/hertz_3d.py`
+# (the ball of radius $R = 1$ centred at $(0, 0, R)$, cut at $z = R$), with the symmetry
+# condition $u_y = 0$ on $y = 0$: a shear along $x$ keeps the whole sphere's problem symmetric
+# about that plane. The top is displaced by $(0, 0, -\delta)$, then by $(k\,s/n, 0, -\delta)$;
+# $\delta = 0.01$ gives $a / R = 0.105$ and $s = 0.004$ a final $Q / (\mu P)$ of 0.81
+# (`cattaneo_mindlin.cattaneo_mindlin_path_3d`). The meshes have macro facets of
+# $h_C = 0.03, 0.02, \dots$ (a factor 1.5 per level) near the first contact point.
 #
 # ## The theory
 #
@@ -35,22 +44,40 @@
 # q(x) = \mu p(x) \;(c \le |x| \le a).
 # $$
 #
+# For a sphere (Johnson, eqs. 4.22-4.23 and 7.38-7.43; $r$ the distance from the first contact
+# point, $P$ and $Q$ the whole sphere's forces, $q$ along $Q$ in Mindlin's approximation):
+#
+# $$
+# a = \Big(\frac{3 P R}{4 E^*}\Big)^{1/3}, \quad p_0 = \frac{3P}{2\pi a^2}, \quad
+# p(r) = p_0 \sqrt{1 - r^2/a^2}, \qquad c = a \Big(1 - \frac{Q}{\mu P}\Big)^{1/3},
+# $$
+#
+# $$
+# q(r) = \mu p_0 \Big(\sqrt{1 - r^2/a^2} - \frac{c}{a}\sqrt{1 - r^2/c^2}\Big) \;(r \le c),
+# \qquad q(r) = \mu p(r) \;(c \le r \le a).
+# $$
+#
 # $P = \int_{\Gamma_C} \lambda_n$ and $Q = \int_{\Gamma_C} \lambda_t$ are taken from the computed
-# solution. The theory needs the normal and tangential problems to decouple, which they do for
+# solution (in 3D $Q$ from $\lambda_t \cdot e_x$, both doubled for the half body). The theory
+# needs the normal and tangential problems to decouple, which they do for
 # $\nu = 1/2$: Dundurs' $\beta = (1 - 2\nu)/(2(1 - \nu))$ is $0.0196$ at $\nu = 0.49$. Step 0
 # measures what is left of the coupling: the press alone should give no friction force and an
 # odd, small $\lambda_t$ (column `coupling`: the mean friction on the half $x > 0$ in units of its
-# Coulomb limit).
+# Coulomb limit; in 3D the mean radial friction $\int \lambda_t \cdot e_r / (\mu P)$).
 #
 # ## Quantity of interest
 #
 # $J = \int_{\Gamma_C} \lambda_t\, ds = Q$, the friction force
-# (`ex.goal_friction_force()`); every step prints $J_h$ and the interval
-# $[J_{low}, J_{high}]$ of the dual weighted residual estimate.
+# (`ex.goal_friction_force()`; in 3D $\int_{\Gamma_C} \lambda_t \cdot e_x\, ds$ on the half
+# body, $Q / 2$); every step prints $J_h$ and the interval $[J_{low}, J_{high}]$ of the dual
+# weighted residual estimate. In 3D the estimate uses the patch weights and leaves out the
+# error the earlier steps carry (`history=False`), about five times cheaper;
+# `--full-estimate` computes it as in 2D.
 #
 # ```
 # python3 demos/cattaneo_mindlin.py                    # or: mpirun -n 2 python3 demos/...
 # python3 demos/cattaneo_mindlin.py --levels 4 --steps 8 --adaptive
+# mpirun -n 2 python3 demos/cattaneo_mindlin.py --dim 3
 # ```
 #
 # Tables (CSV, JSON), pictures (PNG) and each path's fields (XDMF) go to
@@ -71,6 +98,7 @@ import numpy as np
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+from dwr_signorini.examples import cattaneo_mindlin as cm
 from dwr_signorini.io import write_csv, write_json
 from dwr_signorini.viz.canvas import new_figure, save_figure
 from dwr_signorini.viz.gather import snapshot_mesh
@@ -87,37 +115,55 @@ def print0(*args: object) -> None:
 
 # ## Options
 #
-# The defaults (three meshes, four shear steps) take about 15 s on two processes.
+# The defaults (three meshes, four shear steps) take about 15 s on two processes in 2D; in 3D
+# (two meshes of 19,264 and 36,024 cells) about 1.5 min.
 
 # +
-D = ex.CM_DEFAULTS
 parser = argparse.ArgumentParser(
-    description="Cattaneo-Mindlin: a cylinder pressed onto a rigid flat and sheared, Coulomb "
-    "friction, against the theory",
+    description="Cattaneo-Mindlin: a cylinder (a sphere in 3D) pressed onto a rigid flat and "
+    "sheared, Coulomb friction, against the theory",
     formatter_class=argparse.ArgumentDefaultsHelpFormatter,
 )
-parser.add_argument("--levels", type=int, default=3,
-                    help="meshes: h_contact, h_contact / 2, ... (the path solved on each)")
-parser.add_argument("--h-contact", type=float, default=0.02,
-                    help="macro facet length at the contact on the coarsest mesh")
-parser.add_argument("--steps", type=int, default=int(D["steps"]), help="shear steps")
-parser.add_argument("--mu", type=float, default=D["mu"], help="Coulomb's friction coefficient")
-parser.add_argument("--nu", type=float, default=D["nu"], help="Poisson's ratio")
-parser.add_argument("--press", type=float, default=D["press"],
-                    help="downward displacement of the top")
+parser.add_argument("--dim", type=int, choices=(2, 3), default=2,
+                    help="2: the cylinder (plane strain), 3: the sphere (its half y >= 0)")
+parser.add_argument("--levels", type=int, default=None,
+                    help="meshes: h_contact, h_contact / 2 (/ 1.5 in 3D), ... (default 3, in "
+                    "3D 2)")
+parser.add_argument("--h-contact", type=float, default=None,
+                    help="macro facet size at the contact on the coarsest mesh (default 0.02, "
+                    "in 3D 0.03)")
+parser.add_argument("--steps", type=int, default=int(ex.CM_DEFAULTS["steps"]),
+                    help="shear steps")
+parser.add_argument("--mu", type=float, default=ex.CM_DEFAULTS["mu"],
+                    help="Coulomb's friction coefficient")
+parser.add_argument("--nu", type=float, default=ex.CM_DEFAULTS["nu"], help="Poisson's ratio")
+parser.add_argument("--press", type=float, default=None,
+                    help="downward displacement of the top (default 0.012, in 3D 0.01)")
 parser.add_argument("--shear", type=float, default=None,
-                    help="final sideways displacement of the top (default: 0.0055 mu / 0.3)")
+                    help="final sideways displacement of the top (default: 0.0055 mu / 0.3, in "
+                    "3D 0.004 mu / 0.3)")
 parser.add_argument("--adaptive", action="store_true",
                     help="also solve the path adaptively from the coarsest mesh")
-parser.add_argument("--output", type=Path, default=Path("results/cattaneo_mindlin"))
+parser.add_argument("--full-estimate", action="store_true",
+                    help="3D: the estimate as in 2D (weights 'auto' and the history's error)")
+parser.add_argument("--output", type=Path, default=None,
+                    help="default results/cattaneo_mindlin (results/cattaneo_mindlin_3d)")
 parser.add_argument("--no-plots", action="store_true")
 args = parser.parse_args([] if "ipykernel" in sys.modules else None)
-if args.levels < 1 or args.steps < 1:
+dim = args.dim
+D = ex.CM_DEFAULTS if dim == 2 else cm.CM_DEFAULTS_3D
+levels = args.levels if args.levels is not None else (3 if dim == 2 else 2)
+h_coarse = args.h_contact if args.h_contact is not None else (0.02 if dim == 2 else 0.03)
+if levels < 1 or args.steps < 1:
     parser.error("--levels and --steps must be at least 1")
+press = args.press if args.press is not None else D["press"]
 shear = args.shear if args.shear is not None else D["shear"] * args.mu / D["mu"]
-out = args.output
+out = args.output or Path("results/cattaneo_mindlin" + ("_3d" if dim == 3 else ""))
+builder = ex.cattaneo_mindlin_path if dim == 2 else cm.cattaneo_mindlin_path_3d
+estimate_options = ({} if dim == 2 or args.full_estimate
+                    else {"weights": "patch", "history": False})
 data = {"mu": args.mu, "nu": args.nu, "E": D["E"], "radius": D["radius"]}
-print0(f"Cattaneo-Mindlin on {comm.size} process(es): mu = {args.mu}, nu = {args.nu} "
+print0(f"Cattaneo-Mindlin in {dim}D on {comm.size} process(es): mu = {args.mu}, nu = {args.nu} "
        f"(Dundurs' beta = {ex.dundurs_beta(args.nu):.4f}), {args.steps} shear steps; "
        f"output in {out}/")
 # -
@@ -126,7 +172,9 @@ print0(f"Cattaneo-Mindlin on {comm.size} process(es): mu = {args.mu}, nu = {args
 #
 # One path per mesh (and one adaptive path). The callback measures every step against the
 # theory while its solution is alive and keeps the facets' tractions (numpy arrays, gathered on
-# rank 0) and, for the adaptive path, a snapshot of the macro mesh.
+# rank 0) and, for the adaptive path in 2D, a snapshot of the macro mesh. In 3D the radii
+# $a_h$, $c_h$ are those of the discs of the areas in contact and sticking (the half body's
+# areas doubled), and `dc/h` counts in mean edges of the contact facets.
 
 # +
 HEADER = (f"{'step':>4} {'cells':>7} {'Q/muP':>6} {'a_h/a':>6} {'c/a':>6} {'c_h/a':>6} "
@@ -138,8 +186,8 @@ snapshots: list = []
 
 
 def run(name: str, h_contact: float, adaptive: bool) -> None:
-    problems = ex.cattaneo_mindlin_path(comm, h_contact=h_contact, mu=args.mu, nu=args.nu,
-                                        steps=args.steps, press=args.press, shear=shear)
+    problems = builder(comm, h_contact=h_contact, mu=args.mu, nu=args.nu, steps=args.steps,
+                       press=press, shear=shear)
     profiles[name] = []
     tic = time.perf_counter()
     print0(f"\n--- {name}: h_contact = {h_contact:g}{', adaptive' if adaptive else ''} ---")
@@ -147,8 +195,9 @@ def run(name: str, h_contact: float, adaptive: bool) -> None:
 
     def on_step(record: ds.StepRecord, sol: ds.Solution, est: ds.Estimate) -> None:
         m = ex.measure_cattaneo_mindlin(sol, **data)
-        profiles[name].append(ex.gather_contact_profile(sol))
-        if adaptive and not args.no_plots:
+        profiles[name].append(ex.gather_contact_profile(sol) if dim == 2
+                              else cm.gather_contact_patch(sol))
+        if adaptive and dim == 2 and not args.no_plots:
             snapshots.append(snapshot_mesh(sol.disc.macro_mesh))
         row = {"run": name, "h_contact": h_contact, "adaptive": adaptive,
                "step": record.step, "level": record.level, "num_cells": record.num_cells,
@@ -165,12 +214,14 @@ def run(name: str, h_contact: float, adaptive: bool) -> None:
                f"{row['time_cumulative']:6.1f}")
 
     ds.solve_path(problems, ex.goal_friction_force(), adaptive=adaptive,
-                  output_dir=out / name, callback=on_step, verbose=False).destroy()
+                  output_dir=out / name, callback=on_step, verbose=False,
+                  **estimate_options).destroy()
 
 
-runs = {f"h{k}": (args.h_contact / 2**k, False) for k in range(args.levels)}
+factor = 2.0 if dim == 2 else 1.5
+runs = {f"h{k}": (h_coarse / factor**k, False) for k in range(levels)}
 if args.adaptive:
-    runs["adaptive"] = (args.h_contact, True)
+    runs["adaptive"] = (h_coarse, True)
 tic = time.perf_counter()
 for name, (h_contact, adaptive) in runs.items():
     run(name, h_contact, adaptive)
@@ -188,6 +239,15 @@ wall = time.perf_counter() - tic
 # facet by about $\pm 0.08\,\mu p_0$ in the stick zone: the response of P1 displacements to
 # $\nu = 0.49$ ($\lambda / \mu = 49$), seen in $\lambda_n$ as well (`L2 p`), and the reason
 # why the press step's $\lambda_t$ is not the small odd profile of the theory.
+#
+# In 3D ($h_C = 0.03, 0.02$) the contact radius comes out within half a facet of Hertz's
+# ($-0.36$, $-0.43$ facets) and the stick radius small by about one facet ($-0.74$ and
+# $-1.23$ facets at the last step): $\lambda_n$ oscillates from facet to facet by about
+# $\pm 0.3\,p_0$ (rms; half that at $\nu = 0.3$), a sticking facet with a low $\lambda_n$
+# reaches its Coulomb limit and slips, and $\lambda_t = \mu \lambda_n$ on the slipping facets
+# carries the oscillation: `L2 q` is about 0.67 on both meshes, against 0.18 and 0.15 for the
+# best facet-wise constants. The mean tractions are right: $Q$ is the theory's integral of
+# $q$ by construction, and the picture of the facet values against $r$ scatters about $q(r)$.
 
 # +
 last = {name: [r for r in rows if r["run"] == name][-1] for name in runs}
@@ -219,7 +279,7 @@ if comm.rank == 0:
 
 # +
 if not args.no_plots and comm.rank == 0:
-    finest = f"h{args.levels - 1}"
+    finest = f"h{levels - 1}"
     ref_run = "adaptive" if "adaptive" in runs else finest
     ref = {r["step"]: r["J_h"] for r in rows if r["run"] == ref_run}
     fig = new_figure((6.4, 6.4))
@@ -237,7 +297,8 @@ if not args.no_plots and comm.rank == 0:
                         yerr=0.5 * (high - low)[1:] / scale, fmt="none", capsize=3,
                         color=f"C{i}", label=f"{name}: [J_low, J_high]")
         bottom.plot(shear_steps, J[1:] / scale - 1, "o", color=f"C{i}", markersize=4)
-    top.set_ylabel(r"friction force $J = \int_{\Gamma_C} \lambda_t\,ds$")
+    top.set_ylabel(r"friction force $J = \int_{\Gamma_C} \lambda_t\,ds$" if dim == 2 else
+                   r"$J = \int_{\Gamma_C} \lambda_t \cdot e_x\,ds$ (half body)")
     top.set_title("the friction force per step and its interval")
     top.legend(fontsize="x-small")
     bottom.set_xlabel("load step (0: press)")
@@ -250,14 +311,17 @@ if not args.no_plots and comm.rank == 0:
     fig = new_figure((6.4, 4.4))
     ax = fig.add_subplot()
     r_theory = np.linspace(0.0, 1.0, 200)
-    ax.plot(r_theory, np.sqrt(1 - r_theory), "k-", label=r"theory $\sqrt{1 - Q/(\mu P)}$")
+    if dim == 2:
+        ax.plot(r_theory, np.sqrt(1 - r_theory), "k-", label=r"theory $\sqrt{1 - Q/(\mu P)}$")
+    else:
+        ax.plot(r_theory, np.cbrt(1 - r_theory), "k-", label=r"theory $(1 - Q/(\mu P))^{1/3}$")
     for i, name in enumerate(runs):
         rs = [r for r in rows if r["run"] == name and r["step"] > 0]
         ax.errorbar([r["ratio"] for r in rs], [r["c_h"] / r["a"] for r in rs],
                     yerr=[r["h_facet"] / r["a"] for r in rs], fmt="o", capsize=3,
                     color=f"C{i}", markersize=4, label=f"{name}: $c_h/a$ (bars: one facet)")
     ax.set_xlabel(r"$Q / (\mu P)$")
-    ax.set_ylabel(r"stick half-width $c / a$")
+    ax.set_ylabel(r"stick half-width $c / a$" if dim == 2 else r"stick radius $c / a$")
     ax.set_xlim(0.0, 1.0)
     ax.set_ylim(0.0, 1.05)
     ax.set_title("Cattaneo-Mindlin: the stick zone")
@@ -270,29 +334,54 @@ if not args.no_plots and comm.rank == 0:
     a, c, p0, mu = r["a"], r["c"], r["p0"], args.mu
     sign = 1.0 if r["Q"] >= 0 else -1.0
     fig = new_figure((7.0, 4.4))
-    ax = fig.add_subplot()
-    x = np.linspace(-1.2 * a, 1.2 * a, 801)
-    ax.plot(x / a, ex.cm_traction(x, a, c, p0, mu) / (mu * p0), "k-", label="theory $q(x)$")
-    ax.plot(x / a, ex.hertz_pressure(x, a, p0) / p0, "k--", lw=0.8,
-            label=r"theory $\mu p(x)$ (slip limit)")
-    edges = np.stack([p.x0, p.x1], axis=1).ravel() / a
-    ax.plot(edges, np.repeat(sign * p.lam_t / (mu * p0), 2), "-", color="C0",
-            label=r"computed $\lambda_t$ (macro facets)")
-    ax.plot(edges, np.repeat(p.lam / p0, 2), "-", color="C7", lw=0.8,
-            label=r"computed $\mu \lambda_n$")
-    for mask, color, label in ((p.stick, "C2", "stick"), (p.slip, "C1", "slip")):
-        ax.plot(p.mid[mask] / a, np.full(mask.sum(), -0.05), "|", color=color, markersize=8,
-                label=f"computed {label} facets")
-    for s in (-c / a, c / a):
-        ax.axvline(s, color="C2", lw=0.8, ls=":")
-    ax.set_xlim(-1.2, 1.2)
-    ax.set_xlabel("x / a")
-    ax.set_ylabel(r"traction / $(\mu p_0)$")
-    ax.set_title(f"{finest}, step {args.steps}: Q/(mu P) = {r['ratio']:.2f}, "
-                 f"L2 error {r['l2_lam_t']:.3f}")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="x-small", loc="upper right")
-    save_figure(fig, out / "traction_profile.png")
+    if dim == 3:  # facet values against the distance r of their centroids from the axis
+        ax = fig.add_subplot()
+        rr = np.linspace(0.0, 1.2 * a, 801)
+        ax.plot(rr / a, cm.cm_traction_3d(rr, a, c, p0, mu) / (mu * p0), "k-",
+                label="theory $q(r)$")
+        ax.plot(rr / a, ex.hertz_pressure(rr, a, p0) / p0, "k--", lw=0.8,
+                label=r"theory $\mu p(r)$ (slip limit)")
+        inside = p.r < 1.2 * a
+        ax.plot(p.r[inside] / a, p.lam[inside] / p0, ".", color="C7", markersize=4,
+                label=r"computed $\mu \lambda_n$ (facets)")
+        for mask, color, label in ((p.stick, "C2", "stick"), (p.slip, "C1", "slip")):
+            ax.plot(p.r[mask] / a, sign * p.lam_t[mask, 0] / (mu * p0), "o", color=color,
+                    markersize=4, label=rf"computed $\lambda_t \cdot e_x$, {label} facets")
+        ax.axvline(c / a, color="C2", lw=0.8, ls=":")
+        ax.axvline(r["c_h"] / a, color="C2", lw=0.8, ls="--", label="$c_h$ (stick area)")
+        ax.set_xlim(0.0, 1.2)
+        ax.set_xlabel("r / a")
+        ax.set_ylabel(r"traction / $(\mu p_0)$")
+        ax.set_title(f"{finest}, step {args.steps}: Q/(mu P) = {r['ratio']:.2f}, "
+                     f"L2 error {r['l2_lam_t']:.3f} (best P0 {r['l2_best']:.3f})")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="x-small", loc="upper left")
+        save_figure(fig, out / "traction_profile.png")
+        p = None
+    if p is not None:
+        ax = fig.add_subplot()
+        x = np.linspace(-1.2 * a, 1.2 * a, 801)
+        ax.plot(x / a, ex.cm_traction(x, a, c, p0, mu) / (mu * p0), "k-", label="theory $q(x)$")
+        ax.plot(x / a, ex.hertz_pressure(x, a, p0) / p0, "k--", lw=0.8,
+                label=r"theory $\mu p(x)$ (slip limit)")
+        edges = np.stack([p.x0, p.x1], axis=1).ravel() / a
+        ax.plot(edges, np.repeat(sign * p.lam_t / (mu * p0), 2), "-", color="C0",
+                label=r"computed $\lambda_t$ (macro facets)")
+        ax.plot(edges, np.repeat(p.lam / p0, 2), "-", color="C7", lw=0.8,
+                label=r"computed $\mu \lambda_n$")
+        for mask, color, label in ((p.stick, "C2", "stick"), (p.slip, "C1", "slip")):
+            ax.plot(p.mid[mask] / a, np.full(mask.sum(), -0.05), "|", color=color, markersize=8,
+                    label=f"computed {label} facets")
+        for s in (-c / a, c / a):
+            ax.axvline(s, color="C2", lw=0.8, ls=":")
+        ax.set_xlim(-1.2, 1.2)
+        ax.set_xlabel("x / a")
+        ax.set_ylabel(r"traction / $(\mu p_0)$")
+        ax.set_title(f"{finest}, step {args.steps}: Q/(mu P) = {r['ratio']:.2f}, "
+                     f"L2 error {r['l2_lam_t']:.3f}")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="x-small", loc="upper right")
+        save_figure(fig, out / "traction_profile.png")
 
     if snapshots:
         from matplotlib.collections import PolyCollection

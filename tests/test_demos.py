@@ -470,3 +470,19 @@ def test_cattaneo_mindlin_serial_and_parallel(tmp_path):
     assert all(abs(r["c_error_facets"]) < 2 for r in serial if r["step"] > 0)
     for run in ("h0", "adaptive"):
         assert (outs[1] / run / "path.csv").is_file()
+
+
+def test_cattaneo_mindlin_3d(tmp_path, monkeypatch):
+    """``--dim 3`` on one mesh, one shear step, serial, without the adaptive path: the files and
+    a table whose contact radius is within one facet of Hertz's (tests/test_cattaneo_mindlin.py
+    checks the physics)."""
+    monkeypatch.setitem(SMALL_ARGS, "cattaneo_mindlin", [])
+    out = tmp_path / "cm3d"
+    _run("cattaneo_mindlin", out, 1, ("--dim", "3", "--levels", "1", "--steps", "1"))
+    for name in ("friction_force.png", "stick_zone.png", "traction_profile.png"):
+        path = out / name
+        assert path.is_file() and path.read_bytes()[:8] == PNG_SIGNATURE, name
+    rows = _csv(out / "table.csv")
+    assert len(rows) == 2 and all(r["dim"] == 3 for r in rows)
+    assert all(abs(r["a_error_facets"]) < 1 for r in rows)
+    assert rows[1]["num_stick"] > 0 and rows[1]["num_slip"] > 0
