@@ -91,6 +91,7 @@ class NewtonLoop:
         self.last_key: tuple[bytes, ...] | None = None
         self.safeguard_since: int | None = None
         self.violated: np.ndarray | None = None
+        self.switching: np.ndarray | None = None
         self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
 
     def destroy(self) -> None:
@@ -117,6 +118,7 @@ class NewtonLoop:
             violated = (wanted != self.previous) | (
                 ~wanted & ~self.previous & (free != self.previous_free)
             )
+        self.switching = violated.copy()  # the rows whose set the rule would change
         for coupling in self.couplings:
             rows = coupling.rows.ravel()
             violated[rows] |= relative[rows] > self.rtol
@@ -212,7 +214,9 @@ class NewtonLoop:
             self.safeguard_since = it
             self.seen.clear()
         if self.safeguard_since is not None and not self.resolve:
-            first = self._least_index(self.violated)
+            # the least index among the rows whose set changes (a coupled row whose NCP
+            # residual is not small yet has no set to change: its coupling follows the iterate)
+            first = self._least_index(self.switching)
             new = np.where(first, wanted, self.previous)
             new_free = np.where(first, free, self.previous_free)
             key = self._key(new, new_free)
