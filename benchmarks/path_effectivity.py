@@ -34,9 +34,11 @@ RESULTS = Path("benchmarks/results")
 OUTPUT = RESULTS / "path_effectivity.json"
 
 
-def paths(comm: MPI.Comm, levels: int, weights: str) -> list[list[dict[str, Any]]]:
+def paths(
+    comm: MPI.Comm, levels: int, weights: str, nu: float | None = None
+) -> list[list[dict[str, Any]]]:
     """The path's step records on ``levels`` meshes, each the uniform refinement of the last."""
-    problems = ex.cattaneo_mindlin_path(comm)
+    problems = ex.cattaneo_mindlin_path(comm, **({} if nu is None else {"nu": nu}))
     runs = []
     for level in range(levels):
         with ds.solve_path(problems, ex.goal_friction_force(), weights=weights,
@@ -53,13 +55,21 @@ def paths(comm: MPI.Comm, levels: int, weights: str) -> list[list[dict[str, Any]
     return runs
 
 
-def judge(runs: list[list[dict[str, Any]]]) -> list[dict[str, Any]]:
-    """Each step of each level but the two finest against the finest's J_h."""
-    finest, before = runs[-1], runs[-2]
+def judge(
+    runs: list[list[dict[str, Any]]], reference: list[tuple[float, float]] | None = None
+) -> list[dict[str, Any]]:
+    """Each step of each level against the reference (J_ref, uncertainty) per step.
+
+    Without ``reference``: the finest level's J_h, its change from the level before as the
+    uncertainty, and the two finest levels are not judged.
+    """
+    if reference is None:
+        reference = [(ref["J_h"], abs(ref["J_h"] - prev["J_h"]))
+                     for ref, prev in zip(runs[-1], runs[-2], strict=True)]
+        runs = runs[:-2]
     out = []
-    for level, rows in enumerate(runs[:-2]):
-        for r, ref, prev in zip(rows, finest, before, strict=True):
-            J_ref, unc = ref["J_h"], abs(ref["J_h"] - prev["J_h"])
+    for level, rows in enumerate(runs):
+        for r, (J_ref, unc) in zip(rows, reference, strict=True):
             err = J_ref - r["J_h"]
             out.append({
                 "level": level, "step": r["step"], "cells": r["num_cells"], "J_h": r["J_h"],
@@ -98,21 +108,31 @@ def main() -> None:
     parser.add_argument("--levels", type=int, default=5)
     parser.add_argument("--weights", default="auto")
     parser.add_argument("--tables-from", type=Path, default=None)
+    parser.add_argument("--reference", type=Path, default=None,
+                        help="a JSON of an earlier run: its finest J_h per step as J_ref, the "
+                        "change from the level before as the uncertainty (all levels judged)")
+    parser.add_argument("--nu", type=float, default=None, help="Poisson's ratio")
+    parser.add_argument("--output", type=Path, default=OUTPUT)
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     if args.tables_from is not None:
         data = json.loads(args.tables_from.read_text())
     else:
-        runs = paths(comm, args.levels, args.weights)
+        runs = paths(comm, args.levels, args.weights, args.nu)
+        reference = None
+        if args.reference is not None:
+            J = json.loads(args.reference.read_text())["J_h"]
+            reference = [(a, abs(a - b)) for a, b in zip(J[-1], J[-2], strict=True)]
         data = {"levels": args.levels, "weights": args.weights, "processes": comm.size,
-                "rows": judge(runs), "references": [r["J_h"] for r in runs[-1]],
+                "nu": args.nu, "reference_from": str(args.reference),
+                "rows": judge(runs, reference), "references": [r["J_h"] for r in runs[-1]],
                 "J_h": [[r["J_h"] for r in rows] for rows in runs],
                 "cells": [rows[0]["num_cells"] for rows in runs],
                 "eta": [[r["eta"] for r in rows] for rows in runs],
                 "time": [[r["time"]["total"] for r in rows] for rows in runs]}
         if comm.rank == 0:
-            RESULTS.mkdir(parents=True, exist_ok=True)
-            OUTPUT.write_text(json.dumps(data, indent=1))
+            args.output.parent.mkdir(parents=True, exist_ok=True)
+            args.output.write_text(json.dumps(data, indent=1))
     if comm.rank == 0:
         print(table(data["rows"]))
         judged = [r for r in data["rows"] if r["judged"]]

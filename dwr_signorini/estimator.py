@@ -14,6 +14,7 @@ cell indicators (facet terms go to the adjacent cell), whose signed sum is the e
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -60,6 +61,29 @@ ESTIMATORS = ("eta", "eta_p")
 #: paper's patch-wise reconstructions, P2 solutions by a factorisation, or the same P2 solutions
 #: by FGMRES with the Newton factorisation as coarse level.
 WEIGHTS = ("auto", "patch", "higher_order", "hierarchical")
+
+#: Poisson's ratio from which ``weights="auto"`` takes P2 weights on every level: the P1 dual
+#: solution locks like the primal one (lambda / mu >= 9), and its patch-wise recovery misses
+#: the error. Measured on the Cattaneo-Mindlin path (nu = 0.49, ``benchmarks/README.md``): the
+#: patch weights gave Ieff up to 3.1 and intervals that missed J on 7 of 10 judged steps, the P2
+#: weights Ieff 0.99-1.08 and all 10 covered.
+NEARLY_INCOMPRESSIBLE_NU = 0.45
+
+
+def nearly_incompressible(problem: Any) -> bool:
+    """Whether Poisson's ratio is at least :data:`NEARLY_INCOMPRESSIBLE_NU`.
+
+    Args:
+        problem: The problem; its nu a number, or one per cell tag (the largest counts).
+
+    Returns:
+        True for a nearly incompressible material; False for nu given as a callable of x.
+    """
+    nu = problem.nu
+    if isinstance(nu, Mapping):
+        values = [v for v in nu.values() if isinstance(v, (int, float))]
+        return bool(values) and max(values) >= NEARLY_INCOMPRESSIBLE_NU
+    return isinstance(nu, (int, float)) and nu >= NEARLY_INCOMPRESSIBLE_NU
 
 
 @dataclass
@@ -311,12 +335,13 @@ def estimate(
             (13)). eta_p is reported in both cases.
         weights: ``"auto"`` (the default: the patch weights, and the hierarchical P2 weights
             instead on a level whose contact set is not resolved, see
-            :mod:`~dwr_signorini.interval`; the factored P2 ones, ``"higher_order"``, for a law
-            with coupled rows: Tresca friction in 3D, Coulomb friction), ``"patch"`` (the
-            paper's patch-wise reconstructions), ``"higher_order"`` (dual, and for eta the
-            primal, solved in P2 with Lambda_H and the final active set, by a factorisation)
-            or ``"hierarchical"`` (the same P2 solutions by a two-level iteration on the
-            Newton factors, :mod:`~dwr_signorini.hierarchical`).
+            :mod:`~dwr_signorini.interval`, and on every level of a nearly incompressible
+            material, :func:`nearly_incompressible`; the factored P2 ones, ``"higher_order"``,
+            for a law with coupled rows: Tresca friction in 3D, Coulomb friction),
+            ``"patch"`` (the paper's patch-wise reconstructions), ``"higher_order"`` (dual,
+            and for eta the primal, solved in P2 with Lambda_H and the final active set, by a
+            factorisation) or ``"hierarchical"`` (the same P2 solutions by a two-level
+            iteration on the Newton factors, :mod:`~dwr_signorini.hierarchical`).
         petsc_options: Linear solver options for the higher-order solves, which use the
             primal's kind of Newton system (block, or Schur complement with these options for
             K, e.g. :func:`~dwr_signorini.newton.iterative_petsc_options`), under the
@@ -377,11 +402,14 @@ def estimate(
     try:  # on a failure the reconstruction's PETSc objects are released
         DG0 = fem.functionspace(disc.mesh, ("DG", 0))
         inp = _Inputs(sol, goal_forms, z, rec, want_eta, petsc_options)
-        terms = _terms(inp, "patch" if weights == "auto" else weights, quadrature_degree, DG0)
+        symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
+        p2 = "hierarchical" if symmetric else "higher_order"
+        first = weights
+        if weights == "auto":
+            first = p2 if nearly_incompressible(disc.problem) else "patch"
+        terms = _terms(inp, first, quadrature_degree, DG0)
         resolved = contact_set_resolved(terms.value(estimator), terms.remainder, terms.contact)
-        if weights == "auto" and not resolved:
-            symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
-            p2 = "hierarchical" if symmetric else "higher_order"
+        if weights == "auto" and not resolved and first == "patch":
             terms = _terms(inp, p2, quadrature_degree, DG0)
 
         t_estimate = time.perf_counter() - tic - t_dual

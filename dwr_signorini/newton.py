@@ -222,6 +222,9 @@ def solve(
       sides. On the multipliers the contact conditions are a linear complementarity problem with
       the matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the
       body, for which this rule terminates finitely (K. G. Murty, Opsearch 11, 1974, 123-130).
+      A law with coupled rows (Coulomb's, Tresca's in 3D) is not such a problem, and on it the
+      rule can cycle too: there a repeat switches to damped steps instead (the rule's sets,
+      half the Newton update, while the sets change; full steps once they repeat).
 
     With a Krylov solver of K (``method="schur"``, :class:`KrylovSchurComplement`) the steps are
     *inexact* while the active set changes: their solves stop at the relative tolerances
@@ -412,15 +415,21 @@ def _semismooth_newton(
                     "linear system?)",
                     loop.history,
                 )
-            u.x.array[: system.n_u] = u_new
-            u.x.scatter_forward()
+            theta = loop.step_length  # 1, or 1/2 once the sets of a coupled law cycled
+            _update(u, u_new, theta)
             for f, values in zip(lams, system.algebra.components_of(lam_new), strict=True):
-                f.x.array[: len(values)] = values
-                f.x.scatter_forward()
+                _update(f, values, theta)
     finally:
         loop.destroy()
     system.set_loose(False)  # the dual problem reuses the system: at full accuracy
     return _solution(system, u, lams, loop.history)
+
+
+def _update(f: fem.Function, values: np.ndarray, theta: float) -> None:
+    """The owned values of ``f`` moved to ``values`` (a fraction ``theta`` of the way)."""
+    owned = f.x.array[: len(values)]
+    owned[:] = values if theta == 1.0 else owned + theta * (values - owned)
+    f.x.scatter_forward()
 
 
 def _all_finite(comm: MPI.Comm, *arrays: np.ndarray) -> bool:

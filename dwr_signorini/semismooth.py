@@ -51,6 +51,7 @@ class ConvergenceError(RuntimeError):
                 "equilibrium residual = {residual_equilibrium:.3e}, "
                 "NCP residual = {residual_ncp:.3e}".format(**h)
                 + (" [least-index safeguard]" if h.get("safeguard") else "")
+                + (" [damped]" if h.get("damped") else "")
                 + (" [NaN/Inf]" if h.get("nonfinite") else "")
             )
         super().__init__("\n".join(lines))
@@ -92,6 +93,10 @@ class NewtonLoop:
         self.safeguard_since: int | None = None
         self.violated: np.ndarray | None = None
         self.switching: np.ndarray | None = None
+        # a law whose projections act on several components (Coulomb's, Tresca's in 3D)
+        self.coupled_law = any(len(idx) > 1 for idx, _ in system.algebra.conditions)
+        self.damped_since: int | None = None
+        self.step_length = 1.0
         self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
 
     def destroy(self) -> None:
@@ -199,6 +204,9 @@ class NewtonLoop:
             new, new_free = wanted, free
         key = self._key(new, new_free)
         repeated = key in self.seen and key != self.last_key
+        self.step_length = 1.0
+        if self.coupled_law and (repeated or self.damped_since is not None):
+            return self._damped(it, key, new, new_free, repeated)
         if repeated and not self.resolve:
             if self.safeguard_since is not None:
                 raise ConvergenceError(
@@ -227,6 +235,33 @@ class NewtonLoop:
         # a facet whose rows are all constrained (stick) is not coupled in this step
         couplings = [c.restricted(~new[c.rows].all(axis=1)) for c in self.couplings]
         return new, new_free, couplings
+
+    def _damped(
+        self, it: int, key: tuple[bytes, ...], new: np.ndarray, free: np.ndarray,
+        repeated: bool,
+    ) -> tuple[np.ndarray, np.ndarray, list[Coupling]]:
+        """The sets of a step of a law with coupled rows once its sets have cycled.
+
+        Murty's rule is for the linear complementarity problem of the normal contact (a
+        P-matrix); Coulomb's law is not one, and on it the rule can cycle too (measured: a
+        2-cycle of slip directions that changing one row per step does not break). Instead the
+        step takes the rule's sets and only half of the Newton update (:attr:`step_length`)
+        while its sets differ from the last step's; once they repeat, full steps converge on
+        the coupled rows as a smooth Newton method.
+        """
+        if self.damped_since is None:
+            logger.warning(
+                "active-set cycling (step %d repeats step %d): damped steps", it,
+                self.seen[key],
+            )
+            self.damped_since = it
+        if repeated or key != self.last_key:
+            self.step_length = 0.5
+            self.history[-1]["damped"] = True
+        self.seen[key] = it
+        self.last_key = key
+        couplings = [c.restricted(~new[c.rows].all(axis=1)) for c in self.couplings]
+        return new, free, couplings
 
     def _key(self, new: np.ndarray, free: np.ndarray) -> tuple[bytes, ...]:
         """The global sets of a step as a key: constrained, free > 0, free < 0, coupled."""

@@ -418,3 +418,21 @@ def test_history_goal_is_the_derivative_of_J_in_u_old():
     fd = (values[0] - values[1]) / (2 * eps)
     assert abs(predicted) > 1e-3 * abs(est1.J_h)
     assert fd == pytest.approx(predicted, rel=1e-6)
+
+
+@pytest.mark.slow
+def test_cycling_slip_sets_are_broken_by_damped_steps():
+    """A Coulomb path whose first shear step cycles (Cattaneo-Mindlin, nu = 0.2, contact facets
+    of 0.0025: the slip directions of a few facets alternate, which Murty's rule, changing one
+    row per step, does not break): damped steps converge, to the tolerance."""
+    problems = ex.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
+    damped = []
+
+    def record(rec, sol, est):
+        damped.append(any(h.get("damped") for h in sol.history))
+        assert sol.history[-1]["residual_ncp"] <= 1e-8
+
+    with ds.solve_path(problems, ex.goal_friction_force(), weights="patch", history=False,
+                       callback=record, verbose=False):
+        pass
+    assert damped == [False, True]

@@ -221,6 +221,30 @@ def test_nearly_incompressible_estimate_tracks_the_error(model, nu):
     _check_tracking(_incompressible_levels(MPI.COMM_WORLD, model, nu, 2))
 
 
+@pytest.mark.mpi
+def test_auto_weights_are_p2_for_a_nearly_incompressible_material():
+    """weights="auto" takes the P2 weights on every level where nu >= 0.45 (the patch
+    recovery of the locked P1 dual misses the error, estimator.NEARLY_INCOMPRESSIBLE_NU),
+    also for nu per cell tag; the patch weights where nu = 0.3 and the contact set is
+    resolved."""
+    msh, tags = block(MPI.COMM_WORLD, 8, 8)
+    goal = lambda u, lam, m: lam * m.ds_contact  # noqa: E731
+    weights = {}
+    for nu in (0.3, 0.49):
+        problem = make(msh, tags, nu=nu, body_force=(0.0, -0.1),
+                       gap=lambda x: 0.05 * (x[0] - 0.5) ** 2)
+        with ds.solve(problem) as sol, ds.estimate(sol, goal) as est:
+            weights[nu] = (est.weights, est.resolved)
+    assert weights[0.49][0] == "hierarchical"
+    assert weights[0.3] == ("patch", True)
+    from types import SimpleNamespace
+
+    from dwr_signorini.estimator import nearly_incompressible
+
+    assert nearly_incompressible(SimpleNamespace(nu={1: 0.3, 2: 0.49}))
+    assert not nearly_incompressible(SimpleNamespace(nu={1: 0.3, 2: 0.4}))
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["plane_strain", "3d"])
 def test_nearly_incompressible_estimate_tracks_the_error_on_three_levels(model):
