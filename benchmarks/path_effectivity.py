@@ -7,10 +7,9 @@ The goal of every step is the friction force Q = int_GC lambda_t. The reference 
 the J_h of the finest mesh, its uncertainty the change from the mesh before (from J_h alone, no
 estimate). A step of a level is judged when its error is at least 10 times that uncertainty;
 for each: J_h, the interval, whether it contains the reference, its width over the error, and
-the effectivity of eta, (J_ref - J_h) / eta. The estimate of a step treats the history (the
-previous step's displacement on the same mesh) as data: the error the history carries is not
-in it, and the table shows what that costs. Also per step: Newton steps and the times of the
-solve and of the estimate (the cost per step).
+the effectivity of eta, (J_ref - J_h) / eta (eta of the step's own residuals; the interval
+includes the error the history carries, ``StepRecord.eta_history``). Also per step: Newton
+steps and the times of the solve and of the estimate (the cost per step).
 
     scripts/fenicsx mpirun -n 2 python3 benchmarks/path_effectivity.py
     scripts/fenicsx python3 benchmarks/path_effectivity.py --tables-from \\

@@ -5,9 +5,15 @@ increment of a load step, u_t - u_t^old (:class:`~dwr_signorini.laws.Coulomb`), 
 the displacement at the end of the previous step. :func:`solve_path` solves the steps in order;
 step k starts from step k - 1's solution (warm start) and measures its slip from it
 (:meth:`~dwr_signorini.spaces.Discretization.set_u_old`), and each step's quantity of interest is
-estimated with its interval (:attr:`~dwr_signorini.Estimate.interval`). The estimate of a step
-is that of the step's discrete problem for the given u^old: the error that u^old itself carries
-from the earlier steps is not part of it (the history is data of the step).
+estimated with its interval (:attr:`~dwr_signorini.Estimate.interval`).
+
+**The error the history carries.** The estimate of a step's own residuals is that of its
+discrete problem for the given u^old; the error of u^old enters its J to first order as
+L(u_old - u_old,h), L the sensitivity of J to u^old (:func:`history_goal`, exact for the discrete
+problem). L is a goal of the previous step, estimated there with its own dual solution, whose
+sensitivity is a goal of the step before, back to the first step (:func:`history_estimates`):
+a backward chain of dual problems, as a space-time dual would be solved backwards in time. The
+chain's estimates are added to the step's estimate and its interval (the intervals summed).
 
 **Adaptivity along the path** (``adaptive=True``): after each step the macro mesh is refined
 for that step's goal (the marking of :func:`~dwr_signorini.solve_adaptive`), and the next step
