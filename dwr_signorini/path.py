@@ -67,6 +67,9 @@ class StepRecord(LevelRecord):
     step's goal (:func:`history_estimates`) when it is estimated; ``eta`` and ``eta_p`` are
     those of the step's own residuals.
 
+    ``time`` has the phases of a level and ``history`` (the backward chain of the history's
+    estimates).
+
     Attributes:
         step: The load step, from 0 (``level`` is the refinement level of its mesh).
         eta_history: The estimated error that the earlier steps carry into this step's goal,
@@ -332,7 +335,9 @@ def _step(
     sol = state.solution = solve(disc, initial_guess=guess, **options["solve"])
     t_solve = time.perf_counter() - tic
     est = state.estimate = estimate(sol, goal, **options["estimate"])
+    tic = time.perf_counter()
     history = history_estimates(state.kept, sol, est, options["estimate"]) if state.keep else []
+    t_history = time.perf_counter() - tic
     tic = time.perf_counter()
     marked = np.zeros(0, dtype=np.int32)
     level, state.current = state.level, current
@@ -345,6 +350,7 @@ def _step(
                      {"setup": t_setup, "solve": t_solve, "refine": time.perf_counter() - tic},
                      None)
     step = StepRecord(**record.as_dict(), step=k)
+    step.time["history"] = t_history
     if state.keep:
         _add_history(step, history)
     step.time["total"] = time.perf_counter() - t_start

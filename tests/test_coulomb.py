@@ -436,3 +436,16 @@ def test_cycling_slip_sets_are_broken_by_damped_steps():
                        callback=record, verbose=False):
         pass
     assert damped == [False, True]
+
+
+def test_for_problem_refuses_another_mesh_or_tags():
+    """Discretization.for_problem shares the meshes: a problem on another mesh is refused, by
+    name; on the same mesh the spaces are the same objects."""
+    one, two = path([(0.0, -0.02), (0.01, -0.02)])
+    disc = ds.discretize(one)
+    same = disc.for_problem(two)
+    assert same.V is disc.V and same.Q is disc.Q and same.problem is two
+    with pytest.raises(ValueError, match="for_problem: the problem must live on this"):
+        disc.for_problem(cylinder())
+    with pytest.raises(TypeError, match="u_old must be a dolfinx Function"):
+        same.set_u_old(np.zeros(3))
