@@ -421,10 +421,14 @@ def test_history_goal_is_the_derivative_of_J_in_u_old():
 
 
 @pytest.mark.slow
-def test_cycling_slip_sets_are_broken_by_damped_steps():
+def test_cycling_slip_sets_are_broken_by_damped_steps(monkeypatch):
     """A Coulomb path whose first shear step cycles (Cattaneo-Mindlin, nu = 0.2, contact facets
     of 0.0025: the slip directions of a few facets alternate, which Murty's rule, changing one
-    row per step, does not break): damped steps converge, to the tolerance."""
+    row per step, does not break): damped steps converge, to the tolerance. (Every step
+    factored: the iterates of factor reuse differ by round-off, and do not cycle here.)"""
+    import dwr_signorini.linalg.block
+
+    monkeypatch.setattr(dwr_signorini.linalg.block, "REUSE_FRACTION", -1.0)
     problems = ex.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
     damped = []
 
@@ -449,3 +453,33 @@ def test_for_problem_refuses_another_mesh_or_tags():
         disc.for_problem(cylinder())
     with pytest.raises(TypeError, match="u_old must be a dolfinx Function"):
         same.set_u_old(np.zeros(3))
+
+
+@pytest.mark.mpi
+def test_factor_reuse_gives_the_factored_solution(monkeypatch):
+    """The nonsymmetric path's row updates of old factors (linalg.lowrank.RowUpdate), taken
+    on every step where they can be: the path's states and estimates equal those of a
+    factorisation per Newton step (1e-9), with fewer factorisations."""
+    import dwr_signorini.linalg.block
+
+    tops = [(0.0, -0.02), (0.005, -0.02), (0.01, -0.02)]
+    runs = {}
+    for name, fraction in (("reuse", 1e9), ("factor", -1.0)):
+        monkeypatch.setattr(dwr_signorini.linalg.block, "REUSE_FRACTION", fraction)
+        counts = []
+
+        def record(rec, sol, est, counts=counts):
+            counts.append((sol.system.factorizations, sol.system.reused))
+
+        with ds.solve_path(path(tops), ex.goal_friction_force(), callback=record,
+                           weights="patch", verbose=False) as res:
+            runs[name] = ([f.x.array.copy() for f in (res.solution.u, *res.solution.multipliers)],
+                          [(r.J_h, r.eta) for r in res.steps], counts)
+    (a, steps_a, counts_a), (b, steps_b, counts_b) = runs["reuse"], runs["factor"]
+    for x, y in zip(a, b, strict=True):
+        assert global_max(x - y) <= 1e-9 * global_max(y)
+    for (J1, e1), (J2, e2) in zip(steps_a, steps_b, strict=True):
+        assert J1 == pytest.approx(J2, rel=1e-9, abs=1e-15)
+        assert e1 == pytest.approx(e2, rel=1e-6, abs=1e-12)
+    assert sum(r for _, r in counts_a) > 0 and all(r == 0 for _, r in counts_b)
+    assert sum(f for f, _ in counts_a) < sum(f for f, _ in counts_b)

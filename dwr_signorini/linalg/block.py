@@ -288,37 +288,8 @@ class NewtonSystem(NewtonLinearSystem):
         return True
 
     def _refine(self, update: WoodburyUpdate, rhs: PETSc.Vec, x: PETSc.Vec) -> bool:
-        """Iterative refinement of A_s x = rhs, at most :data:`REFINE_STEPS`; whether x is accurate.
-
-        The correction d of A_s d = rhs - A_s x measures the error of x: once it is below
-        :data:`REUSE_RTOL` of x in each block (displacements, multipliers; max norms), x + d is
-        accepted. A correction above it is applied and the next step measures again: the
-        Woodbury solves lose a few digits when the capacitance matrix is ill-conditioned, and
-        one more step recovers them at the cost of one solve, not a factorisation.
-        """
-        residual, correction = rhs.duplicate(), x.duplicate()
-        comm, n_u = self.disc.comm, self.n_u
-        try:
-            for _ in range(REFINE_STEPS):
-                self.A.mult(x, residual)
-                residual.aypx(-1.0, rhs)
-                update.solve(residual, correction)
-                x.axpy(1.0, correction)
-                accurate = True
-                for part in (slice(0, n_u), slice(n_u, None)):
-                    size = comm.allreduce(
-                        float(np.max(np.abs(x.array_r[part]), initial=0.0)), op=MPI.MAX
-                    )
-                    error = comm.allreduce(
-                        float(np.max(np.abs(correction.array_r[part]), initial=0.0)), op=MPI.MAX
-                    )
-                    accurate &= error <= REUSE_RTOL * size
-                if accurate:
-                    return True
-            return False
-        finally:
-            for vec in (residual, correction):
-                vec.destroy()
+        """Iterative refinement of A_s x = rhs (:func:`refine_update`); whether x is accurate."""
+        return refine_update(self.A, update, rhs, x, self.n_u)
 
     def _solve_symmetric(self, rhs: PETSc.Vec, w: PETSc.Vec) -> int:
         """A_s w = rhs for the last step's A_s: its factors, or the old ones and the update.
@@ -364,4 +335,39 @@ class NewtonSystem(NewtonLinearSystem):
         w_lam = z.array_w[self.n_u :]
         w_lam[:] = np.where(self.active, -w_lam, w_lam - n_w.array / self.M.array)
         for vec in (w_u, n_w):
+            vec.destroy()
+
+
+def refine_update(A: PETSc.Mat, update: Any, rhs: PETSc.Vec, x: PETSc.Vec, n_u: int) -> bool:
+    """Iterative refinement of A x = rhs, at most :data:`REFINE_STEPS`; whether x is accurate.
+
+    The correction d of A d = rhs - A x (solved by ``update``, a low-rank update of old factors)
+    measures the error of x: once it is below :data:`REUSE_RTOL` of x in each block
+    (displacements, the first ``n_u`` owned entries, and multipliers; max norms), x + d is
+    accepted. A correction above it is applied and the next step measures again: the Woodbury
+    solves lose a few digits when the capacitance matrix is ill-conditioned, and one more step
+    recovers them at the cost of one solve, not a factorisation.
+    """
+    residual, correction = rhs.duplicate(), x.duplicate()
+    comm = A.getComm().tompi4py()
+    try:
+        for _ in range(REFINE_STEPS):
+            A.mult(x, residual)
+            residual.aypx(-1.0, rhs)
+            update.solve(residual, correction)
+            x.axpy(1.0, correction)
+            accurate = True
+            for part in (slice(0, n_u), slice(n_u, None)):
+                size = comm.allreduce(
+                    float(np.max(np.abs(x.array_r[part]), initial=0.0)), op=MPI.MAX
+                )
+                error = comm.allreduce(
+                    float(np.max(np.abs(correction.array_r[part]), initial=0.0)), op=MPI.MAX
+                )
+                accurate &= error <= REUSE_RTOL * size
+            if accurate:
+                return True
+        return False
+    finally:
+        for vec in (residual, correction):
             vec.destroy()

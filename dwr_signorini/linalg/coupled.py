@@ -30,10 +30,18 @@ rows) in one sparsity pattern for all steps: a multiplier row holds the displace
 of every component's row of its facet and the multiplier columns of its facet, zeros kept. So
 the factorisation's analysis (ordering, symbolic factorisation) is done once per mesh, and
 each step is a numerical factorisation.
+
+Factor reuse: a step whose matrix differs from the factored one in r rows (the multiplier rows
+of the facets whose sets or derivative blocks changed) is solved with the old factors and a
+rank-r row update (:class:`~.lowrank.RowUpdate`, checked by iterative refinement) when that
+costs less than :data:`~.block.REUSE_FRACTION` of a factorisation, as on the symmetric block
+path. The dual problem (and a forward solve) after such a step factors the step's matrix first
+(``benchmarks/coupled_reuse.py``).
 """
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from mpi4py import MPI
@@ -44,8 +52,10 @@ import scipy.sparse
 
 from ..laws import Coupling
 from ..timing import timed
+from . import block
 from .base import NewtonLinearSystem
-from .block import MULTIGRID, LinearSolveError
+from .block import BLOCK_SOLVE_COST, MULTIGRID, LinearSolveError, refine_update
+from .lowrank import RowUpdate
 from .mumps import mumps_failure, null_pivots, set_up
 from .schur import owned_rows
 
@@ -76,7 +86,7 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         ValueError: ``pc_type`` a Cholesky factorisation or a multigrid preconditioner.
     """
 
-    _petsc_objects = (*NewtonLinearSystem._petsc_objects, "A", "b")
+    _petsc_objects = (*NewtonLinearSystem._petsc_objects, "A", "_A_factored", "b")
 
     @staticmethod
     def default_options(defaults: dict[str, Any]) -> dict[str, Any]:
@@ -95,6 +105,9 @@ class CoupledNewtonSystem(NewtonLinearSystem):
                 "facets are constrained; factor it by LU (pc_type='lu', the default)"
             )
         self.A: PETSc.Mat | None = None
+        self._A_factored: PETSc.Mat | None = None  # the matrix whose factors the KSP holds
+        self._current = False  # whether those factors are the last step's matrix
+        self._t_factor = self._t_solve = 0.0
         self.factorizations = self.reused = 0
         self._N = owned_rows(self.N).tocsr()
         self._lo = self.N.getOwnershipRange()[0]
@@ -213,18 +226,88 @@ class CoupledNewtonSystem(NewtonLinearSystem):
             else:  # the same pattern: the factorisation's analysis is kept
                 A.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
                 A.destroy()
+        self.solved = False
+        if self._solve_by_update():
+            self.reused += 1
+            self.solved = True
+            return
+        self._factor()
+        with timed("newton solve"):
+            tic = time.perf_counter()
+            self.ksp.solve(self.b, self.x)
+            self._t_solve = time.perf_counter() - tic
+        self._check("linear solve of the Newton step")
+        self.solved = True
+
+    def _factor(self) -> None:
+        """Factor the last step's matrix (a copy of it is the KSP's operator).
+
+        Raises:
+            numpy.linalg.LinAlgError: MUMPS found null pivots (a singular Newton matrix).
+        """
+        if self._A_factored is None:
+            self._A_factored = self.A.copy()
+        else:  # the same pattern: the factorisation's analysis is kept
+            self.A.copy(self._A_factored, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         with timed("factorize"):
-            set_up(self.ksp, self.A)
+            tic = time.perf_counter()
+            set_up(self.ksp, self._A_factored)
+            self._t_factor = time.perf_counter() - tic
         self.factorizations += 1
+        self._current = True
         count = null_pivots(self.ksp)
         if count > 0:
             raise np.linalg.LinAlgError(
                 f"MUMPS found {count} null pivots: the Newton matrix is singular"
             )
+
+    def _changed_rows(self) -> np.ndarray:
+        """Global rows in which the step's matrix differs from the factored one (all ranks)."""
+        ptr, _, new = self.A.getValuesCSR()
+        _, _, old = self._A_factored.getValuesCSR()
+        lengths = np.diff(ptr)
+        differs = np.repeat(np.arange(len(lengths)), lengths)[new != old]
+        local = self.A.getOwnershipRange()[0] + np.unique(differs)
+        return np.sort(np.concatenate(self.disc.comm.allgather(local))).astype(np.int64)
+
+    def _solve_by_update(self) -> bool:
+        """Solve the step with the factors of an earlier one and a row update, if that pays.
+
+        The update (:class:`~.lowrank.RowUpdate`) costs a solve of r right-hand sides with the
+        old factors (r the changed rows) and two single solves; it is taken when that is less
+        than :data:`~.block.REUSE_FRACTION` of the last factorisation (both measured), and its
+        result is accepted after iterative refinement (:func:`~.block.refine_update`).
+
+        Returns:
+            Whether :attr:`x` holds the step.
+        """
+        if self._A_factored is None or block.REUSE_FRACTION < 0:
+            return False
+        comm = self.disc.comm
+        rows = self._changed_rows()
+        t_factor = comm.allreduce(self._t_factor, op=MPI.MAX)
+        t_solve = comm.allreduce(self._t_solve, op=MPI.MAX)
+        if (2 + BLOCK_SOLVE_COST * len(rows)) * t_solve > block.REUSE_FRACTION * t_factor:
+            return False
         with timed("newton solve"):
-            self.ksp.solve(self.b, self.x)
-        self._check("linear solve of the Newton step")
-        self.solved = True
+            try:
+                update = RowUpdate(self.ksp, self._A_factored, self.A, rows)
+            except np.linalg.LinAlgError:
+                return False
+            try:
+                update.solve(self.b, self.x)
+                accurate = refine_update(self.A, update, self.b, self.x, self.n_u)
+            except np.linalg.LinAlgError:
+                accurate = False
+            finally:
+                update.destroy()
+        self._current = len(rows) == 0  # the factors are those of this step's matrix
+        return accurate
+
+    def _factored_current(self) -> None:
+        """Factor the last step's matrix if it was solved by an update (dual, forward)."""
+        if not self._current:
+            self._factor()
 
     def _check(self, what: str) -> None:
         """LinearSolveError if the last solve failed (with MUMPS's reason)."""
@@ -238,12 +321,14 @@ class CoupledNewtonSystem(NewtonLinearSystem):
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
         """Solve A^T z = rhs with the factors of the last step (the dual problem)."""
         self.check_solved()
+        self._factored_current()
         self.ksp.solveTranspose(rhs, z)
         self._check("the dual solve")
 
     def solve_forward(self, rhs: PETSc.Vec, x: PETSc.Vec) -> None:
         """Solve A x = rhs with the factors of the last step."""
         self.check_solved()
+        self._factored_current()
         self.ksp.solve(rhs, x)
         self._check("the solve with the Newton matrix")
 

@@ -35,7 +35,7 @@ from petsc4py import PETSc
 
 import numpy as np
 
-__all__ = ["FactorColumns", "WoodburyUpdate"]
+__all__ = ["FactorColumns", "RowUpdate", "WoodburyUpdate"]
 
 #: Largest condition number of the capacitance matrix that is accepted.
 MAX_CAPACITANCE_CONDITION = 1e14
@@ -181,3 +181,77 @@ class WoodburyUpdate:
     def destroy(self) -> None:
         """Release the blocks (numpy arrays: nothing collective)."""
         self.d = self.Z = np.zeros((0, 0))
+
+
+class RowUpdate:
+    """Solves with A_new through the factors of A_old where they differ in a few rows only.
+
+    The nonsymmetric Newton matrices of the coupled path (:mod:`~dwr_signorini.linalg.coupled`)
+    of two steps differ in the multiplier rows C of the facets whose sets or derivative blocks
+    changed: A_new = A_old + E_C E_C^T D, D = A_new - A_old. The Sherman-Morrison-Woodbury
+    formula with U = E_C (n x r) and V^T = E_C^T D gives
+
+        x = y - Z (I + (D Z)_C)^-1 (D y)_C,   y = A_old^-1 b,   Z = A_old^-1 E_C,
+
+    one solve of r right-hand sides with the old factors (Z, ``MatMatSolve``), two products
+    with A_new and A_old for (D Z)_C, and per solve one solve and an r x r dense solve.
+
+    Args:
+        ksp: The solver holding the factors of ``A_old``.
+        A_old: The factored matrix.
+        A_new: The matrix to solve with (the same layout and sparsity pattern).
+        rows: Global indices of the changed rows, the same on every rank.
+
+    Raises:
+        numpy.linalg.LinAlgError: The capacitance matrix is singular or ill-conditioned.
+    """
+
+    def __init__(
+        self, ksp: PETSc.KSP, A_old: PETSc.Mat, A_new: PETSc.Mat, rows: np.ndarray
+    ) -> None:
+        self.ksp, self.A_old, self.A_new = ksp, A_old, A_new
+        self.comm: MPI.Comm = A_old.getComm().tompi4py()
+        lo, hi = A_old.getOwnershipRange()
+        n_local, n, r = hi - lo, A_old.getSize()[0], len(rows)
+        mine = (rows >= lo) & (rows < hi)
+        self._local, self._position = rows[mine] - lo, np.flatnonzero(mine)
+        rhs, Z = (PETSc.Mat().createDense(((n_local, n), (None, r)), comm=A_old.getComm())
+                  for _ in range(2))
+        for block in (rhs, Z):
+            block.setUp()
+            block.assemble()
+        rhs.getDenseArray()[self._local, self._position] = 1.0
+        rhs.assemble()
+        ksp.getPC().getFactorMatrix().matSolve(rhs, Z)
+        DZ = A_new.matMult(Z)
+        AZ = A_old.matMult(Z)
+        local = np.zeros((r, r))
+        local[self._position] = DZ.getDenseArray()[self._local] - AZ.getDenseArray()[self._local]
+        self.capacitance = np.eye(r) + self.comm.allreduce(local)
+        self.Z = Z.getDenseArray().copy()
+        for mat in (rhs, Z, DZ, AZ):
+            mat.destroy()
+        condition = np.linalg.cond(self.capacitance)
+        if not np.isfinite(condition) or condition > MAX_CAPACITANCE_CONDITION:
+            raise np.linalg.LinAlgError(
+                f"the capacitance matrix of the row update has condition {condition:.1e}"
+            )
+        self._work = A_old.createVecLeft()
+
+    def solve(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
+        """Solve A_new x = b: one solve with the old factors and an r x r dense solve."""
+        self.ksp.solve(b, x)
+        if self.ksp.getConvergedReason() < 0:
+            raise np.linalg.LinAlgError("a solve with the old factors failed")
+        self.A_new.mult(x, self._work)
+        local = np.zeros(self.capacitance.shape[0])
+        local[self._position] = self._work.array_r[self._local]
+        self.A_old.mult(x, self._work)
+        local[self._position] -= self._work.array_r[self._local]
+        s = np.linalg.solve(self.capacitance, self.comm.allreduce(local))
+        x.array_w[:] -= self.Z @ s
+
+    def destroy(self) -> None:
+        """Release the work vector (collective) and the blocks."""
+        self._work.destroy()
+        self.Z = np.zeros((0, 0))
