@@ -73,6 +73,8 @@ class LevelRecord:
         resolved: Whether the level's contact set counted as resolved.
         num_stick: With friction, macro contact facets in contact that stick, else None.
         num_slip: With friction, macro contact facets in contact that slip, else None.
+        method: The linear solver of the level's Newton steps (:attr:`Solution.method`:
+            ``"block"``, ``"schur"`` or ``"krylov"``).
     """
 
     level: int
@@ -99,6 +101,7 @@ class LevelRecord:
     resolved: bool = True
     num_stick: int | None = None
     num_slip: int | None = None
+    method: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         """The record as a plain dict.
@@ -266,7 +269,8 @@ def _progress(comm: MPI.Comm, record: LevelRecord, label: str | None = None) -> 
             f"{label}  cells {record.num_cells:8d}  dofs {record.num_dofs:8d}  "
             f"J_h {record.J_h: .6e}  J in [{record.J_low: .6e}, {record.J_high: .6e}]  "
             f"estimate {record.estimate: .3e} ({record.weights})  {friction}"
-            f"newton {record.newton_iterations:2d}  {record.time['total']:7.2f} s",
+            f"newton {record.newton_iterations:2d} ({record.method})  "
+            f"{record.time['total']:7.2f} s",
             flush=True,
         )
 
@@ -554,6 +558,7 @@ def _record(
         num_active=sol.num_active,
         num_stick=sol.num_stick,
         num_slip=sol.num_slip,
+        method=sol.method,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
         time={

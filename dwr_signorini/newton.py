@@ -33,7 +33,7 @@ import numpy as np
 import ufl
 from dolfinx import fem, la
 
-from .algebra import check_ncp_scale
+from .algebra import ContactAlgebra, check_ncp_scale
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
 from .linalg import (
@@ -51,6 +51,7 @@ from .linalg import (
     default_petsc_options,
     fieldsplit_petsc_options,
     iterative_petsc_options,
+    memory,
     mumps_failure,
     null_pivots,
     system_class,
@@ -72,6 +73,7 @@ __all__ = [
     "default_petsc_options",
     "fieldsplit_petsc_options",
     "iterative_petsc_options",
+    "method_name",
     "mumps_failure",
     "null_pivots",
     "solve",
@@ -102,7 +104,8 @@ class Solution(Releasable):
         ncp_scale: The c of the NCP function (20) the solution was computed with; the
             estimator uses the same (:attr:`system`'s ``c_n``).
         method: The linear solver of the Newton steps that was used (``"block"``,
-            ``"schur"``).
+            ``"schur"`` with K factored, ``"krylov"``: the Schur path with a Krylov solver of
+            K, :func:`method_name`).
         lam_t: With friction, the tangential traction lambda_t (DG0 on the macro contact
             facets): in 2D its value along t = (-n_2, n_1), in 3D the traction vector
             (gdim components, the facet means of lambda_t1 t_1 + lambda_t2 t_2); None without.
@@ -263,11 +266,14 @@ def solve(
             S = N K^-1 N^T, with ``petsc_options`` for K: a direct solver (the default, K
             factored once, S dense, at most :data:`SCHUR_MAX_MULTIPLIERS` multipliers) or a
             Krylov solver (:func:`iterative_petsc_options`: CG + GAMG on K, CG on S_AA, for
-            large 3D meshes). All give the same iterates up to the solvers' tolerances, and
-            the dual problem is solved the same way. ``None`` (the default): ``"block"`` when
-            ``petsc_options`` are given (they are for the block matrix), otherwise the rule of
-            :func:`~dwr_signorini.linalg.choose_method` (the dense Schur path for large 3D
-            problems with few multipliers, and for 2D solves without ``initial_guess``).
+            large 3D meshes); ``"krylov"`` is ``"schur"`` with :func:`iterative_petsc_options`
+            as defaults (``petsc_options`` merged on top). All give the same iterates up to the
+            solvers' tolerances, and the dual problem is solved the same way. ``None`` (the
+            default): ``"block"`` when ``petsc_options`` are given (they are for the block
+            matrix), otherwise the rule of :func:`~dwr_signorini.linalg.choose_method` (the
+            dense Schur path for large 3D problems with few multipliers, and for 2D solves
+            without ``initial_guess``), and ``"krylov"`` on 3D levels whose factorisation
+            MUMPS's analysis predicts not to fit in memory (:mod:`~dwr_signorini.linalg.memory`).
             :attr:`Solution.method` tells which was used.
         petsc_options_prefix: Base options prefix of this solve (default: a new unique
             ``dwr_signorini_<n>_``); inner solvers use sub-prefixes
@@ -348,31 +354,24 @@ def solve(
                 "initial_guess must be functions on this discretisation's V and Q "
                 "(transfer them with dwr_signorini.adapt.transfer_solution)"
             )
+    compile_options = {"form_compiler_options": form_compiler_options, "jit_options": jit_options}
     symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
+    assembled = None
     if method is None:
-        method = (
-            "block"
-            if petsc_options is not None
-            else choose_method(
-                disc.mesh.topology.dim,
-                disc.num_dofs,
-                # the multiplier rows: one per macro contact facet and component of the law
-                disc.num_contact_elements
-                * len(disc.problem.law.components(disc.mesh.topology.dim)),
-                cold_start=initial_guess is None,
-                symmetric=symmetric,
+        if petsc_options is not None:
+            method = "block"
+        else:
+            method, assembled = _automatic_method(
+                disc, symmetric, initial_guess is None, ncp_scale, compile_options
             )
-        )
     try:
         system = system_class(method, symmetric)(
             disc,
             petsc_options,
             prefix=petsc_options_prefix,
             ncp_scale=ncp_scale,
-            compile_options={
-                "form_compiler_options": form_compiler_options,
-                "jit_options": jit_options,
-            },
+            compile_options=compile_options,
+            algebra=assembled,
         )
     except LinearSolveError as err:
         raise ConvergenceError(str(err), []) from err
@@ -381,6 +380,45 @@ def solve(
     except BaseException:
         system.destroy()
         raise
+
+
+def _automatic_method(
+    disc: Discretization,
+    symmetric: bool,
+    cold_start: bool,
+    ncp_scale: str | float,
+    compile_options: dict[str, Any],
+) -> tuple[str, ContactAlgebra | None]:
+    """The method of ``method=None``: :func:`choose_method`, told whether a factorisation fits.
+
+    On 3D levels of at least :data:`~dwr_signorini.linalg.memory.PROBE_MIN_DOFS` DoFs with a
+    symmetric law the algebra is assembled here and MUMPS's analysis of K predicts the memory
+    of factoring it (:func:`~dwr_signorini.linalg.memory.factorization_fits`); where that would
+    not fit, the Krylov path is taken. The algebra is handed on to the Newton system.
+
+    Returns:
+        The method and the assembled algebra (None where no probe ran).
+    """
+    tdim = disc.mesh.topology.dim
+    # the multiplier rows: one per macro contact facet and component of the law
+    num_multipliers = disc.num_contact_elements * len(disc.problem.law.components(tdim))
+    rule = {"cold_start": cold_start, "symmetric": symmetric}
+    method = choose_method(tdim, disc.num_dofs, num_multipliers, **rule)
+    if tdim != 3 or not symmetric or disc.num_dofs < memory.PROBE_MIN_DOFS:
+        return method, None
+    assembled = ContactAlgebra(disc, None, ncp_scale, compile_options)
+    try:
+        dense = num_multipliers if method == "schur" else 0
+        fits, need, available = memory.factorization_fits(assembled.K, tdim, dense)
+    except BaseException:
+        assembled.destroy()
+        raise
+    if not fits:
+        logger.info(
+            "a factorisation of K would take %.2f GB of the %.2f GB available per rank: "
+            "method 'krylov'", need / 1e9, available / 1e9,
+        )
+    return choose_method(tdim, disc.num_dofs, num_multipliers, fits=fits, **rule), assembled
 
 
 def _semismooth_newton(
@@ -485,13 +523,30 @@ def _solution(
         disc=system.disc,
         system=system,
         ncp_scale=algebra.ncp_scale,
-        method="schur" if isinstance(system, SchurNewtonSystem) else "block",
+        method=method_name(system),
         num_active=comm.allreduce(int(sets[0].sum()), op=MPI.SUM),
         lam_t=lam_t,
         stick=stick,
         slip=slip,
         tangential=tuple(lams[1:]),
     )
+
+
+def method_name(system: NewtonLinearSystem) -> str:
+    """The name of the path ``system`` takes, as :attr:`Solution.method` reports it.
+
+    ``"block"``, ``"schur"`` (K factored) or ``"krylov"`` (the Schur path with a Krylov solver
+    of K).
+
+    Args:
+        system: A Newton system.
+
+    Returns:
+        The name, as :attr:`Solution.method` reports it.
+    """
+    if isinstance(system, SchurNewtonSystem):
+        return "schur" if system.direct else "krylov"
+    return "block"
 
 
 def traction_vector(disc: Discretization, tangential: list[fem.Function]) -> fem.Function:

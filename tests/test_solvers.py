@@ -63,7 +63,31 @@ SCHUR_CASES = {
     "strip-2d-tri": (lambda comm: strip_problem(comm, 32, 8), ex.goal_a(-0.5)),
     "obstacle-3d-tet": (lambda comm: ex.obstacle_problem(comm, (2, 8, 8)), ex.goal_obstacle()),
     "tresca-2d-tri": (lambda comm: ex.friction_problem(comm, s=0.05), ex.goal_friction_force()),
+    "indentation-3d-tet": (
+        lambda comm: _indentation(comm, 8), lambda u, lam, m: lam * m.ds_contact
+    ),
 }
+
+
+def _indentation(comm, n: int):
+    """A block [-1, 1]^2 x [-1, 0] on n x n x n/2 boxes pressed by a sphere of radius 2 by
+    0.02 at its top (deeper than benchmarks/reference_3d.py: contact on this coarse mesh)."""
+    from dolfinx import mesh
+
+    msh = mesh.create_box(comm, [(-1, -1, -1), (1, 1, 0)], [n, n, n // 2],
+                          mesh.CellType.tetrahedron, ghost_mode=mesh.GhostMode.none)
+
+    def classify(x):
+        tags = np.full(x.shape[1], ex.NEUMANN)
+        tags[np.isclose(x[2], -1.0)] = ex.DIRICHLET
+        tags[np.isclose(x[2], 0.0)] = ex.CONTACT
+        return tags
+
+    return ds.SignoriniProblem(
+        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        dirichlet=(ex.DIRICHLET,), E=1e3, nu=0.3, model="3d",
+        gap=lambda x: (x[0] ** 2 + x[1] ** 2) / 4.0 - 0.02,
+    )
 
 
 def _settled(history):
@@ -128,6 +152,7 @@ def test_schur_path_matches_block_path(case, solver):
     est0, est1 = ds.estimate(s0, goal), ds.estimate(s1, goal)
     assert np.isclose(est1.J_h, est0.J_h, rtol=tol)
     assert np.isclose(est1.eta, est0.eta, rtol=100 * tol)
+    assert np.isclose(est1.eta_p, est0.eta_p, rtol=100 * tol)
 
 
 @pytest.mark.mpi
@@ -245,7 +270,7 @@ def test_dual_needs_a_solved_system():
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", [m for m in METHODS if m != "krylov"])  # the factored ones
 def test_solver_options_reach_mumps_and_are_removed(method):
     """Options read only at the factorisation (mat_mumps_*) reach MUMPS: AMD ordering on 2D
     meshes by default, the user's choice over it; they stay in PETSc's database while the
@@ -336,6 +361,10 @@ def test_choose_method_rule():
     assert choose_method(2, 789_000, 128) == "block"
     assert choose_method(2, 789_000, 128, cold_start=True) == "schur"
     assert choose_method(2, 10_000, 128, cold_start=True) == "block"
+    # where a factorisation does not fit: the Krylov path, if the law is symmetric
+    assert choose_method(3, 216_000, 512, fits=False) == "krylov"
+    assert choose_method(3, 265_000, 1510, fits=False) == "krylov"
+    assert choose_method(3, 265_000, 1510, fits=False, symmetric=False) == "block"
 
 
 @pytest.mark.mpi
@@ -355,6 +384,87 @@ def test_method_none_follows_the_rule_and_the_options(monkeypatch):
         assert diff < 1e-10
     with ds.solve(disc, petsc_options={"mat_mumps_icntl_14": 50}) as given:
         assert given.method == "block"
+
+
+@pytest.mark.mpi
+def test_method_none_takes_the_krylov_path_where_a_factorisation_does_not_fit(monkeypatch):
+    """With less memory per rank than MUMPS's analysis predicts for K, method=None takes the
+    Krylov path (Solution.method, LevelRecord.method), which gives the factored path's J_h,
+    eta_p and eta to the Krylov tolerances; with ample memory it factors as before."""
+    from dwr_signorini.linalg import memory
+
+    monkeypatch.setattr(memory, "PROBE_MIN_DOFS", 0)  # probe this small mesh
+    comm = MPI.COMM_WORLD
+    problem = ex.obstacle_problem(comm, (2, 8, 8))
+    disc = discretize(problem)
+    goal = ex.goal_obstacle()
+    with ds.solve(disc, method="block") as factored:
+        _, need, _ = memory.factorization_fits(factored.system.K, 3)
+    assert need > 0
+    runs = {}
+    for budget in (need // 10, 100 * need):
+        monkeypatch.setattr(memory, "MEMORY_BUDGET", budget)
+        with ds.solve(disc) as sol:
+            est = ds.estimate(sol, goal, weights="patch")
+            runs[sol.method] = (est.J_h, est.eta_p, est.eta)
+    assert set(runs) == {"krylov", "block"}
+    assert np.allclose(runs["krylov"], runs["block"], rtol=1e-7)
+    monkeypatch.setattr(memory, "MEMORY_BUDGET", need // 10)
+    result = ds.solve_adaptive(problem, goal, max_levels=1, weights="patch")
+    assert [rec.method for rec in result.levels] == ["krylov"]
+    assert "(krylov)" in _level_line(result.levels[0])
+
+
+def _level_line(record) -> str:
+    """The progress line of a level, as rank 0 prints it."""
+    import contextlib
+    import io
+
+    from dwr_signorini.adapt import _progress
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        _progress(MPI.COMM_SELF, record)
+    return out.getvalue()
+
+
+@pytest.mark.mpi
+def test_predicted_factor_memory_bounds_what_mumps_then_uses():
+    """MUMPS's prediction from its analysis alone (INFOG(16)) is at least the memory the
+    factorisation then takes (INFOG(21), the most on a rank) and within twice it, and it
+    grows with the mesh."""
+    from dwr_signorini.linalg import memory
+
+    comm = MPI.COMM_WORLD
+    predicted = []
+    for n in (1, 2):
+        with ds.solve(ex.obstacle_problem(comm, (n, 4 * n, 4 * n)), method="schur") as sol:
+            factor = sol.system.ksp.getPC().getFactorMatrix()
+            used = factor.getMumpsInfog(21) * 10**6
+            predicted.append(memory.predicted_factor_memory(sol.system.K, 3))
+            assert used <= predicted[-1] <= 2 * used
+    assert predicted[1] > 2 * predicted[0]
+
+
+def test_available_memory_reads_the_node_and_the_container(tmp_path, monkeypatch):
+    """The budget per rank is the smaller of MemAvailable and the control group's remainder,
+    shared by the ranks on the node; MEMORY_BUDGET overrides it."""
+    from dwr_signorini.linalg import memory
+
+    meminfo = tmp_path / "meminfo"
+    meminfo.write_text("MemTotal:       24000000 kB\nMemAvailable:   20000000 kB\n")
+    assert memory._meminfo_available(meminfo) == 20000000 * 1024
+    assert memory._meminfo_available(tmp_path / "missing") is None
+    (tmp_path / "memory.max").write_text("max\n")
+    assert memory._cgroup_available(tmp_path) is None
+    (tmp_path / "memory.max").write_text("8000000000\n")
+    (tmp_path / "memory.current").write_text("3000000000\n")
+    assert memory._cgroup_available(tmp_path) == 5_000_000_000
+    monkeypatch.setattr(memory, "_meminfo_available", lambda: 20000000 * 1024)
+    monkeypatch.setattr(memory, "_cgroup_available", lambda: 5_000_000_000)
+    assert memory.available_memory(MPI.COMM_SELF) == 5_000_000_000
+    monkeypatch.setattr(memory, "MEMORY_BUDGET", 123)
+    assert memory.available_memory(MPI.COMM_SELF) == 123
 
 
 def _kkt_matrix(n: int = 6000, m: int = 3000):

@@ -5,7 +5,9 @@
 * :mod:`~dwr_signorini.linalg.nullspace`: rigid body modes for algebraic multigrid;
 * :mod:`~dwr_signorini.linalg.base`: what every Newton system shares;
 * :mod:`~dwr_signorini.linalg.block`: the block Newton matrix by LDL^T (``method="block"``);
-* :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``);
+* :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``,
+  ``method="krylov"``);
+* :mod:`~dwr_signorini.linalg.memory`: what a factorisation would take and what is available;
 * :mod:`~dwr_signorini.linalg.coupled`: the nonsymmetric block matrix by LU (``method="block"``
   for a law with coupled rows: Tresca friction in 3D, Coulomb friction).
 """
@@ -25,15 +27,20 @@ from .options import (
 from .schur import (
     SCHUR_MAX_MULTIPLIERS,
     DenseSchurComplement,
+    KrylovNewtonSystem,
     KrylovSchurComplement,
     SchurNewtonSystem,
 )
 
 #: Linear solvers of the Newton steps, the ``method`` of :func:`dwr_signorini.solve`.
-METHODS = ("block", "schur")
+METHODS = ("block", "schur", "krylov")
 
 #: The Newton system of each method.
-SYSTEMS: dict[str, type[NewtonLinearSystem]] = {"block": NewtonSystem, "schur": SchurNewtonSystem}
+SYSTEMS: dict[str, type[NewtonLinearSystem]] = {
+    "block": NewtonSystem,
+    "schur": SchurNewtonSystem,
+    "krylov": KrylovNewtonSystem,
+}
 
 
 def system_class(method: str, symmetric: bool = True) -> type[NewtonLinearSystem]:
@@ -45,9 +52,9 @@ def system_class(method: str, symmetric: bool = True) -> type[NewtonLinearSystem
     """
     if symmetric:
         return SYSTEMS[method]
-    if method == "schur":
+    if method in ("schur", "krylov"):
         raise ValueError(
-            "method='schur' solves symmetric Newton matrices; the Newton matrix of Tresca "
+            f"method={method!r} solves symmetric Newton matrices; the Newton matrix of Tresca "
             "friction in 3D and of Coulomb friction is not symmetric on slipping facets: use "
             "method='block' (LU)"
         )
@@ -64,7 +71,7 @@ AUTO_SCHUR_COLD_MIN_DOFS = 20_000
 
 def choose_method(
     tdim: int, num_dofs: int, num_multipliers: int, *, cold_start: bool = False,
-    symmetric: bool = True,
+    symmetric: bool = True, fits: bool = True,
 ) -> str:
     """The linear solver of the Newton steps when the user gives neither method nor options.
 
@@ -79,7 +86,9 @@ def choose_method(
     its first active set is that of the strictly negative gaps, so it takes 2 or more Newton
     steps, each a factorisation of the block matrix when many facets change, where the Schur
     path factors K once (example 5.1 from zero, 49k-786k triangles: 2 steps, the Schur path
-    0.1-0.4 of a level's time faster, ``benchmarks/peers.py``).
+    0.1-0.4 of a level's time faster, ``benchmarks/peers.py``). Where a factorisation would not
+    fit in memory (``fits=False``, :func:`~dwr_signorini.linalg.memory.factorization_fits`) a
+    symmetric law takes ``"krylov"``, whose memory grows linearly with the mesh.
 
     Args:
         tdim: The topological dimension of the mesh.
@@ -88,12 +97,15 @@ def choose_method(
         cold_start: Whether the Newton method starts from zero (no initial guess).
         symmetric: Whether the law's Newton matrices are symmetric (else only ``"block"``
             serves, :func:`system_class`).
+        fits: Whether a factorisation of K fits in memory.
 
     Returns:
-        ``"schur"`` or ``"block"``.
+        ``"schur"``, ``"block"`` or ``"krylov"``.
     """
     if not symmetric:
         return "block"
+    if not fits:
+        return "krylov"
     few = num_multipliers <= AUTO_SCHUR_MAX_MULTIPLIERS
     if tdim == 3 and num_dofs >= AUTO_SCHUR_MIN_DOFS and few:
         return "schur"
@@ -112,6 +124,7 @@ __all__ = [
     "SYSTEMS",
     "CoupledNewtonSystem",
     "DenseSchurComplement",
+    "KrylovNewtonSystem",
     "KrylovSchurComplement",
     "LinearSolveError",
     "NewtonLinearSystem",

@@ -59,6 +59,9 @@ class NewtonLinearSystem:
         prefix: The options prefix (default: a new unique ``dwr_signorini_<n>_``).
         ncp_scale: c of the NCP function (20): ``"physical"`` (c_n,i = E / H_i) or a number.
         compile_options: ``form_compiler_options`` and ``jit_options`` for the forms.
+        algebra: The algebra of ``disc`` and ``V``, assembled already (e.g. for a memory
+            probe, :mod:`~dwr_signorini.linalg.memory`); the system takes it over and
+            destroys it. None: assembled here.
 
     Attributes:
         algebra: K, N, N^T, M, f, g, c_n of this mesh and space.
@@ -84,14 +87,16 @@ class NewtonLinearSystem:
         prefix: str | None = None,
         ncp_scale: str | float = "physical",
         compile_options: dict[str, Any] | None = None,
+        algebra: ContactAlgebra | None = None,
     ) -> None:
         self.disc = disc
         self.prefix = unique_prefix() if prefix is None else prefix
-        self.algebra: ContactAlgebra | None = None
+        self.algebra: ContactAlgebra | None = algebra
         self._scope: OptionsScope | None = None
         self.solved = False
         try:  # on any failure, what exists so far is destroyed and its options removed
-            self.algebra = ContactAlgebra(disc, V, ncp_scale, compile_options)
+            if self.algebra is None:
+                self.algebra = ContactAlgebra(disc, V, ncp_scale, compile_options)
             defaults = self.default_options(_defaults_for(disc.mesh.topology.dim, petsc_options))
             self._scope = OptionsScope(self.prefix, defaults, petsc_options)
             self.options = self._scope.options

@@ -52,11 +52,12 @@ from .mumps import (
     set_up,
 )
 from .nullspace import rigid_body_modes
-from .options import LOOSE_RTOL, SCHUR_KRYLOV_OPTIONS, OptionsScope
+from .options import LOOSE_RTOL, SCHUR_KRYLOV_OPTIONS, OptionsScope, iterative_petsc_options
 
 __all__ = [
     "SCHUR_MAX_MULTIPLIERS",
     "DenseSchurComplement",
+    "KrylovNewtonSystem",
     "KrylovSchurComplement",
     "SchurNewtonSystem",
 ]
@@ -519,3 +520,19 @@ class SchurNewtonSystem(NewtonLinearSystem):
         self.N.mult(self._u, self._lam_vec)
         xi = np.where(self.active, -eta, (j_lam - self._lam_vec.array) / self.M.array)
         self.write(z, self._u.array_r, xi)
+
+
+class KrylovNewtonSystem(SchurNewtonSystem):
+    """``method="krylov"``: the Schur path with K solved by CG and algebraic multigrid.
+
+    :class:`SchurNewtonSystem` with :func:`~dwr_signorini.linalg.options.iterative_petsc_options`
+    as its defaults (``petsc_options`` are merged on top): nothing of the size of K is factored,
+    memory grows linearly with the mesh, and the estimator's higher-order solves (same class)
+    take the same path. ``method=None`` picks it where a factorisation would not fit
+    (:mod:`~dwr_signorini.linalg.memory`).
+    """
+
+    @staticmethod
+    def default_options(defaults: dict[str, Any]) -> dict[str, Any]:
+        """The iterative options, in place of the package's direct defaults."""
+        return iterative_petsc_options()
