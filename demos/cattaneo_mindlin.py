@@ -26,7 +26,7 @@
 # condition $u_y = 0$ on $y = 0$: a shear along $x$ keeps the whole sphere's problem symmetric
 # about that plane. The top is displaced by $(0, 0, -\delta)$, then by $(k\,s/n, 0, -\delta)$;
 # $\delta = 0.01$ gives $a / R = 0.105$ and $s = 0.004$ a final $Q / (\mu P)$ of 0.81
-# (`cattaneo_mindlin.cattaneo_mindlin_path_3d`). The meshes have macro facets of
+# (`cattaneo_mindlin_3d.cattaneo_mindlin_path_3d`). The meshes have macro facets of
 # $h_C = 0.03, 0.02, \dots$ (a factor 1.5 per level) near the first contact point.
 #
 # ## The theory
@@ -98,7 +98,7 @@ import numpy as np
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.examples import cattaneo_mindlin as cm
+from dwr_signorini.examples import cattaneo_mindlin_3d as cm
 from dwr_signorini.io import write_csv, write_json
 from dwr_signorini.viz.canvas import new_figure, save_figure
 from dwr_signorini.viz.gather import snapshot_mesh

@@ -1,4 +1,4 @@
-"""Cattaneo-Mindlin in 2D (dwr_signorini.examples.cattaneo_mindlin) against the theory.
+"""Cattaneo-Mindlin in 2D (dwr_signorini.examples.cattaneo_mindlin_2d) against the theory.
 
 A half-cylinder (``meshes/cattaneo_2d.py``, R = 1, E = 1, nu = 0.49, plane strain) pressed onto
 a rigid flat (a / R = 0.094) and sheared in four steps to Q / (mu P) = 0.69 with Coulomb
@@ -29,7 +29,7 @@ import pytest
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.examples import cattaneo_mindlin as cm
+from dwr_signorini.examples import cattaneo_mindlin_3d as cm
 
 COMM = MPI.COMM_WORLD
 MU = ex.CM_DEFAULTS["mu"]

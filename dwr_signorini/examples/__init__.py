@@ -28,6 +28,11 @@ Sign conventions (Section 2): ``n`` is the outer unit normal, ``u_n = u . n``,
 ``sigma_nn = n . sigma n`` and the contact pressure (Lagrange multiplier) is
 ``lambda_n = -sigma_nn(u)``; Signorini's conditions (2) and (7) read
 ``u_n - g <= 0``, ``lambda_n >= 0`` and ``lambda_n (u_n - g) = 0`` on Gamma_C.
+
+Also not in the paper, with gmsh meshes, tags and load paths of their own: Cattaneo-Mindlin
+with Coulomb friction, a cylinder (:mod:`~dwr_signorini.examples.cattaneo_mindlin_2d`, also the
+measurements against the theory) or a sphere (:mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`)
+pressed onto a rigid flat and sheared in steps.
 """
 
 from dolfinx.mesh import CellType
@@ -67,29 +72,31 @@ from .bar_2d import (
     bar_problem,
     goal_bar,
 )
-from .cattaneo_mindlin import (
+from .cattaneo_mindlin_2d import (
     CM_CONTACT,
     CM_DEFAULTS,
-    CM_DEFAULTS_3D,
-    CM_SYMMETRY_Y,
     CM_TOP,
     CMMeasure,
-    ContactPatch,
     ContactProfile,
     cattaneo_mindlin_mesh,
-    cattaneo_mindlin_mesh_3d,
     cattaneo_mindlin_path,
-    cattaneo_mindlin_path_3d,
     cm_traction,
-    cm_traction_3d,
     dundurs_beta,
-    gather_contact_patch,
     gather_contact_profile,
     hertz_half_width,
     hertz_pressure,
-    hertz_radius,
     measure_cattaneo_mindlin,
     stick_half_width,
+)
+from .cattaneo_mindlin_3d import (
+    CM_DEFAULTS_3D,
+    CM_SYMMETRY_Y,
+    ContactPatch,
+    cattaneo_mindlin_mesh_3d,
+    cattaneo_mindlin_path_3d,
+    cm_traction_3d,
+    gather_contact_patch,
+    hertz_radius,
     stick_radius,
 )
 from .friction_2d import (

@@ -43,6 +43,11 @@ relative L2 error of lambda_t against q(x) is integrated facet by facet (Gauss-L
 every straight macro facet). All of them are collective: the facets are gathered on rank 0 and
 the results broadcast.
 
+The measurement and its record serve both dimensions: :func:`measure_cattaneo_mindlin` also
+measures a solution of the 3D path of :mod:`~dwr_signorini.examples.cattaneo_mindlin_3d` (a
+sphere), which imports the pieces the two share from here (the tags, the gmsh reader, the load
+path, the gathering of the facets, :class:`CMMeasure`).
+
 The mesh builder reads the gmsh script ``meshes/cattaneo_2d.py`` of the project's checkout (the
 folder next to the package); pass ``mesh=(msh, cell_tags, facet_tags)`` with the script's tags
 to use another mesh.
@@ -52,7 +57,9 @@ from __future__ import annotations
 
 import importlib.util
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -71,30 +78,22 @@ from ..viz.gather import gather_contact_force, gather_friction
 __all__ = [
     "CM_CONTACT",
     "CM_DEFAULTS",
-    "CM_DEFAULTS_3D",
-    "CM_SYMMETRY_Y",
     "CM_TOP",
     "CMMeasure",
-    "ContactPatch",
     "ContactProfile",
     "cattaneo_mindlin_mesh",
-    "cattaneo_mindlin_mesh_3d",
     "cattaneo_mindlin_path",
-    "cattaneo_mindlin_path_3d",
     "cm_traction",
-    "cm_traction_3d",
     "dundurs_beta",
-    "gather_contact_patch",
     "gather_contact_profile",
     "hertz_half_width",
     "hertz_pressure",
-    "hertz_radius",
     "measure_cattaneo_mindlin",
     "stick_half_width",
-    "stick_radius",
 ]
 
-#: Facet tags of ``meshes/cattaneo_2d.py``: the arc Gamma_C and the top.
+#: Facet tags of ``meshes/cattaneo_2d.py`` (and of ``meshes/hertz_3d.py``): the arc Gamma_C
+#: and the top.
 CM_CONTACT, CM_TOP = 1, 2
 
 #: The data of :func:`cattaneo_mindlin_path`: geometry, material, friction, the top's
@@ -105,19 +104,8 @@ CM_DEFAULTS: dict[str, float] = {
     "steps": 4, "h": 0.2, "h_contact": 0.01, "refine_radius": 0.15,
 }
 
-#: Facet tag of the symmetry plane y = 0 of the 3D half sphere (``meshes/hertz_3d.py``).
-CM_SYMMETRY_Y = 4
-
-#: The data of :func:`cattaneo_mindlin_path_3d`, as :data:`CM_DEFAULTS`: ``press`` gives
-#: a / R = 0.105 and ``shear`` a final Q / (mu P) of about 0.8 (c / a = 0.57).
-CM_DEFAULTS_3D: dict[str, float] = {
-    "radius": 1.0, "E": 1.0, "nu": 0.49, "mu": 0.3, "press": 0.01, "shear": 0.004,
-    "steps": 4, "h": 0.25, "h_contact": 0.03, "refine_radius": 0.15,
-}
-
 _MESHES = Path(__file__).resolve().parents[2] / "meshes"
 _MESH_SCRIPT = _MESHES / "cattaneo_2d.py"
-_MESH_SCRIPT_3D = _MESHES / "hertz_3d.py"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -129,6 +117,12 @@ def dundurs_beta(nu: float) -> float:
     """Dundurs' second constant for an elastic body on a rigid flat: (1 - 2 nu) / (2 (1 - nu)).
 
     beta = 0 decouples the normal and the tangential contact problems (Johnson 1985, eq. 5.4).
+
+    Args:
+        nu: The body's Poisson's ratio.
+
+    Returns:
+        beta (0 for nu = 1/2).
     """
     return (1.0 - 2.0 * nu) / (2.0 * (1.0 - nu))
 
@@ -151,13 +145,33 @@ def hertz_half_width(P: float, radius: float, E: float, nu: float) -> tuple[floa
 
 
 def hertz_pressure(x: npt.ArrayLike, a: float, p0: float) -> np.ndarray:
-    """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on |x| <= a, 0 outside, eq. (H3)."""
+    """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on |x| <= a, 0 outside, eq. (H3).
+
+    Also the sphere's p(r), eq. (H3') of :mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`.
+
+    Args:
+        x: Positions along the flat (distances r in 3D), from the first contact point.
+        a: The contact half-width (radius).
+        p0: Hertz's peak pressure.
+
+    Returns:
+        p at ``x`` (zero everywhere if a = 0).
+    """
     x = np.asarray(x, dtype=float)
     return p0 * np.sqrt(np.clip(1.0 - (x / a) ** 2, 0.0, None)) if a > 0 else 0.0 * x
 
 
 def stick_half_width(a: float, Q: float, mu: float, P: float) -> float:
     """Cattaneo-Mindlin's stick half-width c = a sqrt(1 - |Q| / (mu P)), eq. (CM1).
+
+    Args:
+        a: The contact half-width.
+        Q: The tangential force per unit length (its sign does not matter).
+        mu: The friction coefficient.
+        P: The normal force per unit length.
+
+    Returns:
+        c, 0 <= c <= a.
 
     Raises:
         ValueError: If ``|Q| > mu P`` (the whole contact slides, no stick zone) or P <= 0.
@@ -190,59 +204,6 @@ def cm_traction(x: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> n
     outer = np.sqrt(np.clip(a**2 - x**2, 0.0, None))
     inner = np.sqrt(np.clip(c**2 - x**2, 0.0, None))
     return mu * p0 / a * (outer - inner)
-
-
-def hertz_radius(P: float, radius: float, E: float, nu: float) -> tuple[float, float]:
-    """Hertz's point contact of a sphere on a rigid flat, eqs. (H1'), (H2') of the module.
-
-    Args:
-        P: The normal force on the whole sphere.
-        radius: The sphere's radius R.
-        E: Young's modulus of the sphere.
-        nu: Its Poisson's ratio (E* = E / (1 - nu^2)).
-
-    Returns:
-        ``(a, p0)``: the contact radius and the peak pressure.
-    """
-    e_star = E / (1.0 - nu**2)
-    a = (3.0 * abs(P) * radius / (4.0 * e_star)) ** (1.0 / 3.0)
-    return a, (3.0 * abs(P) / (2.0 * math.pi * a**2) if a > 0 else 0.0)
-
-
-def stick_radius(a: float, Q: float, mu: float, P: float) -> float:
-    """Mindlin's stick radius c = a (1 - |Q| / (mu P))^(1/3), eq. (CM1').
-
-    Raises:
-        ValueError: If ``|Q| > mu P`` (the whole contact slides, no stick zone) or P <= 0.
-    """
-    if P <= 0 or mu <= 0:
-        raise ValueError(f"stick_radius needs P > 0 and mu > 0, got P = {P}, mu = {mu}")
-    ratio = abs(Q) / (mu * P)
-    if ratio > 1.0:
-        raise ValueError(f"|Q| / (mu P) = {ratio:.4g} > 1: the contact slides as a whole")
-    return a * (1.0 - ratio) ** (1.0 / 3.0)
-
-
-def cm_traction_3d(r: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> np.ndarray:
-    """Mindlin's tangential traction q(r) of a sphere, eq. (CM2') (positive, the sign of Q).
-
-    Args:
-        r: Distances from the first contact point in the flat.
-        a: The contact radius.
-        c: The stick radius, 0 <= c <= a.
-        p0: Hertz's peak pressure.
-        mu: The friction coefficient.
-
-    Returns:
-        q at ``r``: mu p0 (sqrt(1 - r^2 / a^2) - (c / a) sqrt(1 - r^2 / c^2)) (the second root
-        only where r < c), zero outside the contact r > a. Along the direction of Q.
-    """
-    r = np.asarray(r, dtype=float)
-    if a <= 0:
-        return 0.0 * r
-    outer = np.sqrt(np.clip(1.0 - (r / a) ** 2, 0.0, None))
-    inner = np.sqrt(np.clip(1.0 - (r / c) ** 2, 0.0, None)) if c > 0 else 0.0 * r
-    return mu * p0 * (outer - c / a * inner)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -314,6 +275,71 @@ def _gmsh_mesh(
             gmsh.model.remove()
 
 
+def _check_steps(steps: int) -> None:
+    """Raise a ValueError unless ``steps`` is a positive integer."""
+    if int(steps) != steps or steps < 1:
+        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+
+
+def _shear_path(
+    mesh: tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags],
+    dim: int,
+    *,
+    mu: float,
+    nu: float,
+    steps: int,
+    press: float,
+    shear: float,
+    E: float,
+    radius: float,
+    fixed: dict[int, tuple[float | None, ...]] | None = None,
+) -> list[SignoriniProblem]:
+    """The press step and the ``steps`` shear steps of a cylinder (2D) or sphere (3D).
+
+    The body of radius ``radius`` centred at ``radius e_dim`` touches the rigid flat
+    x_dim <= 0 at the origin (Coulomb friction ``mu``); its top :data:`CM_TOP` is displaced by
+    ``-press e_dim + (k shear / steps) e_x`` in step k = 0, ..., ``steps``, and
+    :data:`CM_CONTACT` is projected onto the circle (sphere) when the mesh is refined.
+
+    Args:
+        mesh: ``(msh, cell_tags, facet_tags)``.
+        dim: 2 (plane strain) or 3.
+        mu: Coulomb's friction coefficient.
+        nu: Poisson's ratio.
+        steps: The number of shear steps.
+        press: The top's displacement towards the flat.
+        shear: The top's final displacement along x.
+        E: Young's modulus.
+        radius: The radius R.
+        fixed: Further Dirichlet conditions of every step, ``{tag: components}``.
+
+    Returns:
+        ``steps + 1`` problems on ``mesh``.
+    """
+    msh, cell_tags, facet_tags = mesh
+    flat = Plane((0.0,) * dim, (0.0,) * (dim - 1) + (-1.0,))
+    center = np.zeros(3)
+    center[dim - 1] = radius
+    center = center[:, None]
+
+    def onto_surface(x: np.ndarray) -> np.ndarray:
+        d = x - center
+        d[dim:] = 0.0
+        return center + radius * d / np.linalg.norm(d, axis=0)
+
+    law = Coulomb(mu)
+    model = "plane_strain" if dim == 2 else "3d"
+    return [
+        SignoriniProblem(
+            msh, facet_tags, contact=CM_CONTACT,
+            dirichlet={CM_TOP: (k * shear / steps, *(0.0,) * (dim - 2), -press), **(fixed or {})},
+            E=E, nu=nu, model=model, gap=flat, friction=law, cell_tags=cell_tags,
+            boundary_projection={CM_CONTACT: onto_surface},
+        )
+        for k in range(int(steps) + 1)
+    ]
+
+
 def cattaneo_mindlin_path(
     comm: MPI.Comm,
     h_contact: float = CM_DEFAULTS["h_contact"],
@@ -350,119 +376,16 @@ def cattaneo_mindlin_path(
 
     Returns:
         ``steps + 1`` problems: the press ``(0, -press)``, then ``(k shear / steps, -press)``.
+
+    Raises:
+        ValueError: If ``steps`` is not a positive integer.
     """
-    if int(steps) != steps or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
-    msh, cell_tags, facet_tags = mesh if mesh is not None else cattaneo_mindlin_mesh(
-        comm, h_contact=h_contact, h=h, refine_radius=refine_radius, radius=radius)
-    flat = Plane((0.0, 0.0), (0.0, -1.0))
-    center = np.array([0.0, radius, 0.0])[:, None]
-
-    def onto_circle(x: np.ndarray) -> np.ndarray:
-        d = x - center
-        d[2] = 0.0
-        return center + radius * d / np.linalg.norm(d, axis=0)
-
-    law = Coulomb(mu)
-    return [
-        SignoriniProblem(
-            msh, facet_tags, contact=CM_CONTACT, dirichlet={CM_TOP: (k * shear / steps, -press)},
-            E=E, nu=nu, model="plane_strain", gap=flat, friction=law, cell_tags=cell_tags,
-            boundary_projection={CM_CONTACT: onto_circle},
-        )
-        for k in range(int(steps) + 1)
-    ]
-
-
-def cattaneo_mindlin_mesh_3d(
-    comm: MPI.Comm,
-    h_contact: float = CM_DEFAULTS_3D["h_contact"],
-    h: float = CM_DEFAULTS_3D["h"],
-    refine_radius: float = CM_DEFAULTS_3D["refine_radius"],
-    radius: float = CM_DEFAULTS_3D["radius"],
-) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
-    """The half hemisphere y >= 0 of ``meshes/hertz_3d.py``, built by gmsh on rank 0.
-
-    Collective; gmsh as :func:`cattaneo_mindlin_mesh`.
-
-    Args:
-        comm: The communicator.
-        h_contact: Macro facet size on the sphere within ``refine_radius`` R of (0, 0, 0).
-        h: Mesh size away from the contact.
-        refine_radius: Radius (relative to R) of the zone of size ``h_contact``.
-        radius: The radius R.
-
-    Returns:
-        ``(mesh, cell_tags, facet_tags)`` with the facet tags :data:`CM_CONTACT` (the sphere),
-        :data:`CM_TOP` (z = R) and :data:`CM_SYMMETRY_Y` (y = 0).
-    """
-    if _mesh_script(_MESH_SCRIPT_3D).SYMMETRY_Y != CM_SYMMETRY_Y:
-        raise RuntimeError(f"{_MESH_SCRIPT_3D}: SYMMETRY_Y differs from CM_SYMMETRY_Y")
-    return _gmsh_mesh(comm, _MESH_SCRIPT_3D, radius=radius, h=h, h_contact=h_contact,
-                      refine_radius=refine_radius, quarter=0, half=1)
-
-
-def cattaneo_mindlin_path_3d(
-    comm: MPI.Comm,
-    h_contact: float = CM_DEFAULTS_3D["h_contact"],
-    mu: float = CM_DEFAULTS_3D["mu"],
-    nu: float = CM_DEFAULTS_3D["nu"],
-    steps: int = int(CM_DEFAULTS_3D["steps"]),
-    press: float = CM_DEFAULTS_3D["press"],
-    shear: float = CM_DEFAULTS_3D["shear"],
-    E: float = CM_DEFAULTS_3D["E"],
-    radius: float = CM_DEFAULTS_3D["radius"],
-    h: float = CM_DEFAULTS_3D["h"],
-    refine_radius: float = CM_DEFAULTS_3D["refine_radius"],
-    mesh: tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags] | None = None,
-) -> list[SignoriniProblem]:
-    """The 3D load path of the module docstring: the half sphere y >= 0, pressed, then sheared.
-
-    As :func:`cattaneo_mindlin_path` on :func:`cattaneo_mindlin_mesh_3d`: the top z = R is
-    displaced by ``(0, 0, -press)``, then by ``(k shear / steps, 0, -press)``; the plane y = 0
-    is a symmetry plane (u_y = 0; a shear along x keeps the whole sphere's problem symmetric
-    about it). The sphere is projected onto itself when the mesh is refined.
-
-    Args:
-        comm: The communicator (collective).
-        h_contact: Macro facet size at the contact (:func:`cattaneo_mindlin_mesh_3d`).
-        mu: Coulomb's friction coefficient.
-        nu: Poisson's ratio.
-        steps: The number of shear steps (at least 1).
-        press: The top's downward displacement (a / R = 0.105 at the defaults).
-        shear: The top's final displacement along x, reached in ``steps`` equal increments.
-        E: Young's modulus.
-        radius: The radius R.
-        h: Mesh size away from the contact.
-        refine_radius: Radius (relative to R) of the zone of size ``h_contact``.
-        mesh: ``(msh, cell_tags, facet_tags)`` to use instead of building one (tags
-            :data:`CM_CONTACT`, :data:`CM_TOP`, :data:`CM_SYMMETRY_Y`).
-
-    Returns:
-        ``steps + 1`` problems on the half body (its forces are half the whole sphere's).
-    """
-    if int(steps) != steps or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
-    msh, cell_tags, facet_tags = mesh if mesh is not None else cattaneo_mindlin_mesh_3d(
-        comm, h_contact=h_contact, h=h, refine_radius=refine_radius, radius=radius)
-    flat = Plane((0.0, 0.0, 0.0), (0.0, 0.0, -1.0))
-    center = np.array([0.0, 0.0, radius])[:, None]
-
-    def onto_sphere(x: np.ndarray) -> np.ndarray:
-        d = x - center
-        return center + radius * d / np.linalg.norm(d, axis=0)
-
-    law = Coulomb(mu)
-    return [
-        SignoriniProblem(
-            msh, facet_tags, contact=CM_CONTACT,
-            dirichlet={CM_TOP: (k * shear / steps, 0.0, -press),
-                       CM_SYMMETRY_Y: (None, 0.0, None)},
-            E=E, nu=nu, model="3d", gap=flat, friction=law, cell_tags=cell_tags,
-            boundary_projection={CM_CONTACT: onto_sphere},
-        )
-        for k in range(int(steps) + 1)
-    ]
+    _check_steps(steps)
+    if mesh is None:
+        mesh = cattaneo_mindlin_mesh(
+            comm, h_contact=h_contact, h=h, refine_radius=refine_radius, radius=radius)
+    return _shear_path(mesh, 2, mu=mu, nu=nu, steps=steps, press=press, shear=shear, E=E,
+                       radius=radius)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -498,26 +421,50 @@ class ContactProfile:
         return 0.5 * (self.x0 + self.x1)
 
 
-def gather_contact_profile(sol: Any) -> ContactProfile | None:
-    """The macro contact facets of a 2D frictional solution on rank 0 (``None`` elsewhere).
+def _gather_facets(sol: Any) -> tuple[np.ndarray, ...] | None:
+    """The macro contact facets of a frictional solution on rank 0 (``None`` elsewhere).
 
     Collective (:func:`~dwr_signorini.viz.gather.gather_friction` and
     :func:`~dwr_signorini.viz.gather.gather_contact_force`, which gather in the same order).
+
+    Returns:
+        ``(x, lam, lam_t, active, stick, slip)``: the facets' vertices, lambda_n, lambda_t, and
+        whether each is in contact, sticks, slips (booleans).
     """
     data = gather_friction(sol)
     normal = gather_contact_force(sol)
     if data is None:
         return None
     x, lam, lam_t, stick, slip = data
-    active = normal[2]
+    return x, lam, lam_t, normal[2].astype(bool), stick.astype(bool), slip.astype(bool)
+
+
+def gather_contact_profile(sol: Any) -> ContactProfile | None:
+    """The macro contact facets of a 2D frictional solution on rank 0 (``None`` elsewhere).
+
+    Collective (:func:`~dwr_signorini.viz.gather.gather_friction` and
+    :func:`~dwr_signorini.viz.gather.gather_contact_force`, which gather in the same order).
+
+    Args:
+        sol: A :class:`~dwr_signorini.Solution` of a 2D problem with friction.
+
+    Returns:
+        The :class:`ContactProfile` on rank 0, ``None`` on the other ranks.
+
+    Raises:
+        ValueError: On rank 0, if the contact facets are not segments (a 3D problem).
+    """
+    facets = _gather_facets(sol)
+    if facets is None:
+        return None
+    x, lam, lam_t, active, stick, slip = facets
     if x.shape[1:] != (2, 3):
         raise ValueError("gather_contact_profile: a 2D problem (facets with two vertices) only")
     x0, x1 = np.minimum(x[:, 0, 0], x[:, 1, 0]), np.maximum(x[:, 0, 0], x[:, 1, 0])
     length = np.linalg.norm(x[:, 1, :] - x[:, 0, :], axis=1)
     order = np.argsort(x0 + x1, kind="stable")
-    return ContactProfile(x0[order], x1[order], length[order], lam[order], lam_t[order],
-                          active[order].astype(bool), stick[order].astype(bool),
-                          slip[order].astype(bool))
+    return ContactProfile(x0[order], x1[order], length[order],
+                          *(v[order] for v in (lam, lam_t, active, stick, slip)))
 
 
 @dataclass(frozen=True)
@@ -549,11 +496,13 @@ class CMMeasure:
             friction on one half of the contact in units of its Coulomb limit, the coupling
             measure of the press step (the press alone gives an odd lambda_t, zero for
             beta = 0).
-        dim: 2, or 3 for a solution of :func:`cattaneo_mindlin_path_3d`.
+        dim: 2, or 3 for a solution of
+            :func:`~dwr_signorini.examples.cattaneo_mindlin_3d.cattaneo_mindlin_path_3d`.
         l2_lam_ty: In 3D ||lambda_t . e_y||_L2(GC) / ||q||_L2(GC), the traction across the shear
             (zero in Mindlin's approximation); nan in 2D.
 
-    In 3D (:func:`cattaneo_mindlin_path_3d`, module docstring) the fields are those of the
+    In 3D (:func:`~dwr_signorini.examples.cattaneo_mindlin_3d.cattaneo_mindlin_path_3d`, the
+    docstring of :mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`) the fields are those of the
     whole sphere: P and Q are twice the half body's (Q = 2 J_h of
     :func:`~dwr_signorini.examples.goal_friction_force`), a, p0 and c are Hertz's and
     Mindlin's radii and peak pressure (eqs. H1', H2', CM1'), a_h and c_h the radii of discs of
@@ -587,8 +536,52 @@ class CMMeasure:
     l2_lam_ty: float = math.nan
 
     def as_dict(self) -> dict[str, float]:
-        """The fields as a dict (a table row)."""
+        """The fields as a dict (a table row).
+
+        Returns:
+            ``{field: value}`` in the order of the fields.
+        """
         return asdict(self)
+
+
+def _theory(
+    P: float, Q: float, mu: float, hertz: tuple[float, float],
+    stick: Callable[[float, float, float, float], float],
+) -> dict[str, float]:
+    """The fields P, Q, ratio, a, p0 and c of :class:`CMMeasure` for the computed P and Q.
+
+    Args:
+        P: The computed normal force.
+        Q: The computed tangential force.
+        mu: The friction coefficient.
+        hertz: Hertz's ``(a, p0)`` for P.
+        stick: The stick size ``stick(a, Q, mu, P)``, used where |Q| <= mu P (else c is nan).
+
+    Returns:
+        ``{"P": P, "Q": Q, "ratio": |Q| / (mu P), "a": a, "p0": p0, "c": c}``.
+    """
+    a, p0 = hertz
+    ratio = abs(Q) / (mu * P) if P > 0 else math.nan
+    c = stick(a, Q, mu, P) if ratio <= 1.0 else math.nan
+    return {"P": P, "Q": Q, "ratio": ratio, "a": a, "p0": p0, "c": c}
+
+
+def _rel(err: float, norm: float) -> float:
+    """sqrt(err / norm), a relative L2 error from squared norms; nan if ``norm`` is not > 0."""
+    return math.sqrt(err / norm) if norm > 0 else math.nan
+
+
+def _cm_measure(
+    theory: dict[str, float], a_h: float, c_h: float, stick_center: float, h_facet: float,
+    stick: np.ndarray, slip: np.ndarray, **fields: Any,
+) -> CMMeasure:
+    """The :class:`CMMeasure` of the theory (:func:`_theory`), the computed sizes and ``fields``."""
+    return CMMeasure(
+        **theory, a_h=a_h, c_h=c_h, stick_center=stick_center, h_facet=h_facet,
+        c_error_facets=(c_h - theory["c"]) / h_facet,
+        a_error_facets=(a_h - theory["a"]) / h_facet,
+        num_stick=int(stick.sum()), num_slip=int(slip.sum()), **fields,
+    )
 
 
 def _facet_l2(profile: ContactProfile, values: np.ndarray, exact: Any, points: int) -> tuple:
@@ -620,9 +613,8 @@ def _measure_on_root(
     """:func:`measure_cattaneo_mindlin` on the gathered facets."""
     P = float(np.sum(profile.lam * profile.length))
     Q = float(np.sum(profile.lam_t * profile.length))
-    a, p0 = hertz_half_width(P, radius, E, nu)
-    ratio = abs(Q) / (mu * P) if P > 0 else math.nan
-    c = stick_half_width(a, Q, mu, P) if ratio <= 1.0 else math.nan
+    theory = _theory(P, Q, mu, hertz_half_width(P, radius, E, nu), stick_half_width)
+    a, p0, c = theory["a"], theory["p0"], theory["c"]
     active = profile.active
     a_h = 0.5 * (profile.x1[active].max() - profile.x0[active].min()) if active.any() else 0.0
     if profile.stick.any():
@@ -632,25 +624,21 @@ def _measure_on_root(
         c_h, center = 0.0, math.nan
     zone = np.abs(profile.mid) <= max(a, a_h)
     h_facet = float(profile.length[zone].max()) if zone.any() else math.nan
+
+    def q(x: np.ndarray) -> np.ndarray:
+        return cm_traction(x, a, c, p0, mu)
+
     sign = 1.0 if Q >= 0 else -1.0
-    err_t, norm_t = _facet_l2(
-        profile, sign * profile.lam_t, lambda x: sign * cm_traction(x, a, c, p0, mu), points)
-    means = _facet_means(profile, lambda x: cm_traction(x, a, c, p0, mu), points)
-    err_b, _ = _facet_l2(profile, means, lambda x: cm_traction(x, a, c, p0, mu), points)
+    err_t, norm_t = _facet_l2(profile, sign * profile.lam_t, lambda x: sign * q(x), points)
+    err_b, _ = _facet_l2(profile, _facet_means(profile, q, points), q, points)
     err_n, norm_n = _facet_l2(profile, profile.lam, lambda x: hertz_pressure(x, a, p0), points)
     right = profile.mid > 0
     normal_right = mu * float(np.sum((profile.lam * profile.length)[right]))
-    return CMMeasure(
-        P=P, Q=Q, ratio=ratio, a=a, p0=p0, c=c, a_h=a_h, c_h=c_h, stick_center=center,
-        h_facet=h_facet, c_error_facets=(c_h - c) / h_facet,
-        a_error_facets=(a_h - a) / h_facet,
-        num_stick=int(profile.stick.sum()), num_slip=int(profile.slip.sum()),
-        l2_lam_t=math.sqrt(err_t / norm_t) if norm_t > 0 else math.nan,
-        l2_best=math.sqrt(err_b / norm_t) if norm_t > 0 else math.nan,
-        l2_lam=math.sqrt(err_n / norm_n) if norm_n > 0 else math.nan,
+    return _cm_measure(
+        theory, a_h, c_h, center, h_facet, profile.stick, profile.slip,
+        l2_lam_t=_rel(err_t, norm_t), l2_best=_rel(err_b, norm_t), l2_lam=_rel(err_n, norm_n),
         max_lam_t=float(np.abs(profile.lam_t).max() / (mu * p0)) if p0 > 0 else math.nan,
-        rms_lam_t=math.sqrt(float(np.sum(profile.lam_t**2 * profile.length)) / norm_n) / mu
-        if norm_n > 0 else math.nan,
+        rms_lam_t=_rel(float(np.sum(profile.lam_t**2 * profile.length)), norm_n) / mu,
         coupling=(float(np.sum((profile.lam_t * profile.length)[right])) / normal_right
                   if normal_right > 0 else math.nan),
     )
@@ -665,14 +653,14 @@ def measure_cattaneo_mindlin(
     points: int = 16,
     half: bool | None = None,
 ) -> CMMeasure:
-    """Measure a solution of the path against Hertz and Cattaneo-Mindlin (module docstring).
+    """Measure a solution of the path against Hertz and Cattaneo-Mindlin (module docstrings).
 
     Collective: the facets are gathered on rank 0, measured there, the result broadcast.
 
     Args:
         sol: A :class:`~dwr_signorini.Solution` of one step of :func:`cattaneo_mindlin_path`
-            or :func:`cattaneo_mindlin_path_3d` (e.g. in the ``callback`` of
-            :func:`~dwr_signorini.solve_path`).
+            or :func:`~dwr_signorini.examples.cattaneo_mindlin_3d.cattaneo_mindlin_path_3d`
+            (e.g. in the ``callback`` of :func:`~dwr_signorini.solve_path`).
         mu: Coulomb's friction coefficient of the path.
         E: Young's modulus.
         nu: Poisson's ratio.
@@ -686,174 +674,21 @@ def measure_cattaneo_mindlin(
         The :class:`CMMeasure`, the same on every rank.
     """
     comm = sol.disc.comm
-    three_d = sol.disc.contact_mesh.topology.dim == 2
-    profile = gather_contact_patch(sol) if three_d else gather_contact_profile(sol)
+    on_root: Callable[[], CMMeasure]
+    if sol.disc.contact_mesh.topology.dim == 2:  # imported here: the 3D module imports this one
+        from .cattaneo_mindlin_3d import _measure_on_root_3d, gather_contact_patch
+
+        on_root = partial(_measure_on_root_3d, gather_contact_patch(sol), mu, E, nu, radius,
+                          points, half)
+    else:
+        on_root = partial(_measure_on_root, gather_contact_profile(sol), mu, E, nu, radius, points)
     result: CMMeasure | Exception | None = None
     if comm.rank == 0:
         try:
-            if three_d:
-                result = _measure_on_root_3d(profile, mu, E, nu, radius, points, half)
-            else:
-                result = _measure_on_root(profile, mu, E, nu, radius, points)
+            result = on_root()
         except Exception as error:  # raised on every rank below
             result = error
     result = comm.bcast(result, root=0)
     if isinstance(result, Exception):
         raise result
     return result
-
-
-# --------------------------------------------------------------------------------------------------
-# Measurements in 3D
-# --------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ContactPatch:
-    """The macro contact facets (triangles) of a 3D solution, gathered on rank 0.
-
-    Attributes:
-        x: The vertices of each facet, shape (facets, 3, 3).
-        area: Each facet's area as the solver integrates it (the lumped multiplier mass
-            ``sol.system.M``; with ``boundary_projection`` the refined facets' area).
-        lam: lambda_n on each facet.
-        lam_t: The tangential traction vector on each facet, shape (facets, 3).
-        active: Whether each facet is in contact (the normal active set).
-        stick, slip: Whether each facet is in contact and sticks, slips.
-    """
-
-    x: np.ndarray
-    area: np.ndarray
-    lam: np.ndarray
-    lam_t: np.ndarray
-    active: np.ndarray
-    stick: np.ndarray
-    slip: np.ndarray
-
-    @property
-    def centroid(self) -> np.ndarray:
-        """The facets' centroids, shape (facets, 3)."""
-        return self.x.mean(axis=1)
-
-    @property
-    def r(self) -> np.ndarray:
-        """The centroids' distances from the axis x = y = 0."""
-        c = self.centroid
-        return np.hypot(c[:, 0], c[:, 1])
-
-    @property
-    def flat_area(self) -> np.ndarray:
-        """The (straight) facets' areas projected onto the flat z = 0."""
-        e1, e2 = self.x[:, 1] - self.x[:, 0], self.x[:, 2] - self.x[:, 0]
-        return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-
-    @property
-    def edge(self) -> np.ndarray:
-        """Each facet's mean edge length."""
-        return np.mean([np.linalg.norm(self.x[:, (k + 1) % 3] - self.x[:, k], axis=1)
-                        for k in range(3)], axis=0)
-
-
-def gather_contact_patch(sol: Any) -> ContactPatch | None:
-    """The macro contact facets of a 3D frictional solution on rank 0 (``None`` elsewhere).
-
-    Collective (:func:`~dwr_signorini.viz.gather.gather_friction`,
-    :func:`~dwr_signorini.viz.gather.gather_contact_force` and the facet areas, gathered in the
-    same order: each rank's owned contact cells).
-    """
-    sub = sol.disc.contact_mesh
-    if sub.topology.dim != 2:
-        raise ValueError("gather_contact_patch: a 3D problem (triangular contact facets) only")
-    n = sub.topology.index_map(2).size_local
-    dofs = sol.lam.function_space.dofmap.list[:n, 0]
-    n_q = sol.system.algebra.n_q
-    owned = dofs < n_q
-    area = np.full(n, np.nan)
-    area[owned] = sol.system.M.array[:n_q][dofs[owned]]
-    areas = sub.comm.gather(area, root=0)
-    data = gather_friction(sol)
-    normal = gather_contact_force(sol)
-    if data is None:
-        return None
-    x, lam, lam_t, stick, slip = data
-    area = np.concatenate(areas)
-    missing = np.isnan(area)  # a facet whose row another rank owns: its straight area
-    if missing.any():
-        e1, e2 = x[missing, 1] - x[missing, 0], x[missing, 2] - x[missing, 0]
-        area[missing] = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
-    return ContactPatch(x, area, lam, np.asarray(lam_t).reshape(-1, 3), normal[2].astype(bool),
-                        stick.astype(bool), slip.astype(bool))
-
-
-def _triangle_rule(x: np.ndarray, points: int) -> tuple[np.ndarray, np.ndarray]:
-    """The collapsed Gauss-Legendre rule with ``points**2`` points on each triangle of ``x``.
-
-    Returns:
-        The points, shape (facets, points**2, 3), and the weights relative to the facet's
-        area (summing to 1 on every facet), shape (points**2,).
-    """
-    g, w = np.polynomial.legendre.leggauss(points)
-    g, w = 0.5 * (g + 1.0), 0.5 * w
-    s, t = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
-    weights = 2.0 * np.outer(w, w).ravel() * s  # Duffy: x = x0 + s (x1 - x0) + s t (x2 - x1)
-    pts = (x[:, None, 0] + s[None, :, None] * (x[:, None, 1] - x[:, None, 0])
-           + (s * t)[None, :, None] * (x[:, None, 2] - x[:, None, 1]))
-    return pts, weights
-
-
-def _measure_on_root_3d(
-    patch: ContactPatch, mu: float, E: float, nu: float, radius: float, points: int,
-    half: bool | None,
-) -> CMMeasure:
-    """:func:`measure_cattaneo_mindlin` on the gathered facets of a 3D solution."""
-    if half is None:
-        half = bool(patch.x[..., 1].min() > -1e-9 * radius)
-    factor = 2.0 if half else 1.0
-    P = factor * float(np.sum(patch.lam * patch.area))
-    Q = factor * float(np.sum(patch.lam_t[:, 0] * patch.area))
-    a, p0 = hertz_radius(P, radius, E, nu)
-    ratio = abs(Q) / (mu * P) if P > 0 else math.nan
-    c = stick_radius(a, Q, mu, P) if ratio <= 1.0 else math.nan
-
-    def disc_radius(mask: np.ndarray) -> float:
-        return math.sqrt(factor * float(np.sum(patch.flat_area[mask])) / math.pi)
-
-    a_h, c_h = disc_radius(patch.active), disc_radius(patch.stick)
-    cx = patch.centroid[:, 0]
-    center = (float(np.sum((cx * patch.flat_area)[patch.stick])
-                    / np.sum(patch.flat_area[patch.stick])) if patch.stick.any() else math.nan)
-    zone = patch.r <= max(a, a_h)
-    h_facet = float(patch.edge[zone].mean()) if zone.any() else math.nan
-
-    pts, w = _triangle_rule(patch.x, points)
-    r = np.hypot(pts[..., 0], pts[..., 1])
-    dA = patch.area[:, None] * w[None, :]
-    q = cm_traction_3d(r, a, c if c == c else 0.0, p0, mu)
-    p = hertz_pressure(r, a, p0)
-    sign = 1.0 if Q >= 0 else -1.0
-    norm_q = float(np.sum(dA * q**2))
-    norm_p = float(np.sum(dA * p**2))
-    err_t = float(np.sum(dA * (sign * patch.lam_t[:, 0, None] - q) ** 2))
-    means = np.sum(w[None, :] * q, axis=1)
-    err_b = float(np.sum(dA * (means[:, None] - q) ** 2))
-    err_n = float(np.sum(dA * (patch.lam[:, None] - p) ** 2))
-    ty = float(np.sum(patch.area * patch.lam_t[:, 1] ** 2))
-    mag = np.linalg.norm(patch.lam_t, axis=1)
-    rc = np.maximum(patch.r, 1e-300)
-    radial = (cx * patch.lam_t[:, 0] + patch.centroid[:, 1] * patch.lam_t[:, 1]) / rc
-    normal = mu * float(np.sum(patch.lam * patch.area))
-
-    def rel(err: float, norm: float) -> float:
-        return math.sqrt(err / norm) if norm > 0 else math.nan
-
-    return CMMeasure(
-        P=P, Q=Q, ratio=ratio, a=a, p0=p0, c=c, a_h=a_h, c_h=c_h, stick_center=center,
-        h_facet=h_facet, c_error_facets=(c_h - c) / h_facet,
-        a_error_facets=(a_h - a) / h_facet,
-        num_stick=int(patch.stick.sum()), num_slip=int(patch.slip.sum()),
-        l2_lam_t=rel(err_t, norm_q), l2_best=rel(err_b, norm_q), l2_lam=rel(err_n, norm_p),
-        max_lam_t=float(mag.max() / (mu * p0)) if p0 > 0 else math.nan,
-        rms_lam_t=rel(float(np.sum(patch.area * mag**2)), mu**2 * norm_p),
-        coupling=float(np.sum(radial * patch.area)) / normal if normal > 0 else math.nan,
-        dim=3, l2_lam_ty=rel(ty, norm_q),
-    )
