@@ -42,6 +42,7 @@ from .linalg import (
     SCHUR_KRYLOV_OPTIONS,
     SCHUR_MAX_MULTIPLIERS,
     DenseSchurComplement,
+    KrylovNewtonSystem,
     KrylovSchurComplement,
     LinearSolveError,
     NewtonLinearSystem,
@@ -544,9 +545,11 @@ def method_name(system: NewtonLinearSystem) -> str:
     Returns:
         The name, as :attr:`Solution.method` reports it.
     """
-    if isinstance(system, SchurNewtonSystem):
-        return "schur" if system.direct else "krylov"
-    return "block"
+    if isinstance(system, KrylovNewtonSystem) or (
+        isinstance(system, SchurNewtonSystem) and not system.direct
+    ):
+        return "krylov"
+    return "schur" if isinstance(system, SchurNewtonSystem) else "block"
 
 
 def traction_vector(disc: Discretization, tangential: list[fem.Function]) -> fem.Function:

@@ -244,7 +244,7 @@ CASES = [
     ("solve-ncp_scale-string", lambda d: ds.solve(d.problem, ncp_scale="unit"), ValueError,
      r"ncp_scale must be 'physical'"),
     ("solve-method", lambda d: ds.solve(d.problem, method="lu"), ValueError,
-     r"method must be one of \('block', 'schur'\)"),
+     r"method must be one of \('block', 'schur', 'krylov'\)"),
     ("solve-prefix-no-underscore", lambda d: ds.solve(d.problem, petsc_options_prefix="p34"),
      ValueError, r"petsc_options_prefix must be a non-empty string ending with '_'"),
     ("solve-prefix-int", lambda d: ds.solve(d.problem, petsc_options_prefix=34), ValueError,

@@ -18,7 +18,7 @@ import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
-from dwr_signorini.linalg import schur
+from dwr_signorini.linalg import KrylovNewtonSystem, schur
 from dwr_signorini.newton import (
     METHODS,
     DenseSchurComplement,
@@ -107,25 +107,34 @@ def _relative_difference(comm, a, b):
 #: (round-off for the direct solver, the Krylov tolerances 1e-10 for the iterative one).
 SCHUR_SOLVERS = {"direct": (None, 1e-10), "krylov": (iterative_petsc_options(), 1e-8)}
 
+#: The paths compared with the block path: (method, petsc_options, relative tolerance).
+PATHS = {**{f"schur-{k}": ("schur", *v) for k, v in SCHUR_SOLVERS.items()},
+         "krylov": ("krylov", None, 1e-8)}
+
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("solver", list(SCHUR_SOLVERS))
+@pytest.mark.parametrize("path", list(PATHS))
 @pytest.mark.parametrize("case", list(SCHUR_CASES))
-def test_schur_path_matches_block_path(case, solver):
+def test_path_matches_block_path(case, path):
     """The linear solvers of the Newton steps give the same iterates (active sets, Newton
-    steps, u, lambda), the same dual solution (y, xi) and estimate, up to their tolerance."""
+    steps, u, lambda), the same dual solution (y, xi) and estimate, up to their tolerance:
+    the Schur path with K factored or solved by CG, and the saddle-point GMRES of "krylov"."""
     build, goal = SCHUR_CASES[case]
-    options, tol = SCHUR_SOLVERS[solver]
+    method, options, tol = PATHS[path]
     comm = MPI.COMM_WORLD
     disc = discretize(build(comm))  # one mesh and numbering: in parallel the partition may vary
     runs = {}
-    for method, opts in (("block", None), ("schur", options)):
-        sol = ds.solve(disc, method=method, petsc_options=opts)
+    for name, opts in (("block", None), (method, options)):
+        sol = ds.solve(disc, method=name, petsc_options=opts)
         z = solve_dual(sol.system, GoalForms(goal, sol.u, sol.lam, sol.disc, sol.lam_t))
-        runs[method] = (sol, z)
-    (s0, z0), (s1, z1) = runs["block"], runs["schur"]
-    assert isinstance(s1.system, SchurNewtonSystem)
-    assert isinstance(s1.system.schur, KrylovSchurComplement) == (solver == "krylov")
+        runs[name] = (sol, z)
+    (s0, z0), (s1, z1) = runs["block"], runs[method]
+    solver = "direct" if path == "schur-direct" else "krylov"
+    assert s1.method == ("schur" if solver == "direct" else "krylov")
+    if method == "schur":
+        assert isinstance(s1.system.schur, KrylovSchurComplement) == (solver == "krylov")
+    else:
+        assert type(s1.system) is KrylovNewtonSystem
     assert type(s0.system) is NewtonSystem
     n_u, n_lam = s0.system.n_u, s0.system.algebra.n_q
     assert s0.num_active > 0
@@ -202,11 +211,13 @@ def test_schur_path_bad_input(monkeypatch):
     """Unknown method; no solve with K; too many multipliers for the dense S (not for CG);
     multigrid options on the block path."""
     problem = strip_problem(MPI.COMM_WORLD, 8, 2)
-    with pytest.raises(ValueError, match=r"method must be one of \('block', 'schur'\) or None"):
+    with pytest.raises(
+        ValueError, match=r"method must be one of \('block', 'schur', 'krylov'\) or None"
+    ):
         ds.solve(problem, method="Schur")
     with pytest.raises(ValueError, match=r"method='schur'.*pc_type 'lu'.*'sor'"):
         ds.solve(problem, method="schur", petsc_options={"ksp_type": "preonly", "pc_type": "sor"})
-    with pytest.raises(ValueError, match=r"multigrid.*method='schur'"):
+    with pytest.raises(ValueError, match=r"multigrid.*method='krylov'"):
         ds.solve(problem, petsc_options=iterative_petsc_options())
     monkeypatch.setattr(schur, "SCHUR_MAX_MULTIPLIERS", 3)
     with pytest.raises(ValueError, match=r"SCHUR_MAX_MULTIPLIERS = 3.*method='block'"):

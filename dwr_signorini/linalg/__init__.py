@@ -5,8 +5,9 @@
 * :mod:`~dwr_signorini.linalg.nullspace`: rigid body modes for algebraic multigrid;
 * :mod:`~dwr_signorini.linalg.base`: what every Newton system shares;
 * :mod:`~dwr_signorini.linalg.block`: the block Newton matrix by LDL^T (``method="block"``);
-* :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``,
-  ``method="krylov"``);
+* :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``);
+* :mod:`~dwr_signorini.linalg.krylov`: the step as one saddle-point system by GMRES with one
+  multigrid cycle per iteration (``method="krylov"``);
 * :mod:`~dwr_signorini.linalg.memory`: what a factorisation would take and what is available;
 * :mod:`~dwr_signorini.linalg.coupled`: the nonsymmetric block matrix by LU (``method="block"``
   for a law with coupled rows: Tresca friction in 3D, Coulomb friction).
@@ -15,6 +16,7 @@
 from .base import NewtonLinearSystem
 from .block import LinearSolveError, NewtonSystem
 from .coupled import CoupledNewtonSystem
+from .krylov import KrylovNewtonSystem
 from .mumps import mumps_failure, mumps_inverse_entries, null_pivots
 from .options import (
     LOOSE_RTOL,
@@ -27,7 +29,6 @@ from .options import (
 from .schur import (
     SCHUR_MAX_MULTIPLIERS,
     DenseSchurComplement,
-    KrylovNewtonSystem,
     KrylovSchurComplement,
     SchurNewtonSystem,
 )

@@ -106,9 +106,9 @@ class NewtonSystem(NewtonLinearSystem):
         if pc_type in MULTIGRID:
             raise ValueError(
                 f"pc_type {pc_type!r}: algebraic multigrid suits the stiffness matrix K, not "
-                "the block Newton matrix with its zero multiplier block; use method='schur' "
-                "with these options (iterative_petsc_options()), or "
-                "fieldsplit_petsc_options() on the block matrix"
+                "the block Newton matrix with its zero multiplier block; use method='krylov' "
+                "(or method='schur' with these options), or fieldsplit_petsc_options() on the "
+                "block matrix"
             )
         self.direct = pc_type in ("lu", "cholesky")
         self._reuse = self.direct and self.ksp.getType() == "preonly"

@@ -52,14 +52,15 @@ from .mumps import (
     set_up,
 )
 from .nullspace import rigid_body_modes
-from .options import LOOSE_RTOL, SCHUR_KRYLOV_OPTIONS, OptionsScope, iterative_petsc_options
+from .options import LOOSE_RTOL, SCHUR_KRYLOV_OPTIONS, OptionsScope
 
 __all__ = [
     "SCHUR_MAX_MULTIPLIERS",
     "DenseSchurComplement",
-    "KrylovNewtonSystem",
     "KrylovSchurComplement",
     "SchurNewtonSystem",
+    "factor_on_active",
+    "jacobi_schur_approximation",
 ]
 
 logger = logging.getLogger(__name__)
@@ -229,6 +230,56 @@ class DenseSchurComplement:
         self.S = self._factor = None
 
 
+def jacobi_schur_approximation(algebra: ContactAlgebra) -> PETSc.Mat:
+    """N diag(K)^-1 N^T, the sparse approximation of the Schur complement N K^-1 N^T.
+
+    Args:
+        algebra: The pieces of the mesh.
+
+    Returns:
+        A new sparse matrix on the multiplier rows (the caller destroys it).
+    """
+    inv_diag = algebra.K.getDiagonal()
+    inv_diag.reciprocal()
+    scaled = algebra.NT.copy()
+    scaled.diagonalScale(L=inv_diag)
+    try:
+        return algebra.N.matMult(scaled)
+    finally:
+        inv_diag.destroy()
+        scaled.destroy()
+
+
+def factor_on_active(
+    ksp: PETSc.KSP,
+    S_hat: PETSc.Mat,
+    active: np.ndarray,
+    old: PETSc.Mat | None,
+    operator: PETSc.Mat | None = None,
+) -> PETSc.Mat:
+    """``S_hat`` with the inactive rows and columns the identity, factored by ``ksp``'s PC.
+
+    Args:
+        ksp: The solver whose preconditioner factors the matrix (e.g. MUMPS's LDL^T).
+        S_hat: The sparse Schur approximation (:func:`jacobi_schur_approximation`).
+        active: The active rows (owned).
+        old: The matrix of the last active set, destroyed here (None: none).
+        operator: The operator of ``ksp`` (None: the new matrix itself).
+
+    Returns:
+        The new matrix (the caller keeps it while ``ksp`` uses it). Check
+        :func:`~dwr_signorini.linalg.mumps.null_pivots` of ``ksp`` for dependent rows.
+    """
+    if old is not None:
+        old.destroy()
+    P = S_hat.copy()
+    lo = S_hat.getOwnershipRange()[0]
+    P.zeroRowsColumns((lo + np.flatnonzero(~active)).astype(PETSc.IntType), diag=1.0)
+    ksp.setOperators(P if operator is None else operator, P)
+    ksp.setUp()
+    return P
+
+
 class _MaskedSchurOperator:
     """Context of the python matrix P_A N K^-1 N^T P_A + P_I on the multiplier rows."""
 
@@ -285,20 +336,13 @@ class KrylovSchurComplement:
         """The preconditioner's S_hat, the python matrix S, the CG and its options."""
         self.ksp_K = ksp
         comm = algebra.comm
-        inv_diag = algebra.K.getDiagonal()
-        inv_diag.reciprocal()
-        scaled = algebra.NT.copy()
-        scaled.diagonalScale(L=inv_diag)
-        self.S_hat = algebra.N.matMult(scaled)  # N diag(K)^-1 N^T, sparse
-        inv_diag.destroy()
-        scaled.destroy()
+        self.S_hat = jacobi_schur_approximation(algebra)
         self.P: PETSc.Mat | None = None
         n = algebra.n_lam
         self._operator = _MaskedSchurOperator(algebra, ksp)
         self.S = PETSc.Mat().createPython(((n, None), (n, None)), self._operator, comm=comm)
         self.S.setUp()
         self._y = self.S.createVecLeft()
-        self.lo = algebra.N.getOwnershipRange()[0]
         self._scope = OptionsScope(prefix, SCHUR_KRYLOV_OPTIONS)
         self.ksp = PETSc.KSP().create(comm)
         self._scope.apply(self.ksp)
@@ -328,13 +372,7 @@ class KrylovSchurComplement:
                 many multipliers.
         """
         self._operator.mask = active.astype(float)
-        if self.P is not None:
-            self.P.destroy()
-        self.P = self.S_hat.copy()
-        rows = (self.lo + np.flatnonzero(~active)).astype(PETSc.IntType)
-        self.P.zeroRowsColumns(rows, diag=1.0)
-        self.ksp.setOperators(self.S, self.P)
-        self.ksp.setUp()
+        self.P = factor_on_active(self.ksp, self.S_hat, active, self.P, operator=self.S)
         if null_pivots(self.ksp) > 0:
             raise np.linalg.LinAlgError(
                 f"N diag(K)^-1 N^T, and so N K^-1 N^T, is singular on the active rows: {_DEPENDENT}"
@@ -521,18 +559,3 @@ class SchurNewtonSystem(NewtonLinearSystem):
         xi = np.where(self.active, -eta, (j_lam - self._lam_vec.array) / self.M.array)
         self.write(z, self._u.array_r, xi)
 
-
-class KrylovNewtonSystem(SchurNewtonSystem):
-    """``method="krylov"``: the Schur path with K solved by CG and algebraic multigrid.
-
-    :class:`SchurNewtonSystem` with :func:`~dwr_signorini.linalg.options.iterative_petsc_options`
-    as its defaults (``petsc_options`` are merged on top): nothing of the size of K is factored,
-    memory grows linearly with the mesh, and the estimator's higher-order solves (same class)
-    take the same path. ``method=None`` picks it where a factorisation would not fit
-    (:mod:`~dwr_signorini.linalg.memory`).
-    """
-
-    @staticmethod
-    def default_options(defaults: dict[str, Any]) -> dict[str, Any]:
-        """The iterative options, in place of the package's direct defaults."""
-        return iterative_petsc_options()
