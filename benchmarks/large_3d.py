@@ -1,15 +1,21 @@
-"""Example 5.3 on a 3D mesh of about 1M DoFs, solved and estimated with the iterative option.
+"""3D levels of up to millions of DoFs on the Krylov path: time per phase, memory, K-solve ratio.
 
-Two uniform levels of :func:`~dwr_signorini.solve_adaptive` with ``method="schur"`` and
-:func:`~dwr_signorini.newton.iterative_petsc_options` (K by CG with GAMG and the rigid body
-modes, S_AA = (N K^-1 N^T)_AA by CG applied matrix-free): no factorisation of K is made. The
-first level warm-starts the second. Prints a line per
-level with DoFs, Newton iterations, seconds per phase and the peak memory summed over the
-ranks, and writes ``benchmarks/results/large_3d.json``::
+Levels of :func:`~dwr_signorini.solve_adaptive` with ``method="krylov"`` (each Newton step and
+the dual one GMRES on the saddle-point system with one GAMG cycle of K per iteration, see
+:mod:`dwr_signorini.linalg.krylov`) or ``--method krylov-schur`` (``method="schur"`` with
+``iterative_petsc_options()``: CG on S_AA with a CG + GAMG solve of K per iteration), on
+example 5.3 (macro mesh n x 4n x 4n) or the indentation of ``reference_3d.py`` (n x n x n/2),
+uniform or adaptive (growth 2). Nothing of the size of K is factored. A line per level: DoFs,
+Newton steps, the weights of the estimate, seconds per phase, the level's total, one CG + GAMG
+solve of K on the same mesh (``ref``, set-up included, ``--ref``) and the ratio, and the peak
+memory of the largest rank and of all ranks; ``benchmarks/results/large_3d_<problem>_np<N>.json``.
+The same command runs on any number of ranks::
 
-    scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py            # 1.1M DoFs
-    scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py --n 2      # 30k DoFs, a check
-    scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py --levels 1 [--no-loose-steps]
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py                  # 146k, 1.1M DoFs
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py --n 2            # a check in seconds
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py --problem indentation \\
+        --refinement adaptive --n 16 --levels 5
+    scripts/fenicsx python3 benchmarks/large_3d.py --levels 1 --n 14            # 1.1M DoFs, 1 rank
 """
 
 from __future__ import annotations
@@ -22,54 +28,77 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from bench_levels import krylov_reference_times
+from reference_3d import indentation_problem, total_force
+
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini import newton
 from dwr_signorini.newton import iterative_petsc_options
 from dwr_signorini.timing import PHASES, snapshot
+
+METHODS = {
+    "krylov": {"method": "krylov"},
+    "krylov-schur": {"method": "schur", "petsc_options": iterative_petsc_options()},
+}
+
+
+def build(comm: MPI.Comm, name: str, n: int) -> tuple[ds.SignoriniProblem, object]:
+    """The problem and its goal."""
+    if name == "obstacle":
+        return ex.obstacle_problem(comm, n=(n, 4 * n, 4 * n)), ex.goal_obstacle()
+    return indentation_problem(comm, n), total_force
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=7,
-                        help="first macro mesh n x 4n x 4n (x6 tetrahedra); the last level's fine "
-                             "mesh has (8n+1)(32n+1)^2 vertices")
+    parser.add_argument("--problem", default="obstacle", choices=("obstacle", "indentation"))
+    parser.add_argument("--n", type=int, default=7, help="the macro mesh (see above)")
     parser.add_argument("--levels", type=int, default=2)
-    parser.add_argument("--no-loose-steps", action="store_true",
-                        help="solve every Newton step to the full tolerances (for comparison)")
+    parser.add_argument("--refinement", default="uniform", choices=("uniform", "adaptive"))
+    parser.add_argument("--method", default="krylov", choices=tuple(METHODS))
+    parser.add_argument("--weights", default="auto")
+    parser.add_argument("--ref", action="store_true",
+                        help="also time one CG + GAMG solve of K per level (the ratio)")
     parser.add_argument("--output", type=Path, default=Path("benchmarks/results"))
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    if args.no_loose_steps:
-        newton.LOOSE_RTOL = tuple(iterative_petsc_options()["ksp_rtol"] for _ in range(2))
-    problem = ex.obstacle_problem(comm, n=(args.n, 4 * args.n, 4 * args.n))
+    problem, goal = build(comm, args.problem, args.n)
     rows: list[dict] = []
     last = [snapshot(), time.perf_counter()]
 
     def callback(record: ds.LevelRecord, sol: ds.Solution, est: ds.Estimate) -> None:
         now = snapshot()
+        total = comm.allreduce(time.perf_counter() - last[1], op=MPI.MAX)
         phases = {k: comm.allreduce(now[k] - last[0][k], op=MPI.MAX) for k in PHASES}
-        peak = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.SUM)
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0**2  # GiB
         row = {
+            "problem": args.problem, "refinement": args.refinement, "method": sol.method,
             "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
-            "newton": record.newton_iterations, "J_h": record.J_h, "eta": record.eta,
-            "total_s": comm.allreduce(time.perf_counter() - last[1], op=MPI.MAX),
-            "peak_GiB_all_ranks": peak / 1024.0**2, "ranks": comm.size,
+            "num_active": record.num_active, "newton": record.newton_iterations,
+            "weights": record.weights, "J_h": record.J_h, "J_low": record.J_low,
+            "J_high": record.J_high, "total_s": total, "ranks": comm.size,
+            "peak_GiB_max_rank": comm.allreduce(rss, op=MPI.MAX),
+            "peak_GiB_all_ranks": comm.allreduce(rss, op=MPI.SUM),
             **{f"{k}_s": v for k, v in phases.items() if v > 0},
         }
+        if args.ref:
+            row["ref_s"] = krylov_reference_times(sol)[0]
+            row["ratio"] = total / row["ref_s"]
         rows.append(row)
         if comm.rank == 0:
             print(json.dumps(row), flush=True)
         last[0], last[1] = snapshot(), time.perf_counter()
 
-    ds.solve_adaptive(problem, ex.goal_obstacle(), refinement="uniform", max_levels=args.levels,
-                      method="schur", petsc_options=iterative_petsc_options(), callback=callback,
-                      verbose=True)
+    adaptive = {"growth": 2.0} if args.refinement == "adaptive" else {}
+    ds.solve_adaptive(problem, goal, refinement=args.refinement, max_levels=args.levels,
+                      weights=args.weights, callback=callback, verbose=True,
+                      **adaptive, **METHODS[args.method]).destroy()
     if comm.rank == 0:
         args.output.mkdir(parents=True, exist_ok=True)
-        with open(args.output / "large_3d.json", "w") as fh:
-            json.dump({"levels": rows, "petsc_options": iterative_petsc_options(),
-                       "loose_rtol": newton.LOOSE_RTOL}, fh, indent=1)
+        path = args.output / f"large_3d_{args.problem}_np{comm.size}.json"
+        path.write_text(json.dumps({"levels": rows, "args": {
+            k: str(v) for k, v in vars(args).items()}}, indent=1))
+        print(f"wrote {path}")
 
 
 if __name__ == "__main__":

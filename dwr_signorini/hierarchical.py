@@ -354,10 +354,15 @@ def hierarchical_solutions(
         raise ValueError(f"rtol must be positive, got {rtol}")
     with timed("higher-order solve"):
         p2 = _P2System(sol, V2)
+    # The coarse step is a preconditioner of a flexible GMRES to rtol: an iterative P1 solver
+    # (method="krylov") solves it to its loose tolerance; direct solvers are exact anyway.
+    loose = sol.system.set_loose(True)
     try:
         with timed("higher-order solve"):
             z2 = _dual(p2, sol, goal, z, rtol)
             w2 = _primal(p2, sol, rtol) if primal else None
     finally:
+        if loose:
+            sol.system.set_loose(False)
         p2.destroy()
     return z2, w2

@@ -101,6 +101,28 @@ def test_hierarchical_estimate_approaches_higher_order(case, monkeypatch):
     assert hier.eta == pytest.approx(high.eta, rel=1e-2)
 
 
+def test_hierarchical_weights_on_the_krylov_path(monkeypatch):
+    """With the Newton steps by the saddle-point GMRES (method="krylov", its coarse steps solved
+    only to the loose tolerance) the hierarchical weights give the factored P2 estimate: within
+    1 % to the default tolerance, 1e-6 to a tight one."""
+    comm = MPI.COMM_WORLD
+    disc = ds.discretize(ex.obstacle_problem(comm, (1, 4, 4)))
+    goal = ex.goal_obstacle()
+    with ds.solve(disc, method="block") as sol:
+        with ds.estimate(sol, goal, weights="higher_order") as high:
+            pass
+    with ds.solve(disc, method="krylov") as sol:
+        assert sol.method == "krylov"
+        with ds.estimate(sol, goal, weights="hierarchical") as hier:
+            pass
+        monkeypatch.setattr(hierarchical, "HIERARCHICAL_RTOL", 1e-8)
+        with ds.estimate(sol, goal, weights="hierarchical") as many:
+            pass
+    assert hier.eta == pytest.approx(high.eta, rel=1e-2)
+    assert many.eta == pytest.approx(high.eta, rel=1e-6)
+    assert many.eta_p == pytest.approx(high.eta_p, rel=1e-6)
+
+
 def test_adaptive_run_with_hierarchical_weights():
     """solve_adaptive refines by the hierarchical indicators; on every level eta is within 1 %
     of that of the factored P2 solutions on the same solution."""
