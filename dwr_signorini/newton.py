@@ -392,10 +392,11 @@ def _automatic_method(
 ) -> tuple[str, ContactAlgebra | None]:
     """The method of ``method=None``: :func:`choose_method`, told whether a factorisation fits.
 
-    On 3D levels of at least :data:`~dwr_signorini.linalg.memory.PROBE_MIN_DOFS` DoFs with a
-    symmetric law the algebra is assembled here and MUMPS's analysis of K predicts the memory
-    of factoring it (:func:`~dwr_signorini.linalg.memory.factorization_fits`); where that would
-    not fit, the Krylov path is taken. The algebra is handed on to the Newton system.
+    Where the rule picks a factored path for a 3D level of at least
+    :data:`~dwr_signorini.linalg.memory.PROBE_MIN_DOFS` DoFs with a symmetric law, the algebra
+    is assembled here and MUMPS's analysis of K predicts the memory of factoring it
+    (:func:`~dwr_signorini.linalg.memory.factorization_fits`); where that would not fit, the
+    Krylov path is taken. The algebra is handed on to the Newton system.
 
     Returns:
         The method and the assembled algebra (None where no probe ran).
@@ -405,7 +406,7 @@ def _automatic_method(
     num_multipliers = disc.num_contact_elements * len(disc.problem.law.components(tdim))
     rule = {"cold_start": cold_start, "symmetric": symmetric}
     method = choose_method(tdim, disc.num_dofs, num_multipliers, **rule)
-    if tdim != 3 or not symmetric or disc.num_dofs < memory.PROBE_MIN_DOFS:
+    if tdim != 3 or method == "krylov" or not symmetric or disc.num_dofs < memory.PROBE_MIN_DOFS:
         return method, None
     assembled = ContactAlgebra(disc, None, ncp_scale, compile_options)
     try:

@@ -68,6 +68,8 @@ AUTO_SCHUR_MIN_DOFS = 100_000
 AUTO_SCHUR_MAX_MULTIPLIERS = 1000
 #: ... and in 2D, from a zero initial guess, from this many DoFs.
 AUTO_SCHUR_COLD_MIN_DOFS = 20_000
+#: In 3D (symmetric laws) the Krylov path from this many DoFs.
+AUTO_KRYLOV_MIN_DOFS = 200_000
 
 
 def choose_method(
@@ -87,9 +89,15 @@ def choose_method(
     its first active set is that of the strictly negative gaps, so it takes 2 or more Newton
     steps, each a factorisation of the block matrix when many facets change, where the Schur
     path factors K once (example 5.1 from zero, 49k-786k triangles: 2 steps, the Schur path
-    0.1-0.4 of a level's time faster, ``benchmarks/peers.py``). Where a factorisation would not
-    fit in memory (``fits=False``, :func:`~dwr_signorini.linalg.memory.factorization_fits`) a
-    symmetric law takes ``"krylov"``, whose memory grows linearly with the mesh.
+    0.1-0.4 of a level's time faster, ``benchmarks/peers.py``).
+
+    A 3D problem with a symmetric law takes ``"krylov"`` (:mod:`~dwr_signorini.linalg.krylov`,
+    memory linear in the mesh) from :data:`AUTO_KRYLOV_MIN_DOFS` DoFs on, and wherever a
+    factorisation would not fit in memory (``fits=False``,
+    :func:`~dwr_signorini.linalg.memory.factorization_fits`). Measured (``bench_levels.py
+    --weights patch``, 1 rank, uniform levels): example 5.3 at 29.5k DoFs 1.2 s factored against
+    1.8 s by ``"krylov"``, at 216k DoFs 35.2 s against 16.9 s; the indentation at 56k DoFs 3.7 s
+    against 2.4 s.
 
     Args:
         tdim: The topological dimension of the mesh.
@@ -105,7 +113,7 @@ def choose_method(
     """
     if not symmetric:
         return "block"
-    if not fits:
+    if not fits or (tdim == 3 and num_dofs >= AUTO_KRYLOV_MIN_DOFS):
         return "krylov"
     few = num_multipliers <= AUTO_SCHUR_MAX_MULTIPLIERS
     if tdim == 3 and num_dofs >= AUTO_SCHUR_MIN_DOFS and few:
@@ -115,6 +123,7 @@ def choose_method(
     return "block"
 
 __all__ = [
+    "AUTO_KRYLOV_MIN_DOFS",
     "AUTO_SCHUR_COLD_MIN_DOFS",
     "AUTO_SCHUR_MAX_MULTIPLIERS",
     "AUTO_SCHUR_MIN_DOFS",

@@ -19,8 +19,8 @@ A factorisation is taken to fit (:func:`factorization_fits`) when its prediction
 Schur complement of ``method="schur"`` where that is the path, stay below
 :data:`FACTOR_FRACTION` of that memory: the rest is left for what a level holds besides (the
 mesh, its refinement, the forms, the dual solve, the estimator's reconstructions and weights).
-The probe runs only on 3D levels of at least :data:`PROBE_MIN_DOFS` DoFs, below which every
-path fits on any machine that runs FEniCSx.
+The probe runs only where ``method=None`` would factor a 3D level of at least
+:data:`PROBE_MIN_DOFS` DoFs, below which every path fits on any machine that runs FEniCSx.
 """
 
 from __future__ import annotations
@@ -50,8 +50,10 @@ MEMORY_BUDGET: int | None = None
 #: The share of :func:`available_memory` a factorisation may take (the rest is the level's).
 FACTOR_FRACTION = 0.6
 
-#: 3D levels with fewer displacement DoFs are factored without a probe.
-PROBE_MIN_DOFS = 100_000
+#: 3D levels with fewer displacement DoFs are factored without a probe (from
+#: :data:`~dwr_signorini.linalg.AUTO_KRYLOV_MIN_DOFS` on, ``method=None`` takes the Krylov path
+#: anyway).
+PROBE_MIN_DOFS = 50_000
 
 _MEGABYTE = 10**6
 
