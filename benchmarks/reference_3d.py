@@ -39,28 +39,14 @@ from typing import Any
 from mpi4py import MPI
 
 import numpy as np
-from dolfinx import mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
 
 
 def indentation_problem(comm: MPI.Comm, n: int) -> ds.SignoriniProblem:
-    msh = mesh.create_box(comm, [(-1, -1, -1), (1, 1, 0)], [n, n, n // 2],
-                          mesh.CellType.tetrahedron, ghost_mode=mesh.GhostMode.none)
-
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN)
-        tags[np.isclose(x[2], -1.0)] = ex.DIRICHLET
-        tags[np.isclose(x[2], 0.0)] = ex.CONTACT
-        return tags
-
-    radius, delta = 2.0, 0.005
-    return ds.SignoriniProblem(
-        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,), E=1e3, nu=0.3, model="3d",
-        gap=lambda x: (x[0] ** 2 + x[1] ** 2) / (2 * radius) - delta,
-    )
+    """The indentation on n x n x n/2 boxes (:func:`dwr_signorini.examples.indentation_problem`)."""
+    return ex.indentation_problem(comm, n)
 
 
 #: The references as weights_3d.py stored them beside its runs (problem -> run in that file).
@@ -79,8 +65,7 @@ def stored_reference(name: str, results: Path = Path("benchmarks/results")) -> t
     return run["J_ref"], run["uncertainty"]
 
 
-def total_force(u, lam, m):
-    return lam * m.ds_contact
+total_force = ex.goal_total_force
 
 
 def extrapolate(N: list[float], J: list[float]) -> tuple[float, float, float]:

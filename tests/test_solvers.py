@@ -64,30 +64,9 @@ SCHUR_CASES = {
     "obstacle-3d-tet": (lambda comm: ex.obstacle_problem(comm, (2, 8, 8)), ex.goal_obstacle()),
     "tresca-2d-tri": (lambda comm: ex.friction_problem(comm, s=0.05), ex.goal_friction_force()),
     "indentation-3d-tet": (
-        lambda comm: _indentation(comm, 8), lambda u, lam, m: lam * m.ds_contact
+        lambda comm: ex.indentation_problem(comm, 8, depth=0.02), ex.goal_total_force
     ),
 }
-
-
-def _indentation(comm, n: int):
-    """A block [-1, 1]^2 x [-1, 0] on n x n x n/2 boxes pressed by a sphere of radius 2 by
-    0.02 at its top (deeper than benchmarks/reference_3d.py: contact on this coarse mesh)."""
-    from dolfinx import mesh
-
-    msh = mesh.create_box(comm, [(-1, -1, -1), (1, 1, 0)], [n, n, n // 2],
-                          mesh.CellType.tetrahedron, ghost_mode=mesh.GhostMode.none)
-
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN)
-        tags[np.isclose(x[2], -1.0)] = ex.DIRICHLET
-        tags[np.isclose(x[2], 0.0)] = ex.CONTACT
-        return tags
-
-    return ds.SignoriniProblem(
-        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,), E=1e3, nu=0.3, model="3d",
-        gap=lambda x: (x[0] ** 2 + x[1] ** 2) / 4.0 - 0.02,
-    )
 
 
 def _settled(history):

@@ -106,6 +106,7 @@ from .friction_2d import (
     friction_problem,
     goal_friction_force,
 )
+from .indentation_3d import INDENTATION_MATERIAL, goal_total_force, indentation_problem
 from .obstacle_3d import (
     OBSTACLE_MATERIAL,
     goal_obstacle,
@@ -130,6 +131,7 @@ __all__ = [
     "DIRICHLET",
     "FRICTION_DEFAULTS",
     "FRICTION_DEFAULTS_3D",
+    "INDENTATION_MATERIAL",
     "NEUMANN",
     "OBSTACLE_MATERIAL",
     "CMMeasure",
@@ -174,9 +176,11 @@ __all__ = [
     "goal_bar",
     "goal_friction_force",
     "goal_obstacle",
+    "goal_total_force",
     "hertz_half_width",
     "hertz_pressure",
     "hertz_radius",
+    "indentation_problem",
     "lame_parameters",
     "measure_cattaneo_mindlin",
     "obstacle_3d_mesh",

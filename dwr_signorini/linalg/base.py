@@ -238,6 +238,21 @@ class NewtonLinearSystem:
         """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem)."""
         raise NotImplementedError
 
+    def _write_dual(
+        self, z: PETSc.Vec, y: PETSc.Vec, eta: np.ndarray, j_lam: np.ndarray
+    ) -> None:
+        """Write the dual z = [y; xi], solved by eliminating the multipliers' rows, into ``z``.
+
+        With eta_A from K y + N_A^T eta_A = j_u, (N y)_A = j_lam,A: xi_A = -eta_A and
+        xi_I = (j_lam,I - (N y)_I) / M_I, the inactive rows of A^T (see
+        :mod:`~dwr_signorini.linalg.schur`).
+        """
+        n_y = self.N.createVecLeft()
+        self.N.mult(y, n_y)
+        xi = np.where(self.active, -eta, (j_lam - n_y.array_r) / self.M.array_r)
+        self.write(z, y.array_r, xi)
+        n_y.destroy()
+
     def solve_forward(self, rhs: PETSc.Vec, x: PETSc.Vec) -> None:
         """Solve A x = rhs with the Newton matrix A of the last step, through its transpose.
 

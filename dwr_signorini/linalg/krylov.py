@@ -296,14 +296,10 @@ class KrylovNewtonSystem(NewtonLinearSystem):
             y, eta = self._solve(j_u, j_lam, None)
         except LinearSolveError as err:
             raise RuntimeError(f"the dual solve failed: {err}") from err
-        n_y = self.N.createVecLeft()
         u = self.K.createVecRight()
         u.array_w[:] = y
-        self.N.mult(u, n_y)
-        xi = np.where(self.active, -eta, (j_lam - n_y.array_r) / self.M.array_r)
-        self.write(z, y, xi)
-        for vec in (n_y, u):
-            vec.destroy()
+        self._write_dual(z, u, eta, j_lam)
+        u.destroy()
 
     def destroy(self) -> None:
         """Destroy the PETSc objects and remove the options (collective; idempotent)."""

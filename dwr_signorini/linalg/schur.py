@@ -555,7 +555,5 @@ class SchurNewtonSystem(NewtonLinearSystem):
             raise RuntimeError(f"the dual solve failed: {err}") from err
         finally:
             j.destroy()
-        self.N.mult(self._u, self._lam_vec)
-        xi = np.where(self.active, -eta, (j_lam - self._lam_vec.array) / self.M.array)
-        self.write(z, self._u.array_r, xi)
+        self._write_dual(z, self._u, eta, j_lam)
 
