@@ -75,6 +75,7 @@ def main() -> None:
             "problem": args.problem, "refinement": args.refinement, "method": sol.method,
             "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
             "num_active": record.num_active, "newton": record.newton_iterations,
+            "krylov_iterations": getattr(sol.system, "iterations", None),
             "weights": record.weights, "J_h": record.J_h, "J_low": record.J_low,
             "J_high": record.J_high, "total_s": total, "ranks": comm.size,
             "peak_GiB_max_rank": comm.allreduce(rss, op=MPI.MAX),
