@@ -22,10 +22,11 @@ factored and nothing dense is stored, so memory grows linearly with the mesh.
 
 The path of :class:`~dwr_signorini.linalg.schur.SchurNewtonSystem` with a Krylov solver of K
 (``method="schur"`` with ``iterative_petsc_options()``) solves S_AA by CG with an accurate K
-solve in every iteration; on example 5.3 at 146k DoFs (active set of 238 facets) one Newton
-step took there 7.6 (loose) and 21 (accurate) times one CG + GAMG solve of K, and here 2.1 and
-3.4 (``benchmarks/krylov_saddle.py``). ALPHA = 3 was the best of 1, 2, 3, 4, 8 there: the Jacobi
-approximation underestimates the compliance of the contact facets.
+solve in every iteration. On example 5.3 at 146k DoFs (238 active facets, 1 rank) one Newton
+step from zero took there 9.8 (loose) and 27.8 (accurate) times one CG + GAMG solve of K, and
+here 1.1 and 2.1 (``benchmarks/krylov_saddle.py``). ALPHA = 3 was the best of 1, 2, 3, 4 and 8
+there (accurate step: 2.58, 2.37, 2.06, 2.25, 2.69 K solves): the Jacobi approximation
+underestimates the compliance of the contact facets.
 
 The dual problem (the transposed Newton matrix; K symmetric) reads, with eta_A = -xi_A,
 
