@@ -410,6 +410,20 @@ def test_method_none_takes_the_krylov_path_where_a_factorisation_does_not_fit(mo
     assert "(krylov)" in _level_line(result.levels[0])
 
 
+@pytest.mark.mpi
+def test_krylov_path_that_does_not_converge_says_so_and_leaves_no_options():
+    """A GMRES of the saddle-point system stopped early (its options under the solve's prefix,
+    ``saddle_``) is a ConvergenceError naming it, and no option of the solve is left behind."""
+    from petsc4py import PETSc
+
+    problem = ex.obstacle_problem(MPI.COMM_WORLD, (1, 4, 4))
+    with pytest.raises(ds.ConvergenceError, match=r"GMRES on the saddle-point system did not "
+                       r"converge \(KSP reason -3, 2 iterations\)"):
+        ds.solve(problem, method="krylov", petsc_options={"saddle_ksp_max_it": 2},
+                 petsc_options_prefix="krylov_failure_")
+    assert not [k for k in PETSc.Options().getAll() if k.startswith("krylov_failure_")]
+
+
 def _level_line(record) -> str:
     """The progress line of a level, as rank 0 prints it."""
     import contextlib
