@@ -395,8 +395,9 @@ def _automatic_method(
     Where the rule picks a factored path for a 3D level of at least
     :data:`~dwr_signorini.linalg.memory.PROBE_MIN_DOFS` DoFs with a symmetric law, the algebra
     is assembled here and MUMPS's analysis of K predicts the memory of factoring it
-    (:func:`~dwr_signorini.linalg.memory.factorization_fits`); where that would not fit, the
-    Krylov path is taken. The algebra is handed on to the Newton system.
+    (:func:`~dwr_signorini.linalg.memory.factorization_fits`), unless a rough estimate from the
+    size already fits (:func:`~dwr_signorini.linalg.memory.surely_fits`); where the prediction
+    does not fit, the Krylov path is taken. The algebra is handed on to the Newton system.
 
     Returns:
         The method and the assembled algebra (None where no probe ran).
@@ -408,9 +409,11 @@ def _automatic_method(
     method = choose_method(tdim, disc.num_dofs, num_multipliers, **rule)
     if tdim != 3 or method == "krylov" or not symmetric or disc.num_dofs < memory.PROBE_MIN_DOFS:
         return method, None
+    dense = num_multipliers if method == "schur" else 0
+    if memory.surely_fits(disc.num_dofs, disc.comm, dense):
+        return method, None
     assembled = ContactAlgebra(disc, None, ncp_scale, compile_options)
     try:
-        dense = num_multipliers if method == "schur" else 0
         fits, need, available = memory.factorization_fits(assembled.K, tdim, dense)
     except BaseException:
         assembled.destroy()

@@ -20,7 +20,9 @@ Schur complement of ``method="schur"`` where that is the path, stay below
 :data:`FACTOR_FRACTION` of that memory: the rest is left for what a level holds besides (the
 mesh, its refinement, the forms, the dual solve, the estimator's reconstructions and weights).
 The probe runs only where ``method=None`` would factor a 3D level of at least
-:data:`PROBE_MIN_DOFS` DoFs, below which every path fits on any machine that runs FEniCSx.
+:data:`PROBE_MIN_DOFS` DoFs, below which every path fits on any machine that runs FEniCSx, and
+where a rough estimate from the size alone (:func:`surely_fits`, four times the usual memory)
+does not already fit: the analysis costs about a twelfth of a factorisation.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ __all__ = [
     "available_memory",
     "factorization_fits",
     "predicted_factor_memory",
+    "surely_fits",
 ]
 
 #: Bytes per rank that the solver may use; ``None``: measured by :func:`available_memory`.
@@ -54,6 +57,12 @@ FACTOR_FRACTION = 0.6
 #: :data:`~dwr_signorini.linalg.AUTO_KRYLOV_MIN_DOFS` on, ``method=None`` takes the Krylov path
 #: anyway).
 PROBE_MIN_DOFS = 50_000
+
+#: MUMPS's LDL^T of a 3D P1 stiffness matrix took about this many bytes times N^(4/3) (its
+#: analysis predicted 43 MB at 13k DoFs and 680 MB at 94k DoFs of example 5.3, 1 rank) ...
+ROUGH_BYTES = 160.0
+#: ... and :func:`surely_fits` allows this many times that before it asks MUMPS.
+ROUGH_MARGIN = 4.0
 
 _MEGABYTE = 10**6
 
@@ -187,6 +196,25 @@ def factorization_fits(
         return True, None, available
     need = predicted + 16 * dense_rows**2
     return need <= FACTOR_FRACTION * available, need, available
+
+
+def surely_fits(num_dofs: int, comm: MPI.Comm, dense_rows: int = 0) -> bool:
+    """Whether a 3D factorisation fits even at a margin over its usual memory (no analysis then).
+
+    The margin is :data:`ROUGH_MARGIN` times the usual memory, :data:`ROUGH_BYTES` N^(4/3)
+    over the ranks (nested dissection), half as much again on the rank that needs most
+    (collective).
+
+    Args:
+        num_dofs: Displacement DoFs N (global).
+        comm: The solver's communicator.
+        dense_rows: As in :func:`factorization_fits`.
+
+    Returns:
+        True if even the margin fits; False if MUMPS should be asked.
+    """
+    rough = ROUGH_MARGIN * 1.5 * ROUGH_BYTES * num_dofs ** (4 / 3) / comm.size
+    return rough + 16 * dense_rows**2 <= FACTOR_FRACTION * available_memory(comm)
 
 
 if os.environ.get("DWR_SIGNORINI_MEMORY_BUDGET"):  # bytes per rank, e.g. for a batch job
