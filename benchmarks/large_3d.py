@@ -7,8 +7,9 @@ the dual one GMRES on the saddle-point system with one GAMG cycle of K per itera
 example 5.3 (macro mesh n x 4n x 4n) or the indentation of ``reference_3d.py`` (n x n x n/2),
 uniform or adaptive (growth 2). Nothing of the size of K is factored. A line per level: DoFs,
 Newton steps, the weights of the estimate, seconds per phase, the level's total, one CG + GAMG
-solve of K on the same mesh (``ref``, set-up included, ``--ref``) and the ratio, and the peak
-memory of the largest rank and of all ranks; ``benchmarks/results/large_3d_<problem>_np<N>.json``.
+solve of K on the same mesh (``ref``, set-up included, ``--ref``) and the ratio, the peak
+memory of the largest rank and of all ranks, and the share of the fine cells on the rank that
+holds most; ``benchmarks/results/large_3d_<problem>_np<N>.json``.
 The same command runs on any number of ranks::
 
     scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py                  # 146k, 1.1M DoFs
@@ -71,6 +72,8 @@ def main() -> None:
         total = comm.allreduce(time.perf_counter() - last[1], op=MPI.MAX)
         phases = {k: comm.allreduce(now[k] - last[0][k], op=MPI.MAX) for k in PHASES}
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0**2  # GiB
+        tdim = sol.disc.mesh.topology.dim
+        owned = comm.allgather(sol.disc.mesh.topology.index_map(tdim).size_local)
         row = {
             "problem": args.problem, "refinement": args.refinement, "method": sol.method,
             "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
@@ -80,6 +83,7 @@ def main() -> None:
             "J_high": record.J_high, "total_s": total, "ranks": comm.size,
             "peak_GiB_max_rank": comm.allreduce(rss, op=MPI.MAX),
             "peak_GiB_all_ranks": comm.allreduce(rss, op=MPI.SUM),
+            "cells_largest_rank_share": max(owned) / sum(owned),
             **{f"{k}_s": v for k, v in phases.items() if v > 0},
         }
         if args.ref:
