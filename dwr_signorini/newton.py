@@ -105,8 +105,9 @@ class Solution(Releasable):
         ncp_scale: The c of the NCP function (20) the solution was computed with; the
             estimator uses the same (:attr:`system`'s ``c_n``).
         method: The linear solver of the Newton steps that was used (``"block"``,
-            ``"schur"`` with K factored, ``"krylov"``: the Schur path with a Krylov solver of
-            K, :func:`method_name`).
+            ``"schur"`` with K factored, ``"krylov"``:
+            :class:`~dwr_signorini.linalg.KrylovNewtonSystem` or the Schur path with a Krylov solver
+            of K; :func:`method_name`).
         lam_t: With friction, the tangential traction lambda_t (DG0 on the macro contact
             facets): in 2D its value along t = (-n_2, n_1), in 3D the traction vector
             (gdim components, the facet means of lambda_t1 t_1 + lambda_t2 t_2); None without.
@@ -267,14 +268,17 @@ def solve(
             S = N K^-1 N^T, with ``petsc_options`` for K: a direct solver (the default, K
             factored once, S dense, at most :data:`SCHUR_MAX_MULTIPLIERS` multipliers) or a
             Krylov solver (:func:`iterative_petsc_options`: CG + GAMG on K, CG on S_AA, for
-            large 3D meshes); ``"krylov"`` is ``"schur"`` with :func:`iterative_petsc_options`
-            as defaults (``petsc_options`` merged on top). All give the same iterates up to the
-            solvers' tolerances, and the dual problem is solved the same way. ``None`` (the
-            default): ``"block"`` when ``petsc_options`` are given (they are for the block
-            matrix), otherwise the rule of :func:`~dwr_signorini.linalg.choose_method` (the
-            dense Schur path for large 3D problems with few multipliers, and for 2D solves
-            without ``initial_guess``), and ``"krylov"`` on 3D levels whose factorisation
-            MUMPS's analysis predicts not to fit in memory (:mod:`~dwr_signorini.linalg.memory`).
+            large 3D meshes); ``"krylov"``
+            (:class:`~dwr_signorini.linalg.KrylovNewtonSystem`) solves each step and the dual as
+            one saddle-point system by GMRES with one multigrid cycle of K per iteration
+            (``petsc_options`` for the multigrid, :func:`iterative_petsc_options` by default).
+            All give the same iterates up to the solvers' tolerances, and the dual
+            problem is solved the same way. ``None`` (the default): ``"block"`` when
+            ``petsc_options`` are given (they are for the block matrix), otherwise the rule of
+            :func:`~dwr_signorini.linalg.choose_method`: in 3D ``"krylov"`` from 200k DoFs and
+            where MUMPS's analysis predicts a factorisation that does not fit in memory
+            (:mod:`~dwr_signorini.linalg.memory`), the dense Schur path for large 3D problems
+            with few multipliers and for 2D solves without ``initial_guess``, else ``"block"``.
             :attr:`Solution.method` tells which was used.
         petsc_options_prefix: Base options prefix of this solve (default: a new unique
             ``dwr_signorini_<n>_``); inner solvers use sub-prefixes
@@ -540,7 +544,8 @@ def _solution(
 def method_name(system: NewtonLinearSystem) -> str:
     """The name of the path ``system`` takes, as :attr:`Solution.method` reports it.
 
-    ``"block"``, ``"schur"`` (K factored) or ``"krylov"`` (the Schur path with a Krylov solver
+    ``"block"``, ``"schur"`` (K factored) or ``"krylov"``
+    (:class:`~dwr_signorini.linalg.KrylovNewtonSystem`, or the Schur path with a Krylov solver
     of K).
 
     Args:
