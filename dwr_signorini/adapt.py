@@ -30,6 +30,7 @@ from .io import OutputDirectory, check_output_dir, write_csv, write_json
 from .lifetime import Releasable
 from .marking import STRATEGIES, mark, mark_for_growth
 from .newton import METHODS, Solution, solve
+from .partition import rebalance
 from .problem import SignoriniProblem
 from .refine import RULES, refine_marked
 from .spaces import discretize
@@ -495,6 +496,15 @@ def solve_adaptive(
     return result
 
 
+def _balanced(problem: SignoriniProblem, parent: Any) -> tuple[SignoriniProblem, Any]:
+    """The refined problem, redistributed where the ranks hold unequal shares of it.
+
+    See :func:`~dwr_signorini.partition.rebalance`; a redistributed mesh has no parent map.
+    """
+    balanced = rebalance(problem)
+    return (problem, parent) if balanced is None else (balanced, None)
+
+
 def _refine(
     disc: Any,
     current: SignoriniProblem,
@@ -513,13 +523,17 @@ def _refine(
             marked, next_problem, macro_parent, _ = mark_for_growth(
                 disc, current, indicators, strategy, growth, refinement_rule
             )
+        with timed("refine"):
+            next_problem, macro_parent = _balanced(next_problem, macro_parent)
         return marked, next_problem, macro_parent
     if refinement == "adaptive":
         with timed("mark"):
             marked = mark(disc, indicators, strategy, fraction)
     with timed("refine"):
         if refinement == "adaptive":
-            next_problem, macro_parent = refine_marked(current, marked, refinement_rule)
+            next_problem, macro_parent = _balanced(
+                *refine_marked(current, marked, refinement_rule)
+            )
         elif current.boundary_projection:  # refine again, projecting the new vertices
             next_problem, macro_parent = refine_marked(current, None)
         else:  # T_h, the uniform refinement of T_H, is the next macro mesh

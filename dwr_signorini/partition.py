@@ -1,0 +1,118 @@
+"""Balance the macro mesh over the ranks after adaptive refinement.
+
+``dolfinx.mesh.refine`` keeps each child on its parent's rank
+(:func:`~dwr_signorini.compat.refine`), and adaptive refinement concentrates where the goal
+needs it, typically at the contact zone: level by level a few ranks come to hold most of the
+cells. On 2 ranks, adaptive example 5.3 from 3 x 12 x 12 boxes had 0.51, 0.64, 0.73, 0.78,
+0.79 of its fine cells on one rank on levels 0-4 (``benchmarks/large_3d.py``), so two ranks ran
+such a level at most 1.27 times as fast as one.
+
+:func:`rebalance` gives the refined macro mesh T_H to the graph partitioner again
+(:func:`dolfinx.mesh.create_mesh` with the cells and nodes it has, by their global numbers) when
+the rank that holds most has more than :data:`REBALANCE_THRESHOLD` times the mean of a mesh of
+at least :data:`REBALANCE_MIN_CELLS` cells per rank, and carries
+its facet and cell tags to the new distribution (:func:`dolfinx.io.distribute_entity_data`). The
+mesh is the same; only its distribution changes. The fine mesh T_h is refined from it as before,
+children on their parent's rank. The warm start of the next level then interpolates the last
+solution (no parent map across ranks, :func:`~dwr_signorini.transfer.transfer_solution`).
+"""
+
+from __future__ import annotations
+
+from mpi4py import MPI
+
+import numpy as np
+from dolfinx import io as dio
+from dolfinx import mesh as dmesh
+
+from . import compat
+from .problem import SignoriniProblem
+
+__all__ = ["REBALANCE_MIN_CELLS", "REBALANCE_THRESHOLD", "imbalance", "rebalance"]
+
+#: Cells on the fullest rank over the mean above which :func:`rebalance` redistributes ...
+REBALANCE_THRESHOLD = 1.2
+#: ... a macro mesh of at least this many cells per rank. Smaller levels cost little, and
+#: their refinement stays independent of the number of ranks (a redistributed mesh is numbered
+#: anew, and the refinement breaks ties between equally long edges by the numbering).
+REBALANCE_MIN_CELLS = 10_000
+
+
+def imbalance(msh: dmesh.Mesh) -> float:
+    """The owned cells of the fullest rank over the mean (1 on one rank; collective).
+
+    Args:
+        msh: A mesh.
+
+    Returns:
+        max / mean of the ranks' owned cells.
+    """
+    tdim = msh.topology.dim
+    owned = msh.comm.allgather(msh.topology.index_map(tdim).size_local)
+    return max(owned) * len(owned) / max(1, sum(owned))
+
+
+def _entity_nodes(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """The global geometry node numbers of ``entities`` (rows), as create_mesh numbered them."""
+    nodes = dmesh.entities_to_geometry(msh, dim, entities.astype(np.int32))
+    imap = msh.geometry.index_map()
+    return imap.local_to_global(nodes.ravel()).reshape(nodes.shape).astype(np.int64)
+
+
+def _owned_tags(msh: dmesh.Mesh, tags: dmesh.MeshTags) -> tuple[np.ndarray, np.ndarray]:
+    """The tagged entities this rank owns (each entity sent once) and their values."""
+    msh.topology.create_entities(tags.dim)
+    owned = tags.indices < msh.topology.index_map(tags.dim).size_local
+    return tags.indices[owned], tags.values[owned]
+
+
+def _tags_on(new: dmesh.Mesh, old: dmesh.Mesh, tags: dmesh.MeshTags) -> dmesh.MeshTags:
+    """``tags`` of ``old`` on the redistributed mesh ``new``."""
+    entities, values = _owned_tags(old, tags)
+    nodes = _entity_nodes(old, tags.dim, entities)
+    new.topology.create_entities(tags.dim)
+    new.topology.create_connectivity(tags.dim, new.topology.dim)
+    local, local_values = dio.distribute_entity_data(new, tags.dim, nodes, values)
+    adjacency = compat.cpp_adjacencylist(local.astype(np.int32).ravel(),
+                                         np.arange(0, local.size + 1, max(1, local.shape[1]),
+                                                   dtype=np.int32) if local.size else None)
+    result = dmesh.meshtags_from_entities(new, tags.dim, adjacency,
+                                          local_values.astype(tags.values.dtype))
+    result.name = tags.name
+    return result
+
+
+def rebalance(
+    problem: SignoriniProblem, threshold: float | None = None, min_cells: int | None = None
+) -> SignoriniProblem | None:
+    """The problem on its macro mesh redistributed by the graph partitioner, if unbalanced.
+
+    Args:
+        problem: A problem on a (refined) macro mesh with linear simplex geometry.
+        threshold: Redistribute when :func:`imbalance` exceeds it (default
+            :data:`REBALANCE_THRESHOLD`) ...
+        min_cells: ... and the mesh has at least this many cells per rank (default
+            :data:`REBALANCE_MIN_CELLS`).
+
+    Returns:
+        The problem on the redistributed mesh with its tags, or None where the mesh was
+        balanced or small (or on one rank).
+    """
+    threshold = REBALANCE_THRESHOLD if threshold is None else threshold
+    min_cells = REBALANCE_MIN_CELLS if min_cells is None else min_cells
+    msh = problem.mesh
+    comm: MPI.Comm = msh.comm
+    cells = msh.topology.index_map(msh.topology.dim).size_global
+    if comm.size == 1 or cells < min_cells * comm.size or imbalance(msh) <= threshold:
+        return None
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    imap = msh.geometry.index_map()
+    x = np.ascontiguousarray(msh.geometry.x[: imap.size_local, :gdim])
+    num_cells = msh.topology.index_map(tdim).size_local
+    dofmap = compat.geometry_dofmap(msh)[:num_cells]
+    cells = imap.local_to_global(dofmap.ravel()).reshape(dofmap.shape).astype(np.int64)
+    new = compat.create_mesh(comm, cells, x, msh.ufl_domain(),
+                             partitioner=compat.cell_partitioner(dmesh.GhostMode.none))
+    facet_tags = _tags_on(new, msh, problem.facet_tags)
+    cell_tags = None if problem.cell_tags is None else _tags_on(new, msh, problem.cell_tags)
+    return problem.with_mesh(new, facet_tags, cell_tags)
