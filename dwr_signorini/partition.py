@@ -22,6 +22,7 @@ from __future__ import annotations
 from mpi4py import MPI
 
 import numpy as np
+from dolfinx import graph
 from dolfinx import io as dio
 from dolfinx import mesh as dmesh
 
@@ -73,10 +74,8 @@ def _tags_on(new: dmesh.Mesh, old: dmesh.Mesh, tags: dmesh.MeshTags) -> dmesh.Me
     new.topology.create_entities(tags.dim)
     new.topology.create_connectivity(tags.dim, new.topology.dim)
     local, local_values = dio.distribute_entity_data(new, tags.dim, nodes, values)
-    adjacency = compat.cpp_adjacencylist(local.astype(np.int32).ravel(),
-                                         np.arange(0, local.size + 1, max(1, local.shape[1]),
-                                                   dtype=np.int32) if local.size else None)
-    result = dmesh.meshtags_from_entities(new, tags.dim, adjacency,
+    local = local.astype(np.int32).reshape(-1, tags.dim + 1)  # simplex entities
+    result = dmesh.meshtags_from_entities(new, tags.dim, graph.adjacencylist(local),
                                           local_values.astype(tags.values.dtype))
     result.name = tags.name
     return result
