@@ -30,9 +30,9 @@ Sign conventions (Section 2): ``n`` is the outer unit normal, ``u_n = u . n``,
 ``u_n - g <= 0``, ``lambda_n >= 0`` and ``lambda_n (u_n - g) = 0`` on Gamma_C.
 
 Also not in the paper, with gmsh meshes, tags and load paths of their own: Cattaneo-Mindlin
-with Coulomb friction, a cylinder (:mod:`~dwr_signorini.examples.cattaneo_mindlin_2d`, also the
-measurements against the theory) or a sphere (:mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`)
-pressed onto a rigid flat and sheared in steps.
+with Coulomb friction, a cylinder (:mod:`~dwr_signorini.examples.cattaneo_mindlin_2d`) or a sphere
+(:mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`) pressed onto a rigid flat and sheared in
+steps, measured against the theory (:mod:`~dwr_signorini.examples.cattaneo_mindlin_measure`).
 """
 
 from dolfinx.mesh import CellType
@@ -76,16 +76,12 @@ from .cattaneo_mindlin_2d import (
     CM_CONTACT,
     CM_DEFAULTS,
     CM_TOP,
-    CMMeasure,
-    ContactProfile,
     cattaneo_mindlin_mesh,
     cattaneo_mindlin_path,
     cm_traction,
     dundurs_beta,
-    gather_contact_profile,
     hertz_half_width,
     hertz_pressure,
-    measure_cattaneo_mindlin,
     stick_half_width,
 )
 from .cattaneo_mindlin_3d import (
@@ -98,6 +94,12 @@ from .cattaneo_mindlin_3d import (
     gather_contact_patch,
     hertz_radius,
     stick_radius,
+)
+from .cattaneo_mindlin_measure import (
+    CMMeasure,
+    ContactProfile,
+    gather_contact_profile,
+    measure_cattaneo_mindlin,
 )
 from .friction_2d import (
     FRICTION_DEFAULTS,

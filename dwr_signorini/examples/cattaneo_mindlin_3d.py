@@ -9,10 +9,12 @@ displaced by ``(0, 0, -press)`` in the first load step and by ``(k shear / steps
 in steps k = 1, ..., ``steps``. :func:`cattaneo_mindlin_path_3d` builds these ``steps + 1``
 problems on one mesh for :func:`~dwr_signorini.solve_path`, as
 :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_path` does for the
-cylinder; what the two share (the facet tags, the gmsh reader, the load path, the gathering of
-the facets, :class:`~dwr_signorini.examples.cattaneo_mindlin_2d.CMMeasure` and
-:func:`~dwr_signorini.examples.cattaneo_mindlin_2d.measure_cattaneo_mindlin`, which measures
-solutions of either path) lives in :mod:`~dwr_signorini.examples.cattaneo_mindlin_2d`.
+cylinder; what the two share lives in :mod:`~dwr_signorini.examples.cattaneo_mindlin_2d` (the
+facet tags, the gmsh reader, the load path) and
+:mod:`~dwr_signorini.examples.cattaneo_mindlin_measure` (the gathering of the facets,
+:class:`~dwr_signorini.examples.cattaneo_mindlin_measure.CMMeasure` and
+:func:`~dwr_signorini.examples.cattaneo_mindlin_measure.measure_cattaneo_mindlin`, which
+measures solutions of either path).
 
 Theory (a << R; Johnson, *Contact Mechanics*, 1985, eqs. (4.22)-(4.23) and (7.38)-(7.43)): for
 a rigid flat, with E* = E / (1 - nu^2), P the normal force on the whole sphere and r the
@@ -60,17 +62,13 @@ from dolfinx import mesh as dmesh
 from ..problem import SignoriniProblem
 from .cattaneo_mindlin_2d import (
     _MESHES,
-    CMMeasure,
     _check_steps,
-    _cm_measure,
-    _gather_facets,
     _gmsh_mesh,
     _mesh_script,
-    _rel,
     _shear_path,
-    _theory,
     hertz_pressure,
 )
+from .cattaneo_mindlin_measure import CMMeasure, _cm_measure, _gather_facets, _rel, _theory
 
 __all__ = [
     "CM_DEFAULTS_3D",
