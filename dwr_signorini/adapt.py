@@ -28,11 +28,10 @@ from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
 from .lifetime import Releasable
-from .marking import STRATEGIES, mark, mark_for_growth
+from .marking import STRATEGIES, marking_defaults
 from .newton import METHODS, Solution, solve
-from .partition import rebalance
 from .problem import SignoriniProblem
-from .refine import RULES, refine_marked
+from .refine import RULES, fine_cells, refine_level
 from .spaces import discretize
 from .timing import timed
 from .transfer import transfer_solution
@@ -276,31 +275,6 @@ def _progress(comm: MPI.Comm, record: LevelRecord, label: str | None = None) -> 
         )
 
 
-#: The default of ``growth`` for adaptive runs in 3D: the macro mesh about doubles per level.
-DEFAULT_GROWTH_3D = 2.0
-
-#: The default of ``fraction`` for adaptive runs in 2D.
-DEFAULT_FRACTION = 0.2
-
-
-def marking_defaults(
-    problem: SignoriniProblem, fraction: float | None, growth: float | None
-) -> tuple[float | None, float | None]:
-    """``(fraction, growth)`` of a run: the given one, else 0.2 in 2D and growth 2 in 3D.
-
-    A fixed fraction of the macro cells spreads in 3D: the edges of a marked tetrahedron split
-    its neighbours too, and on the first levels, where the indicators of most cells are tied,
-    a fraction of 0.2 refines every cell (``benchmarks/payoff_3d.py``). Growth-controlled
-    marking (:func:`~dwr_signorini.marking.mark_for_growth`) keeps the number of cells to
-    about twice the last level's.
-    """
-    if fraction is not None or growth is not None:
-        return fraction, growth
-    if problem.mesh.topology.dim == 3:
-        return None, DEFAULT_GROWTH_3D
-    return DEFAULT_FRACTION, None
-
-
 def solve_adaptive(
     problem: SignoriniProblem,
     goal: Goal,
@@ -330,7 +304,7 @@ def solve_adaptive(
         refinement: ``"adaptive"`` (mark and refine, simplices only) or ``"uniform"``.
         fraction: Marking fraction in (0, 1] (of cells, or of indicator mass for Doerfler).
             Without ``fraction`` and ``growth``: 0.2 in 2D, and ``growth=2`` in 3D
-            (:func:`marking_defaults`).
+            (:func:`~dwr_signorini.marking.marking_defaults`).
         strategy: ``"fixed_fraction"`` or ``"doerfler"``.
         max_levels: Number of levels (solves) at most.
         max_cells: Stop before a level whose fine mesh would exceed this many cells.
@@ -461,10 +435,10 @@ def solve_adaptive(
             marked = np.zeros(0, dtype=np.int32)
             tic = time.perf_counter()
             if not stop:
-                marked, next_problem, macro_parent = _refine(
+                marked, next_problem, macro_parent = refine_level(
                     disc, current, est, refinement, strategy, fraction, growth, refinement_rule
                 )
-                result.next_cells = _fine_cells(next_problem)
+                result.next_cells = fine_cells(next_problem)
                 if max_cells is not None and result.next_cells > max_cells:
                     stop, result.stopped_by = True, "max_cells"
             times = {"setup": t_setup, "solve": t_solve, "refine": time.perf_counter() - tic}
@@ -494,58 +468,6 @@ def solve_adaptive(
     if verbose and comm.rank == 0:
         print(_stop_line(result, tol, max_levels, max_cells), flush=True)
     return result
-
-
-def _balanced(problem: SignoriniProblem, parent: Any) -> tuple[SignoriniProblem, Any]:
-    """The refined problem, redistributed where the ranks hold unequal shares of it.
-
-    See :func:`~dwr_signorini.partition.rebalance`; a redistributed mesh has no parent map.
-    """
-    balanced = rebalance(problem)
-    return (problem, parent) if balanced is None else (balanced, None)
-
-
-def _refine(
-    disc: Any,
-    current: SignoriniProblem,
-    est: Estimate,
-    refinement: str,
-    strategy: str,
-    fraction: float | None,
-    growth: float | None,
-    refinement_rule: str,
-) -> tuple[np.ndarray, SignoriniProblem, Any]:
-    """Mark and refine: the marked macro cells, the next level's problem and parent cells."""
-    marked = np.zeros(0, dtype=np.int32)
-    indicators = est.indicators.x.array
-    if refinement == "adaptive" and growth is not None:
-        with timed("mark"):
-            marked, next_problem, macro_parent, _ = mark_for_growth(
-                disc, current, indicators, strategy, growth, refinement_rule
-            )
-        with timed("refine"):
-            next_problem, macro_parent = _balanced(next_problem, macro_parent)
-        return marked, next_problem, macro_parent
-    if refinement == "adaptive":
-        with timed("mark"):
-            marked = mark(disc, indicators, strategy, fraction)
-    with timed("refine"):
-        if refinement == "adaptive":
-            next_problem, macro_parent = _balanced(
-                *refine_marked(current, marked, refinement_rule)
-            )
-        elif current.boundary_projection:  # refine again, projecting the new vertices
-            next_problem, macro_parent = refine_marked(current, None)
-        else:  # T_h, the uniform refinement of T_H, is the next macro mesh
-            next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
-            macro_parent = disc.parent_cell
-    return marked, next_problem, macro_parent
-
-
-def _fine_cells(problem: SignoriniProblem) -> int:
-    """The cells of the fine mesh T_h of ``problem`` (2^d per macro cell)."""
-    tdim = problem.mesh.topology.dim
-    return problem.mesh.topology.index_map(tdim).size_global * 2**tdim
 
 
 def _record(

@@ -3,7 +3,8 @@
 The cell indicators on T_h are summed over the children of each macro cell (the paper's patches);
 macro cells are marked globally across MPI ranks, by a fixed fraction of the cells with the largest
 |eta_K| or by Doerfler's bulk criterion on the indicator mass. :func:`mark_for_growth` finds the
-fraction for which the refined macro mesh has about a given multiple of the cells.
+fraction for which the refined macro mesh has about a given multiple of the cells;
+:func:`marking_defaults` gives a run that sets neither a fraction (2D) or a growth (3D).
 """
 
 from __future__ import annotations
@@ -20,13 +21,55 @@ from .problem import SignoriniProblem
 from .refine import refine_marked
 from .spaces import Discretization
 
-__all__ = ["STRATEGIES", "mark", "mark_for_growth", "patch_indicators", "search_fraction"]
+__all__ = [
+    "DEFAULT_FRACTION",
+    "DEFAULT_GROWTH_3D",
+    "STRATEGIES",
+    "mark",
+    "mark_for_growth",
+    "marking_defaults",
+    "patch_indicators",
+    "search_fraction",
+]
 
 STRATEGIES = ("fixed_fraction", "doerfler")
 
 TIE_TOLERANCE = 1e-8
 
 T = TypeVar("T")
+
+#: The default of ``growth`` for adaptive runs in 3D: the macro mesh about doubles per level.
+DEFAULT_GROWTH_3D = 2.0
+
+#: The default of ``fraction`` for adaptive runs in 2D.
+DEFAULT_FRACTION = 0.2
+
+
+def marking_defaults(
+    problem: SignoriniProblem, fraction: float | None, growth: float | None
+) -> tuple[float | None, float | None]:
+    """``(fraction, growth)`` of a run: the given one, else 0.2 in 2D and growth 2 in 3D.
+
+    A fixed fraction of the macro cells spreads in 3D: the edges of a marked tetrahedron split
+    its neighbours too, and on the first levels, where the indicators of most cells are tied,
+    a fraction of 0.2 refines every cell (``benchmarks/payoff_3d.py``). Growth-controlled
+    marking (:func:`mark_for_growth`) keeps the number of cells to about twice the last
+    level's.
+
+    Args:
+        problem: The problem on the first macro mesh (its dimension decides).
+        fraction: The run's ``fraction``, or ``None``.
+        growth: The run's ``growth``, or ``None``.
+
+    Returns:
+        ``(fraction, growth)``: the given pair if either is set, else ``(0.2, None)`` in 2D
+        and ``(None, 2.0)`` in 3D.
+    """
+    if fraction is not None or growth is not None:
+        return fraction, growth
+    if problem.mesh.topology.dim == 3:
+        return None, DEFAULT_GROWTH_3D
+    return DEFAULT_FRACTION, None
 
 
 def patch_indicators(disc: Discretization, indicators: npt.NDArray[np.floating]) -> np.ndarray:

@@ -37,21 +37,15 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from .adapt import (
-    AdaptiveResult,
-    LevelRecord,
-    _progress,
-    _record,
-    _refine,
-    _validate,
-    marking_defaults,
-)
+from .adapt import AdaptiveResult, LevelRecord, _progress, _record, _validate
 from .collective import call_collectively
 from .estimator import Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir
+from .marking import marking_defaults
 from .newton import Solution, solve
 from .problem import SignoriniProblem
+from .refine import refine_level
 from .spaces import Discretization, discretize
 from .timing import timed
 from .transfer import transfer_solution
@@ -342,7 +336,7 @@ def _step(
     marked = np.zeros(0, dtype=np.int32)
     level, state.current = state.level, current
     if refine:
-        marked, state.current, state.macro_parent = _refine(
+        marked, state.current, state.macro_parent = refine_level(
             disc, current, est, "adaptive", "fixed_fraction", options["fraction"],
             options["growth"], "edges")
         state.level += 1

@@ -21,13 +21,13 @@ from dolfinx.mesh import CellType
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.adapt import DEFAULT_GROWTH_3D
 from dwr_signorini.interval import (
     SATURATION,
     SATURATION_UNRESOLVED,
     contact_set_resolved,
     error_interval,
 )
+from dwr_signorini.marking import DEFAULT_GROWTH_3D
 
 
 @pytest.mark.mpi
