@@ -28,10 +28,10 @@ from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
 from .lifetime import Releasable
-from .marking import STRATEGIES, marking_defaults
+from .marking import STRATEGIES, marking_defaults, refine_level
 from .newton import METHODS, Solution, solve
 from .problem import SignoriniProblem
-from .refine import RULES, fine_cells, refine_level
+from .refine import RULES, fine_cells
 from .spaces import discretize
 from .timing import timed
 from .transfer import transfer_solution

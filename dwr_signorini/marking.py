@@ -5,21 +5,31 @@ macro cells are marked globally across MPI ranks, by a fixed fraction of the cel
 |eta_K| or by Doerfler's bulk criterion on the indicator mass. :func:`mark_for_growth` finds the
 fraction for which the refined macro mesh has about a given multiple of the cells;
 :func:`marking_defaults` gives a run that sets neither a fraction (2D) or a growth (3D).
+
+One level of a run (:func:`refine_level`, for the loop of :func:`~dwr_signorini.solve_adaptive`
+and :func:`~dwr_signorini.solve_path`) marks the macro cells, refines them
+(:mod:`dwr_signorini.refine`) and redistributes the refined macro mesh over the ranks where
+their shares are unequal (:func:`~dwr_signorini.partition.rebalance_level`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from mpi4py import MPI
 
 import numpy as np
 import numpy.typing as npt
 
+from .partition import rebalance_level
 from .problem import SignoriniProblem
 from .refine import refine_marked
 from .spaces import Discretization
+from .timing import timed
+
+if TYPE_CHECKING:
+    from .estimator import Estimate
 
 __all__ = [
     "DEFAULT_FRACTION",
@@ -29,6 +39,7 @@ __all__ = [
     "mark_for_growth",
     "marking_defaults",
     "patch_indicators",
+    "refine_level",
     "search_fraction",
 ]
 
@@ -261,3 +272,64 @@ def search_fraction(
         flat = len(ratios) > 1 and abs(ratios[-1] / ratios[-2] - 1.0) < 0.02
         fraction = _next_fraction(growth, below, above, flat)
     return (*best, len(ratios))
+
+
+def refine_level(
+    disc: Any,
+    current: SignoriniProblem,
+    est: Estimate,
+    refinement: str,
+    strategy: str,
+    fraction: float | None,
+    growth: float | None,
+    refinement_rule: str,
+) -> tuple[np.ndarray, SignoriniProblem, Any]:
+    """Mark and refine one level: the next level's macro mesh (collective).
+
+    Adaptive refinement marks the macro cells by their patch indicators
+    (:func:`mark`, or :func:`mark_for_growth` with ``growth``), refines them
+    (:func:`~dwr_signorini.refine.refine_marked`) and redistributes the result where the ranks
+    hold unequal shares of it (:func:`~dwr_signorini.partition.rebalance_level`). Uniform
+    refinement takes T_h, the uniform refinement of T_H, as the next macro mesh, or refines T_H
+    again where ``boundary_projection`` moves the new vertices. The phases are timed as
+    ``"mark"`` and ``"refine"`` (:func:`~dwr_signorini.timing.timed`).
+
+    Args:
+        disc: The discretisation of ``current``.
+        current: The problem on this level's macro mesh T_H.
+        est: This level's estimate (its cell indicators drive the marking).
+        refinement: ``"adaptive"`` or ``"uniform"``.
+        strategy: ``"fixed_fraction"`` or ``"doerfler"``.
+        fraction: The marking fraction (adaptive, without ``growth``).
+        growth: The wanted ratio of macro cells, next level / this level, or ``None``.
+        refinement_rule: ``"edges"`` or ``"longest_edge"`` (:func:`marked_edges`).
+
+    Returns:
+        ``(marked, next_problem, macro_parent)``: the local marked macro cells (none when
+        uniform), the problem on the next macro mesh, and the parent of each of its cells
+        (a :class:`~dwr_signorini.partition.CellOrigin` where the mesh was redistributed).
+    """
+    marked = np.zeros(0, dtype=np.int32)
+    indicators = est.indicators.x.array
+    if refinement == "adaptive" and growth is not None:
+        with timed("mark"):
+            marked, next_problem, macro_parent, _ = mark_for_growth(
+                disc, current, indicators, strategy, growth, refinement_rule
+            )
+        with timed("refine"):
+            next_problem, macro_parent = rebalance_level(next_problem, macro_parent)
+        return marked, next_problem, macro_parent
+    if refinement == "adaptive":
+        with timed("mark"):
+            marked = mark(disc, indicators, strategy, fraction)
+    with timed("refine"):
+        if refinement == "adaptive":
+            next_problem, macro_parent = rebalance_level(
+                *refine_marked(current, marked, refinement_rule)
+            )
+        elif current.boundary_projection:  # refine again, projecting the new vertices
+            next_problem, macro_parent = refine_marked(current, None)
+        else:  # T_h, the uniform refinement of T_H, is the next macro mesh
+            next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
+            macro_parent = disc.parent_cell
+    return marked, next_problem, macro_parent

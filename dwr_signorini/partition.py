@@ -13,23 +13,37 @@ the rank that holds most has more than :data:`REBALANCE_THRESHOLD` times the mea
 at least :data:`REBALANCE_MIN_CELLS` cells per rank, and carries
 its facet and cell tags to the new distribution (:func:`dolfinx.io.distribute_entity_data`). The
 mesh is the same; only its distribution changes. The fine mesh T_h is refined from it as before,
-children on their parent's rank. The warm start of the next level then interpolates the last
-solution (no parent map across ranks, :func:`~dwr_signorini.transfer.transfer_solution`).
+children on their parent's rank. :func:`rebalance_level` also returns where each cell came
+from (:class:`CellOrigin`: its rank and local index before, and its parent in the last level's
+macro mesh), so the warm start of the next level
+(:func:`~dwr_signorini.transfer.transfer_solution`) evaluates the last level's reconstructions
+in the known parent cells on the ranks that hold them, as without redistribution: the same
+values, no point location.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from mpi4py import MPI
 
 import numpy as np
-from dolfinx import graph
+import numpy.typing as npt
+from dolfinx import fem, graph
 from dolfinx import io as dio
 from dolfinx import mesh as dmesh
 
 from . import compat
 from .problem import SignoriniProblem
 
-__all__ = ["REBALANCE_MIN_CELLS", "REBALANCE_THRESHOLD", "imbalance", "rebalance"]
+__all__ = [
+    "REBALANCE_MIN_CELLS",
+    "REBALANCE_THRESHOLD",
+    "CellOrigin",
+    "imbalance",
+    "rebalance",
+    "rebalance_level",
+]
 
 #: Cells on the fullest rank over the mean above which :func:`rebalance` redistributes ...
 REBALANCE_THRESHOLD = 1.2
@@ -81,6 +95,104 @@ def _tags_on(new: dmesh.Mesh, old: dmesh.Mesh, tags: dmesh.MeshTags) -> dmesh.Me
     return result
 
 
+@dataclass(frozen=True)
+class CellOrigin:
+    """Where the cells of a redistributed macro mesh were, and their parents there.
+
+    Cell ``c`` of the redistributed mesh (local numbering) was cell ``index[c]`` of the refined
+    macro mesh on rank ``rank[c]``; there, ``parent[i]`` is the cell of the last level's macro
+    mesh that contains that rank's old cell ``i`` (the parent map of the refinement).
+    """
+
+    comm: MPI.Comm
+    rank: npt.NDArray[np.int32]
+    index: npt.NDArray[np.int32]
+    parent: npt.NDArray[np.int32]
+
+    def evaluate(
+        self, function: fem.Function, points: np.ndarray, cells: npt.NDArray[np.int32]
+    ) -> np.ndarray:
+        """``function`` of the last level's macro mesh at points of the redistributed cells.
+
+        Each point is sent to the rank that held its cell before, evaluated there in that
+        cell's parent and the value sent back (collective).
+
+        Args:
+            function: A function on the last level's macro mesh (its old distribution).
+            points: Points, shape (n, 3), each in the redistributed cell ``cells[i]``.
+            cells: Local cells of the redistributed mesh.
+
+        Returns:
+            The values, shape (n, value size).
+        """
+        width = int(np.prod(function.ufl_shape, dtype=int))
+        dest = self.rank[cells]
+        order = np.argsort(dest, kind="stable")
+        counts = np.bincount(dest, minlength=self.comm.size)
+        index, received = _exchange(self.comm, self.index[cells][order], counts)
+        x, _ = _exchange(self.comm, np.ascontiguousarray(points[order], dtype=np.float64), counts)
+        values = np.zeros((len(index), width))
+        if len(index):
+            values[:] = function.eval(x, self.parent[index]).reshape(len(index), width)
+        back, _ = _exchange(self.comm, values, received)
+        out = np.empty_like(back)
+        out[order] = back
+        return out
+
+
+def _exchange(
+    comm: MPI.Comm, rows: np.ndarray, counts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rows grouped by destination rank (``counts`` per rank) sent there.
+
+    Returns the rows that arrived, grouped by source rank, and how many came from each.
+    """
+    received = np.asarray(comm.alltoall([int(c) for c in counts]), dtype=np.int64)
+    width = int(np.prod(rows.shape[1:], dtype=int))
+    out = np.empty((int(received.sum()), *rows.shape[1:]), dtype=rows.dtype)
+
+    def spec(buffer: np.ndarray, n: np.ndarray) -> list:
+        n = np.asarray(n, dtype=np.int64) * width
+        return [buffer, (n.tolist(), (np.cumsum(n) - n).tolist())]
+
+    comm.Alltoallv(spec(np.ascontiguousarray(rows), counts), spec(out, received))
+    return out, received
+
+
+def rebalance_level(
+    problem: SignoriniProblem,
+    macro_parent: npt.NDArray[np.int32] | None,
+    threshold: float | None = None,
+    min_cells: int | None = None,
+) -> tuple[SignoriniProblem, npt.NDArray[np.int32] | CellOrigin | None]:
+    """The next level's problem and parent map, redistributed if unbalanced (:func:`rebalance`).
+
+    Args:
+        problem: The refined problem (its macro mesh refined from the last level's).
+        macro_parent: The last level's macro cell of each of its local cells, or None.
+        threshold: See :func:`rebalance`.
+        min_cells: See :func:`rebalance`.
+
+    Returns:
+        ``(problem, macro_parent)`` as given where the mesh stays, or the redistributed problem
+        and the :class:`CellOrigin` of its cells (None without a parent map).
+    """
+    moved = _redistributed(problem, threshold, min_cells)
+    if moved is None:
+        return problem, macro_parent
+    balanced, original = moved
+    if macro_parent is None:
+        return balanced, None
+    comm = problem.mesh.comm
+    tdim = problem.mesh.topology.dim
+    offsets = np.cumsum([0, *comm.allgather(problem.mesh.topology.index_map(tdim).size_local)])
+    rank = np.searchsorted(offsets, original, side="right") - 1
+    index = original - offsets[rank]
+    return balanced, CellOrigin(
+        comm, rank.astype(np.int32), index.astype(np.int32), np.asarray(macro_parent, np.int32)
+    )
+
+
 def rebalance(
     problem: SignoriniProblem, threshold: float | None = None, min_cells: int | None = None
 ) -> SignoriniProblem | None:
@@ -97,6 +209,14 @@ def rebalance(
         The problem on the redistributed mesh with its tags, or None where the mesh was
         balanced or small (or on one rank).
     """
+    moved = _redistributed(problem, threshold, min_cells)
+    return None if moved is None else moved[0]
+
+
+def _redistributed(
+    problem: SignoriniProblem, threshold: float | None, min_cells: int | None
+) -> tuple[SignoriniProblem, npt.NDArray[np.int64]] | None:
+    """:func:`rebalance`, with the original (global input) index of each new local cell."""
     threshold = REBALANCE_THRESHOLD if threshold is None else threshold
     min_cells = REBALANCE_MIN_CELLS if min_cells is None else min_cells
     msh = problem.mesh
@@ -114,4 +234,6 @@ def rebalance(
                              partitioner=compat.cell_partitioner(dmesh.GhostMode.none))
     facet_tags = _tags_on(new, msh, problem.facet_tags)
     cell_tags = None if problem.cell_tags is None else _tags_on(new, msh, problem.cell_tags)
-    return problem.with_mesh(new, facet_tags, cell_tags)
+    num_new = new.topology.index_map(tdim).size_local
+    original = np.asarray(new.topology.original_cell_index[:num_new], dtype=np.int64)
+    return problem.with_mesh(new, facet_tags, cell_tags), original

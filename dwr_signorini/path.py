@@ -42,10 +42,9 @@ from .collective import call_collectively
 from .estimator import Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir
-from .marking import marking_defaults
+from .marking import marking_defaults, refine_level
 from .newton import Solution, solve
 from .problem import SignoriniProblem
-from .refine import refine_level
 from .spaces import Discretization, discretize
 from .timing import timed
 from .transfer import transfer_solution

@@ -14,17 +14,11 @@ move). The fine mesh T_h of a discretisation stays the exact uniform refinement 
 patch reconstructions stay exact and parent facets still come from the refinement. A move that
 would invert (or flatten) a cell is refused with an error naming the tag, and the mesh is left
 unchanged.
-
-One level of a run (:func:`refine_level`, for the loop of :func:`~dwr_signorini.solve_adaptive`
-and :func:`~dwr_signorini.solve_path`) marks the macro cells (:mod:`dwr_signorini.marking`),
-refines them and redistributes the refined macro mesh over the ranks where their shares are
-unequal (:func:`~dwr_signorini.partition.rebalance`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
 
 from mpi4py import MPI
 
@@ -35,12 +29,7 @@ from dolfinx.cpp import mesh as _cpp_mesh
 
 from . import compat
 from .collective import collective
-from .partition import rebalance
 from .problem import SignoriniProblem
-from .timing import timed
-
-if TYPE_CHECKING:
-    from .estimator import Estimate
 
 __all__ = [
     "RULES",
@@ -51,7 +40,6 @@ __all__ = [
     "marked_edges",
     "num_entities",
     "project_boundary",
-    "refine_level",
     "refine_marked",
     "refine_uniform",
     "refine_with_tags",
@@ -367,78 +355,6 @@ def refine_with_tags(
     to_macro = fine_to_macro_facets(macro, fine, parent_cell, problem.facet_tags.indices)
     tags = facet_tags_on_fine(problem.facet_tags, fine, to_macro, num_entities(macro, fdim))
     return fine, parent_cell, to_macro, tags
-
-
-def _balanced(problem: SignoriniProblem, parent: Any) -> tuple[SignoriniProblem, Any]:
-    """The refined problem, redistributed where the ranks hold unequal shares of it.
-
-    See :func:`~dwr_signorini.partition.rebalance`; a redistributed mesh has no parent map.
-    """
-    balanced = rebalance(problem)
-    return (problem, parent) if balanced is None else (balanced, None)
-
-
-def refine_level(
-    disc: Any,
-    current: SignoriniProblem,
-    est: Estimate,
-    refinement: str,
-    strategy: str,
-    fraction: float | None,
-    growth: float | None,
-    refinement_rule: str,
-) -> tuple[np.ndarray, SignoriniProblem, Any]:
-    """Mark and refine one level: the next level's macro mesh (collective).
-
-    Adaptive refinement marks the macro cells by their patch indicators
-    (:func:`~dwr_signorini.marking.mark`, or :func:`~dwr_signorini.marking.mark_for_growth`
-    with ``growth``), refines them (:func:`refine_marked`) and redistributes the result where
-    the ranks hold unequal shares of it (:func:`~dwr_signorini.partition.rebalance`). Uniform
-    refinement takes T_h, the uniform refinement of T_H, as the next macro mesh, or refines T_H
-    again where ``boundary_projection`` moves the new vertices. The phases are timed as
-    ``"mark"`` and ``"refine"`` (:func:`~dwr_signorini.timing.timed`).
-
-    Args:
-        disc: The discretisation of ``current``.
-        current: The problem on this level's macro mesh T_H.
-        est: This level's estimate (its cell indicators drive the marking).
-        refinement: ``"adaptive"`` or ``"uniform"``.
-        strategy: ``"fixed_fraction"`` or ``"doerfler"``.
-        fraction: The marking fraction (adaptive, without ``growth``).
-        growth: The wanted ratio of macro cells, next level / this level, or ``None``.
-        refinement_rule: ``"edges"`` or ``"longest_edge"`` (:func:`marked_edges`).
-
-    Returns:
-        ``(marked, next_problem, macro_parent)``: the local marked macro cells (none when
-        uniform), the problem on the next macro mesh, and the parent of each of its cells
-        (``None`` where the mesh was redistributed).
-    """
-    from .marking import mark, mark_for_growth  # marking imports this module
-
-    marked = np.zeros(0, dtype=np.int32)
-    indicators = est.indicators.x.array
-    if refinement == "adaptive" and growth is not None:
-        with timed("mark"):
-            marked, next_problem, macro_parent, _ = mark_for_growth(
-                disc, current, indicators, strategy, growth, refinement_rule
-            )
-        with timed("refine"):
-            next_problem, macro_parent = _balanced(next_problem, macro_parent)
-        return marked, next_problem, macro_parent
-    if refinement == "adaptive":
-        with timed("mark"):
-            marked = mark(disc, indicators, strategy, fraction)
-    with timed("refine"):
-        if refinement == "adaptive":
-            next_problem, macro_parent = _balanced(
-                *refine_marked(current, marked, refinement_rule)
-            )
-        elif current.boundary_projection:  # refine again, projecting the new vertices
-            next_problem, macro_parent = refine_marked(current, None)
-        else:  # T_h, the uniform refinement of T_H, is the next macro mesh
-            next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
-            macro_parent = disc.parent_cell
-    return marked, next_problem, macro_parent
 
 
 def fine_cells(problem: SignoriniProblem) -> int:

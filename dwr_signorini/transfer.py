@@ -8,6 +8,8 @@ next level starts near its solution.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 import ufl
@@ -16,6 +18,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 
 from .newton import Solution
+from .partition import CellOrigin
 from .reconstruction import Reconstructor, node_occurrences
 from .spaces import Discretization
 
@@ -26,7 +29,7 @@ def transfer_solution(
     old: Solution,
     disc: Discretization,
     rec: Reconstructor | None = None,
-    macro_parent: npt.NDArray[np.int32] | None = None,
+    macro_parent: npt.NDArray[np.int32] | CellOrigin | None = None,
 ) -> tuple[fem.Function, ...]:
     """Warm start on a new discretisation.
 
@@ -40,9 +43,12 @@ def transfer_solution(
         disc: The new discretisation.
         rec: The old level's :class:`Reconstructor` (built if not given).
         macro_parent: The old macro cell of each cell of the new macro mesh, as returned by
-            :func:`~dwr_signorini.spaces.refine_marked`. With it (simplices) every point is
-            evaluated in its known old macro cell: no point location. Without it, or on
-            quadrilaterals/hexahedra, the reconstructions are interpolated with point location.
+            :func:`~dwr_signorini.spaces.refine_marked`, or, where the new macro mesh was
+            redistributed, the :class:`~dwr_signorini.partition.CellOrigin` of its cells
+            (:func:`~dwr_signorini.partition.rebalance_level`). With it (simplices) every point
+            is evaluated in its known old macro cell, on the rank that holds it: no point
+            location. Without it, or on quadrilaterals/hexahedra, the reconstructions are
+            interpolated with point location.
 
     Returns:
         ``(u0, lam0)`` on ``disc.V`` and ``disc.Q`` (``(u0, lam0, lam_t0)`` with friction; every
@@ -50,7 +56,10 @@ def transfer_solution(
     """
     rec = rec or Reconstructor(old.disc)
     if macro_parent is not None and rec.simplex:
-        return _transfer_by_parents(old, disc, rec, macro_parent)
+        if isinstance(macro_parent, CellOrigin):
+            return _transfer_by_parents(old, disc, rec, macro_parent.evaluate)
+        parent = macro_parent
+        return _transfer_by_parents(old, disc, rec, lambda f, x, c: f.eval(x, parent[c]))
     u0 = fem.Function(disc.V, name="u")
     cells = np.arange(
         disc.mesh.topology.index_map(disc.mesh.topology.dim).size_local, dtype=np.int32
@@ -92,24 +101,29 @@ def _prescribe(u0: fem.Function, disc: Discretization) -> None:
         bc.set(u0.x.array)
 
 
+#: ``evaluate(f, x, cells)``: ``f`` of the old macro mesh at points ``x`` of new macro cells.
+Evaluate = Callable[[fem.Function, np.ndarray, npt.NDArray[np.int32]], np.ndarray]
+
+
 def _transfer_by_parents(
-    old: Solution, disc: Discretization, rec: Reconstructor, macro_parent: npt.NDArray[np.int32]
+    old: Solution, disc: Discretization, rec: Reconstructor, evaluate: Evaluate
 ) -> tuple[fem.Function, ...]:
     """:func:`transfer_solution` through the parent maps (simplices, no point location).
 
-    A new fine cell lies in the old macro cell ``macro_parent[disc.parent_cell[c]]``; a new
-    macro contact facet in the old macro cell of its new macro cell. Refined meshes carry no
-    ghost cells, so every local entity has a local, owned cell to evaluate in.
+    A new fine cell lies in the old macro cell that contains its new macro cell
+    ``disc.parent_cell[c]``; a new macro contact facet in the one of its new macro cell.
+    ``evaluate`` finds that old cell (collective where it sends points to other ranks).
+    Refined meshes carry no ghost cells, so every local entity has a local, owned cell.
     """
     u0 = fem.Function(disc.V, name="u")
     dofs = disc.V.dofmap.list[: len(disc.parent_cell)]
     # A cell of each node (any: the old macro P2 function is continuous).
     imap = disc.V.dofmap.index_map
     nodes, first = node_occurrences(dofs, imap.size_local + imap.num_ghosts)
-    cells = macro_parent[disc.parent_cell[first // dofs.shape[1]]]
+    cells = disc.parent_cell[first // dofs.shape[1]]
     x = disc.V.tabulate_dof_coordinates()[nodes]
     bs = disc.V.dofmap.index_map_bs
-    u0.x.array.reshape(-1, bs)[nodes] = rec.macro_quadratic(old.u).eval(x, cells)
+    u0.x.array.reshape(-1, bs)[nodes] = evaluate(rec.macro_quadratic(old.u), x, cells)
     u0.x.scatter_forward()
     _prescribe(u0, disc)
 
@@ -117,13 +131,13 @@ def _transfer_by_parents(
     tdim = macro.topology.dim
     facets = disc.contact_mesh_to_macro
     f2c = macro.topology.connectivity(tdim - 1, tdim)
-    cells = macro_parent[f2c.array[f2c.offsets[facets]]]
+    cells = f2c.array[f2c.offsets[facets]]
     mids = dmesh.compute_midpoints(macro, tdim - 1, facets)
     lams = []
     for f in old.multipliers:
         lam0 = fem.Function(disc.Q, name=f.name)
         lam_H = rec.macro_linear_multiplier(f)
-        lam0.x.array[disc.Q.dofmap.list[:, 0]] = lam_H.eval(mids, cells)[:, 0]
+        lam0.x.array[disc.Q.dofmap.list[:, 0]] = evaluate(lam_H, mids, cells)[:, 0]
         lam0.x.scatter_forward()
         lams.append(lam0)
     return (u0, *lams)

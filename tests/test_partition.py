@@ -15,7 +15,10 @@ from dolfinx import fem
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini import partition
+from dwr_signorini.reconstruction import Reconstructor
 from dwr_signorini.refine import refine_marked
+from dwr_signorini.spaces import discretize
+from dwr_signorini.transfer import transfer_solution
 
 pytestmark = pytest.mark.mpi
 
@@ -41,15 +44,28 @@ def _measures(problem):
     return out
 
 
-def _refined_at_a_corner(comm):
-    """Example 5.3 on 2 x 8 x 8 boxes, refined twice in the cells nearest a corner."""
-    problem = ex.obstacle_problem(comm, (2, 8, 8))
-    for _ in range(2):
+def _refined_at_a_corner(comm, problem=None, times=2):
+    """Example 5.3 (on 2 x 8 x 8 boxes), refined in the cells nearest a corner; the parents."""
+    problem = problem or ex.obstacle_problem(comm, (2, 8, 8))
+    parent = None
+    for _ in range(times):
         msh = problem.mesh
         mid = msh.geometry.x[ex_cells(msh)].mean(axis=1)
         marked = np.flatnonzero(np.linalg.norm(mid, axis=1) < 0.4).astype(np.int32)
-        problem, _ = refine_marked(problem, marked)
-    return problem
+        problem, parent = refine_marked(problem, marked)
+    return problem, parent
+
+
+def _by_position(f):
+    """The owned values of ``f`` on all ranks, ordered by the coordinates of their dofs."""
+    V = f.function_space
+    n = V.dofmap.index_map.size_local
+    bs = V.dofmap.index_map_bs
+    x = np.round(V.tabulate_dof_coordinates()[:n], 12)
+    values = f.x.array[: n * bs].reshape(n, bs)
+    x = np.concatenate(MPI.COMM_WORLD.allgather(x))
+    values = np.concatenate(MPI.COMM_WORLD.allgather(values))
+    return values[np.lexsort(x.T[::-1])]
 
 
 def ex_cells(msh):
@@ -62,7 +78,7 @@ def ex_cells(msh):
 
 def test_rebalance_keeps_the_mesh_and_evens_the_shares():
     comm = MPI.COMM_WORLD
-    problem = _refined_at_a_corner(comm)
+    problem, _ = _refined_at_a_corner(comm)
     before = _measures(problem)
     balanced = partition.rebalance(problem, threshold=1.0, min_cells=0)
     if comm.size == 1:
@@ -78,9 +94,35 @@ def test_rebalance_keeps_the_mesh_and_evens_the_shares():
     assert partition.rebalance(problem, threshold=1.0) is None  # small: kept as it is
 
 
+def test_warm_start_after_redistribution_is_the_one_without():
+    """Through the cells' origins (rebalance_level) the warm start evaluates the last level's
+    reconstructions in the same old cells as through the parent map on the mesh as refined:
+    the same values at the same points, whichever rank holds them now."""
+    comm = MPI.COMM_WORLD
+    coarse = ex.obstacle_problem(comm, (1, 6, 6))
+    sol = ds.solve(coarse)
+    rec = Reconstructor(sol.disc)
+    refined, parent = _refined_at_a_corner(comm, coarse, times=1)
+    moved, origin = partition.rebalance_level(refined, parent, threshold=1.0, min_cells=0)
+    if comm.size == 1:
+        assert moved is refined and origin is parent
+    else:
+        assert isinstance(origin, partition.CellOrigin)
+        assert partition.imbalance(moved.mesh) < partition.imbalance(refined.mesh)
+    kept = transfer_solution(sol, discretize(refined), rec, parent)
+    carried = transfer_solution(sol, discretize(moved), rec, origin)
+    assert np.abs(_by_position(kept[0])).max() > 0  # a deformed body, in contact
+    assert np.abs(_by_position(kept[1])).max() > 0
+    for a, b in zip(kept, carried, strict=True):
+        np.testing.assert_allclose(_by_position(b), _by_position(a), rtol=1e-12, atol=1e-14)
+    rec.destroy()
+    sol.destroy()
+
+
 def test_adaptive_run_gives_the_same_levels_with_and_without_rebalancing(monkeypatch):
     """Redistribution changes no discrete problem: the first refined level is the same mesh
-    (J_h and eta to round-off); later levels are refined from another numbering, which breaks
+    (J_h and eta to round-off, the same Newton steps from the same warm start); later levels
+    are refined from another numbering, which breaks
     the ties between equally long edges otherwise, so they are the same problem at about the
     same resolution: cells within 5 %, J_h apart by less than a tenth of the estimated error."""
     comm = MPI.COMM_WORLD
@@ -94,6 +136,7 @@ def test_adaptive_run_gives_the_same_levels_with_and_without_rebalancing(monkeyp
     plain, balanced = runs[np.inf], runs[1.0]
     for a, b in zip(plain[:2], balanced[:2], strict=True):
         assert b.num_cells == a.num_cells
+        assert b.newton_iterations == a.newton_iterations  # the same warm start
         assert b.J_h == pytest.approx(a.J_h, rel=1e-9)
         assert b.eta == pytest.approx(a.eta, rel=1e-6)
     for a, b in zip(plain[2:], balanced[2:], strict=True):
