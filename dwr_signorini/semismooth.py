@@ -200,6 +200,11 @@ class NewtonLoop:
         """
         if self.resolve:
             new, new_free = self.previous, self.previous_free
+            # The sets visited by loose steps say nothing of cycling of the accurate ones: an
+            # accurate step back to one of them corrects a loose step's error on nearly
+            # degenerate rows. The accurate steps keep their own record, and their safeguard.
+            self.seen.clear()
+            self.safeguard_since = None
         else:
             new, new_free = wanted, free
         key = self._key(new, new_free)
