@@ -209,6 +209,13 @@ class NewtonLoop:
             new, new_free = wanted, free
         key = self._key(new, new_free)
         repeated = key in self.seen and key != self.last_key
+        if repeated and self.loose:
+            # Loose steps can cycle on their solves' error alone (nearly degenerate rows on
+            # the wrong side): from here on every step is solved accurately, with its own record.
+            logger.info("step %d repeats the sets of step %d: accurate solves", it, self.seen[key])
+            self.loose = self.system.set_loose(False)
+            self.seen.clear()
+            repeated = False
         self.step_length = 1.0
         if self.coupled_law and (repeated or self.damped_since is not None):
             return self._damped(it, key, new, new_free, repeated)
