@@ -9,7 +9,8 @@ uniform or adaptive (growth 2). Nothing of the size of K is factored. A line per
 Newton steps, the weights of the estimate, seconds per phase, the level's total, one CG + GAMG
 solve of K on the same mesh (``ref``, set-up included, ``--ref``) and the ratio, the peak
 memory of the largest rank and of all ranks, and the share of the fine cells on the rank that
-holds most; ``benchmarks/results/large_3d_<problem>_np<N>.json``.
+holds most; ``benchmarks/results/large_3d_<problem>_np<N>.json``. ``--log`` prints every
+Newton step (active facets, changes, residuals).
 The same command runs on any number of ranks::
 
     scripts/fenicsx mpirun -n 2 python3 benchmarks/large_3d.py                  # 146k, 1.1M DoFs
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import resource
 import time
 from pathlib import Path
@@ -61,8 +63,13 @@ def main() -> None:
     parser.add_argument("--ref", action="store_true",
                         help="also time one CG + GAMG solve of K per level (the ratio)")
     parser.add_argument("--output", type=Path, default=Path("benchmarks/results"))
+    parser.add_argument("--log", action="store_true",
+                        help="print every Newton step (sets, changes, residuals) on rank 0")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
+    if args.log and comm.rank == 0:
+        logging.basicConfig(format="  %(message)s")
+        logging.getLogger("dwr_signorini.newton").setLevel(logging.INFO)
     problem, goal = build(comm, args.problem, args.n)
     rows: list[dict] = []
     last = [snapshot(), time.perf_counter()]
