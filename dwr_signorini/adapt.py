@@ -28,7 +28,7 @@ from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
 from .goal import Goal
 from .io import OutputDirectory, check_output_dir, write_csv, write_json
 from .lifetime import Releasable
-from .marking import STRATEGIES, marking_defaults, refine_level
+from .marking import STRATEGIES, MarkingRule, marking_defaults, refine_level
 from .newton import METHODS, Solution, solve
 from .problem import SignoriniProblem
 from .refine import RULES, fine_cells
@@ -184,7 +184,7 @@ def _validate(
     goal: Any,
     refinement: str,
     fraction: Any,
-    strategy: str,
+    strategy: str | None,
     max_levels: Any,
     max_cells: Any,
     tol: Any,
@@ -204,8 +204,8 @@ def _validate(
         raise TypeError(f"goal must be a callable goal(u, lam, m) -> ufl.Form, got {goal!r}")
     if refinement not in REFINEMENTS:
         raise ValueError(f"refinement must be one of {REFINEMENTS}, got {refinement!r}")
-    if strategy not in STRATEGIES:
-        raise ValueError(f"strategy must be one of {STRATEGIES}, got {strategy!r}")
+    if strategy is not None and strategy not in STRATEGIES:
+        raise ValueError(f"strategy must be one of {STRATEGIES} or None, got {strategy!r}")
     if fraction is not None and (
         isinstance(fraction, bool)
         or not isinstance(fraction, (int, float))
@@ -280,7 +280,7 @@ def solve_adaptive(
     goal: Goal,
     refinement: str = "adaptive",
     fraction: float | None = None,
-    strategy: str = "fixed_fraction",
+    strategy: str | None = None,
     max_levels: int = 8,
     max_cells: int | None = None,
     tol: float | None = None,
@@ -303,9 +303,11 @@ def solve_adaptive(
         goal: ``goal(u, lam, m) -> ufl.Form``, the quantity of interest J.
         refinement: ``"adaptive"`` (mark and refine, simplices only) or ``"uniform"``.
         fraction: Marking fraction in (0, 1] (of cells, or of indicator mass for Doerfler).
-            Without ``fraction`` and ``growth``: 0.2 in 2D, and ``growth=2`` in 3D
+            Without ``fraction`` and ``growth``: a fixed fraction of 0.2 in 2D; in 3D
+            Doerfler's criterion with theta = 0.3 and at most twice the cells per level
             (:func:`~dwr_signorini.marking.marking_defaults`).
-        strategy: ``"fixed_fraction"`` or ``"doerfler"``.
+        strategy: ``"fixed_fraction"``, ``"doerfler"`` or ``None``: Doerfler where the 3D
+            default marking applies, else a fixed fraction.
         max_levels: Number of levels (solves) at most.
         max_cells: Stop before a level whose fine mesh would exceed this many cells.
         tol: Stop when the interval for J is at most ``2 tol`` wide, J_high - J_low <= 2 tol
@@ -369,18 +371,22 @@ def solve_adaptive(
         output_dir,
     )
     comm = problem.mesh.comm
-    if refinement == "adaptive":
-        fraction, growth = marking_defaults(problem, fraction, growth)
+    marking = (  # a uniform run records what it was given
+        marking_defaults(problem, fraction, growth, strategy)
+        if refinement == "adaptive"
+        else MarkingRule(strategy or "fixed_fraction", fraction, growth)
+    )
     meta = {
         "refinement": refinement,
-        "fraction": fraction,
-        "strategy": strategy,
+        "fraction": marking.fraction,
+        "strategy": marking.strategy,
+        "max_growth": marking.max_growth,
         "estimator": estimator,
         "weights": weights,
         "method": method,
         "ncp_scale": check_ncp_scale(ncp_scale),
         "refinement_rule": refinement_rule,
-        "growth": growth,
+        "growth": marking.growth,
         "exact": exact,
         "num_processes": comm.size,
     }
@@ -436,7 +442,7 @@ def solve_adaptive(
             tic = time.perf_counter()
             if not stop:
                 marked, next_problem, macro_parent = refine_level(
-                    disc, current, est, refinement, strategy, fraction, growth, refinement_rule
+                    disc, current, est, refinement, marking, refinement_rule
                 )
                 result.next_cells = fine_cells(next_problem)
                 if max_cells is not None and result.next_cells > max_cells:

@@ -4,7 +4,10 @@ The cell indicators on T_h are summed over the children of each macro cell (the 
 macro cells are marked globally across MPI ranks, by a fixed fraction of the cells with the largest
 |eta_K| or by Doerfler's bulk criterion on the indicator mass. :func:`mark_for_growth` finds the
 fraction for which the refined macro mesh has about a given multiple of the cells;
-:func:`marking_defaults` gives a run that sets neither a fraction (2D) or a growth (3D).
+:func:`mark_at_most` marks by a fraction unless that would grow the mesh by more than a given
+ratio, and then marks for that ratio. :func:`marking_defaults` gives a run that sets none of
+``fraction``, ``growth`` and ``strategy`` its rule: a fixed fraction of 0.2 in 2D, Doerfler's
+criterion with theta = 0.3 and at most twice the cells per level in 3D.
 
 One level of a run (:func:`refine_level`, for the loop of :func:`~dwr_signorini.solve_adaptive`
 and :func:`~dwr_signorini.solve_path`) marks the macro cells, refines them
@@ -15,6 +18,7 @@ their shares are unequal (:func:`~dwr_signorini.partition.rebalance_level`).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from mpi4py import MPI
@@ -32,10 +36,13 @@ if TYPE_CHECKING:
     from .estimator import Estimate
 
 __all__ = [
+    "DEFAULT_DOERFLER_3D",
     "DEFAULT_FRACTION",
-    "DEFAULT_GROWTH_3D",
+    "DEFAULT_MAX_GROWTH_3D",
     "STRATEGIES",
+    "MarkingRule",
     "mark",
+    "mark_at_most",
     "mark_for_growth",
     "marking_defaults",
     "patch_indicators",
@@ -49,38 +56,68 @@ TIE_TOLERANCE = 1e-8
 
 T = TypeVar("T")
 
-#: The default of ``growth`` for adaptive runs in 3D: the macro mesh about doubles per level.
-DEFAULT_GROWTH_3D = 2.0
-
-#: The default of ``fraction`` for adaptive runs in 2D.
+#: The default of ``fraction`` for adaptive runs in 2D (a fixed fraction of the cells).
 DEFAULT_FRACTION = 0.2
+
+#: theta of Doerfler's criterion, the default marking of adaptive runs in 3D.
+DEFAULT_DOERFLER_3D = 0.3
+
+#: The most cells a default 3D level may have, as a multiple of the last level's.
+DEFAULT_MAX_GROWTH_3D = 2.0
+
+
+@dataclass(frozen=True)
+class MarkingRule:
+    """How a run marks: ``strategy`` with ``fraction``, or for ``growth``; ``max_growth`` caps.
+
+    Attributes:
+        strategy: ``"fixed_fraction"`` or ``"doerfler"``.
+        fraction: The marking fraction, or ``None`` with ``growth``.
+        growth: The wanted ratio of cells per level (:func:`mark_for_growth`), or ``None``.
+        max_growth: With ``fraction``: the most cells a level may have as a multiple of the
+            last level's (:func:`mark_at_most`), or ``None`` (no cap).
+    """
+
+    strategy: str
+    fraction: float | None
+    growth: float | None
+    max_growth: float | None = None
 
 
 def marking_defaults(
-    problem: SignoriniProblem, fraction: float | None, growth: float | None
-) -> tuple[float | None, float | None]:
-    """``(fraction, growth)`` of a run: the given one, else 0.2 in 2D and growth 2 in 3D.
+    problem: SignoriniProblem,
+    fraction: float | None,
+    growth: float | None,
+    strategy: str | None = None,
+) -> MarkingRule:
+    """The marking of a run: what it sets, the rest from the dimension's defaults.
 
-    A fixed fraction of the macro cells spreads in 3D: the edges of a marked tetrahedron split
-    its neighbours too, and on the first levels, where the indicators of most cells are tied,
-    a fraction of 0.2 refines every cell (``benchmarks/payoff_3d.py``). Growth-controlled
-    marking (:func:`mark_for_growth`) keeps the number of cells to about twice the last
-    level's.
+    A run that sets ``fraction`` or ``growth`` marks with them (``strategy`` defaults to a
+    fixed fraction). A run that sets neither marks, in 2D, the fraction 0.2 of the cells with
+    the largest indicators, and in 3D by Doerfler's criterion with theta = 0.3 (the fewest
+    cells holding 30 % of sum |eta_K|), refining at most twice the cells per level
+    (:func:`mark_at_most`). In 3D a fixed fraction spreads: the edges of a marked tetrahedron
+    split its neighbours too, and on the first levels, where the indicators of most cells are
+    tied, a fraction of 0.2 refines every cell. Doerfler's set follows the indicator mass: on
+    the 3D indentation it is the contact zone, about 3-20 % more cells on the first levels,
+    where a fixed growth of 2 refines far from the contact as well (``benchmarks/payoff_3d.py``).
 
     Args:
         problem: The problem on the first macro mesh (its dimension decides).
         fraction: The run's ``fraction``, or ``None``.
         growth: The run's ``growth``, or ``None``.
+        strategy: The run's ``strategy``, or ``None``.
 
     Returns:
-        ``(fraction, growth)``: the given pair if either is set, else ``(0.2, None)`` in 2D
-        and ``(None, 2.0)`` in 3D.
+        The :class:`MarkingRule`.
     """
     if fraction is not None or growth is not None:
-        return fraction, growth
+        return MarkingRule(strategy or "fixed_fraction", fraction, growth)
     if problem.mesh.topology.dim == 3:
-        return None, DEFAULT_GROWTH_3D
-    return DEFAULT_FRACTION, None
+        if strategy in (None, "doerfler"):
+            return MarkingRule("doerfler", DEFAULT_DOERFLER_3D, None, DEFAULT_MAX_GROWTH_3D)
+        return MarkingRule(strategy, DEFAULT_FRACTION, None, DEFAULT_MAX_GROWTH_3D)
+    return MarkingRule(strategy or "fixed_fraction", DEFAULT_FRACTION, None)
 
 
 def patch_indicators(disc: Discretization, indicators: npt.NDArray[np.floating]) -> np.ndarray:
@@ -238,6 +275,45 @@ def mark_for_growth(
     return marked, refined, parent, fraction
 
 
+def mark_at_most(
+    disc: Discretization,
+    problem: SignoriniProblem,
+    indicators: npt.NDArray[np.floating],
+    strategy: str,
+    fraction: float,
+    max_growth: float,
+    rule: str = "edges",
+) -> tuple[npt.NDArray[np.int32], SignoriniProblem, npt.NDArray[np.int32], float]:
+    """Mark by ``fraction``, or for ``max_growth`` where that fraction would refine more.
+
+    The cells that ``strategy`` and ``fraction`` mark are refined; if the refined macro mesh
+    has more than ``max_growth`` times the cells of this one, the marking is that of
+    :func:`mark_for_growth` with ``growth=max_growth`` instead.
+
+    Args:
+        disc: The discretisation of ``problem``.
+        problem: The problem on the current macro mesh.
+        indicators: Signed indicators on the owned fine cells.
+        strategy: ``"fixed_fraction"`` or ``"doerfler"``.
+        fraction: In (0, 1].
+        max_growth: The most cells of the next level as a multiple of this level's, > 1.
+        rule: The refinement rule (:func:`~dwr_signorini.refine.marked_edges`).
+
+    Returns:
+        The marked cells, the refined problem, the parent map and the fraction used.
+    """
+    if not max_growth > 1.0:
+        raise ValueError(f"max_growth must be a number > 1, got {max_growth!r}")
+    tdim = problem.mesh.topology.dim
+    marked = mark(disc, indicators, strategy, fraction)
+    refined, parent = refine_marked(problem, marked, rule)
+    cells = (problem.mesh.topology.index_map(tdim).size_global,
+             refined.mesh.topology.index_map(tdim).size_global)
+    if cells[1] <= max_growth * cells[0]:
+        return marked, refined, parent, fraction
+    return mark_for_growth(disc, problem, indicators, strategy, max_growth, rule)
+
+
 def search_fraction(
     trial: Callable[[float], tuple[float, T]], growth: float, first: float, trials: int = 8
 ) -> tuple[float, float, T, int]:
@@ -279,29 +355,26 @@ def refine_level(
     current: SignoriniProblem,
     est: Estimate,
     refinement: str,
-    strategy: str,
-    fraction: float | None,
-    growth: float | None,
+    marking: MarkingRule | None,
     refinement_rule: str,
 ) -> tuple[np.ndarray, SignoriniProblem, Any]:
     """Mark and refine one level: the next level's macro mesh (collective).
 
-    Adaptive refinement marks the macro cells by their patch indicators
-    (:func:`mark`, or :func:`mark_for_growth` with ``growth``), refines them
-    (:func:`~dwr_signorini.refine.refine_marked`) and redistributes the result where the ranks
-    hold unequal shares of it (:func:`~dwr_signorini.partition.rebalance_level`). Uniform
-    refinement takes T_h, the uniform refinement of T_H, as the next macro mesh, or refines T_H
-    again where ``boundary_projection`` moves the new vertices. The phases are timed as
-    ``"mark"`` and ``"refine"`` (:func:`~dwr_signorini.timing.timed`).
+    Adaptive refinement marks the macro cells by their patch indicators as ``marking`` says
+    (:func:`mark`, :func:`mark_for_growth` with ``growth``, :func:`mark_at_most` with
+    ``max_growth``), refines them (:func:`~dwr_signorini.refine.refine_marked`) and
+    redistributes the result where the ranks hold unequal shares of it
+    (:func:`~dwr_signorini.partition.rebalance_level`). Uniform refinement takes T_h, the
+    uniform refinement of T_H, as the next macro mesh, or refines T_H again where
+    ``boundary_projection`` moves the new vertices. The phases are timed as ``"mark"`` and
+    ``"refine"`` (:func:`~dwr_signorini.timing.timed`).
 
     Args:
         disc: The discretisation of ``current``.
         current: The problem on this level's macro mesh T_H.
         est: This level's estimate (its cell indicators drive the marking).
         refinement: ``"adaptive"`` or ``"uniform"``.
-        strategy: ``"fixed_fraction"`` or ``"doerfler"``.
-        fraction: The marking fraction (adaptive, without ``growth``).
-        growth: The wanted ratio of macro cells, next level / this level, or ``None``.
+        marking: The run's :class:`MarkingRule` (adaptive; ignored when uniform).
         refinement_rule: ``"edges"`` or ``"longest_edge"`` (:func:`marked_edges`).
 
     Returns:
@@ -309,27 +382,41 @@ def refine_level(
         uniform), the problem on the next macro mesh, and the parent of each of its cells
         (a :class:`~dwr_signorini.partition.CellOrigin` where the mesh was redistributed).
     """
-    marked = np.zeros(0, dtype=np.int32)
-    indicators = est.indicators.x.array
-    if refinement == "adaptive" and growth is not None:
+    if refinement == "adaptive":
         with timed("mark"):
-            marked, next_problem, macro_parent, _ = mark_for_growth(
-                disc, current, indicators, strategy, growth, refinement_rule
+            marked, next_problem, macro_parent = _mark_and_refine(
+                disc, current, est.indicators.x.array, marking, refinement_rule
             )
         with timed("refine"):
             next_problem, macro_parent = rebalance_level(next_problem, macro_parent)
         return marked, next_problem, macro_parent
-    if refinement == "adaptive":
-        with timed("mark"):
-            marked = mark(disc, indicators, strategy, fraction)
     with timed("refine"):
-        if refinement == "adaptive":
-            next_problem, macro_parent = rebalance_level(
-                *refine_marked(current, marked, refinement_rule)
-            )
-        elif current.boundary_projection:  # refine again, projecting the new vertices
+        if current.boundary_projection:  # refine again, projecting the new vertices
             next_problem, macro_parent = refine_marked(current, None)
         else:  # T_h, the uniform refinement of T_H, is the next macro mesh
             next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
             macro_parent = disc.parent_cell
-    return marked, next_problem, macro_parent
+    return np.zeros(0, dtype=np.int32), next_problem, macro_parent
+
+
+def _mark_and_refine(
+    disc: Any,
+    current: SignoriniProblem,
+    indicators: npt.NDArray[np.floating],
+    marking: MarkingRule,
+    rule: str,
+) -> tuple[npt.NDArray[np.int32], SignoriniProblem, Any]:
+    """The marked cells, the refined problem and its parent map, as ``marking`` says."""
+    if marking.growth is not None:
+        marked, refined, parent, _ = mark_for_growth(
+            disc, current, indicators, marking.strategy, marking.growth, rule
+        )
+    elif marking.max_growth is not None:
+        marked, refined, parent, _ = mark_at_most(
+            disc, current, indicators, marking.strategy, marking.fraction, marking.max_growth,
+            rule,
+        )
+    else:
+        marked = mark(disc, indicators, marking.strategy, marking.fraction)
+        refined, parent = refine_marked(current, marked, rule)
+    return marked, refined, parent

@@ -226,16 +226,19 @@ def solve_path(
             "on an adaptive path (use history=False or adaptive=False)"
         )
     comm = problems[0].mesh.comm
-    if adaptive:
-        fraction, growth = marking_defaults(problems[0], fraction, growth)
+    marking = marking_defaults(problems[0], fraction, growth) if adaptive else None
+    if marking is not None:
+        fraction, growth = marking.fraction, marking.growth
     meta = {"steps": len(problems), "adaptive": adaptive, "estimator": estimator,
-            "weights": weights, "fraction": fraction, "growth": growth, "history": history,
+            "weights": weights, "fraction": fraction, "growth": growth,
+            "strategy": None if marking is None else marking.strategy,
+            "max_growth": None if marking is None else marking.max_growth, "history": history,
             "num_processes": comm.size, "law": repr(problems[0].law)}
     options = {
         "solve": {"petsc_options": petsc_options, "method": method, "ncp_scale": ncp_scale},
         "estimate": {"estimator": estimator, "weights": weights,
                      "petsc_options": petsc_options},
-        "fraction": fraction, "growth": growth,
+        "marking": marking,
     }
     out = None
     if output_dir is not None:
@@ -336,8 +339,7 @@ def _step(
     level, state.current = state.level, current
     if refine:
         marked, state.current, state.macro_parent = refine_level(
-            disc, current, est, "adaptive", "fixed_fraction", options["fraction"],
-            options["growth"], "edges")
+            disc, current, est, "adaptive", options["marking"], "edges")
         state.level += 1
     record = _record(level, disc, sol, est, marked,
                      {"setup": t_setup, "solve": t_solve, "refine": time.perf_counter() - tic},

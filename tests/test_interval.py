@@ -27,7 +27,7 @@ from dwr_signorini.interval import (
     contact_set_resolved,
     error_interval,
 )
-from dwr_signorini.marking import DEFAULT_GROWTH_3D
+from dwr_signorini.marking import DEFAULT_DOERFLER_3D, DEFAULT_MAX_GROWTH_3D
 
 
 @pytest.mark.mpi
@@ -98,14 +98,19 @@ def test_interval_holds_when_its_assumptions_hold(resolved):
 
 @pytest.mark.mpi
 def test_default_3d_marking_does_not_refine_every_cell():
-    """solve_adaptive's defaults in 3D: growth 2, not a fixed fraction of 0.2, whose marked
-    edges would split every tetrahedron of a coarse mesh (8 times the cells)."""
+    """solve_adaptive's defaults in 3D: Doerfler's criterion with at most twice the cells per
+    level, not a fixed fraction of 0.2, whose marked edges would split every tetrahedron of a
+    coarse mesh (8 times the cells)."""
     problem = ex.obstacle_problem(MPI.COMM_WORLD, (1, 4, 4))
-    with ds.solve_adaptive(problem, ex.goal_obstacle(), max_levels=3, verbose=False) as res:
+    with ds.solve_adaptive(problem, ex.goal_obstacle(), max_levels=4, verbose=False) as res:
         rows = res.levels
-        assert res.meta["growth"] == DEFAULT_GROWTH_3D and res.meta["fraction"] is None
+        assert res.meta["strategy"] == "doerfler" and res.meta["growth"] is None
+        assert res.meta["fraction"] == DEFAULT_DOERFLER_3D
+        assert res.meta["max_growth"] == DEFAULT_MAX_GROWTH_3D
     for a, b in itertools.pairwise(rows):
-        assert b.num_macro_cells < 4 * a.num_macro_cells, (a.num_macro_cells, b.num_macro_cells)
+        # at most about twice the cells (the search's closest count: counts go in steps)
+        cap = 1.25 * DEFAULT_MAX_GROWTH_3D * a.num_macro_cells
+        assert a.num_macro_cells < b.num_macro_cells < cap
         assert a.num_marked < a.num_macro_cells
     with pytest.raises(ValueError, match="fraction or growth, not both"):
         ds.solve_adaptive(problem, ex.goal_obstacle(), fraction=0.2, growth=2.0)

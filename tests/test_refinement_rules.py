@@ -15,7 +15,7 @@ import pytest
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.marking import mark, search_fraction
+from dwr_signorini.marking import mark, mark_at_most, search_fraction
 from dwr_signorini.refine import refine_marked
 
 
@@ -53,6 +53,29 @@ def test_growth_sets_the_cells_per_level(rule):
     with pytest.raises(ValueError, match="refinement_rule"):
         ds.solve_adaptive(ex.obstacle_problem(MPI.COMM_WORLD, (1, 4, 4)), ex.goal_obstacle(),
                           refinement_rule="bisect")
+
+
+@pytest.mark.mpi
+def test_mark_at_most_keeps_the_fraction_below_the_cap_and_caps_above_it():
+    """Doerfler's set where it refines less than max_growth (the same cells as mark), the
+    marking for growth max_growth where the fraction would refine more."""
+    comm = MPI.COMM_WORLD
+    problem = ex.obstacle_problem(comm, (1, 4, 4))
+    with ds.solve(problem) as sol, ds.estimate(sol, ex.goal_obstacle()) as est:
+        eta = est.indicators.x.array
+        small = mark(sol.disc, eta, "doerfler", 0.3)
+        alone, _ = refine_marked(problem, small, "edges")
+        cap = 1.01 * _cells(alone) / _cells(problem)
+        marked, refined, _, fraction = mark_at_most(sol.disc, problem, eta, "doerfler", 0.3, cap)
+        assert fraction == 0.3 and np.array_equal(marked, small)
+        assert _cells(refined) == _cells(alone)
+        everything, _ = refine_marked(problem, mark(sol.disc, eta, "doerfler", 1.0), "edges")
+        assert _cells(everything) > 2.5 * _cells(problem)  # so that the cap below bites
+        marked, refined, _, fraction = mark_at_most(sol.disc, problem, eta, "doerfler", 1.0, 1.8)
+        assert fraction < 1.0
+        assert 1.5 < _cells(refined) / _cells(problem) < 2.1
+        with pytest.raises(ValueError, match="max_growth"):
+            mark_at_most(sol.disc, problem, eta, "doerfler", 0.3, 1.0)
 
 
 def _recorded(ratio_of):
