@@ -2,8 +2,8 @@
 
 For the 3D indentation of ``reference_3d.py`` (goal: the total contact force) and the paper's
 example 5.3, a uniform run to about 300k fine cells and adaptive runs, all with
-``solve_adaptive``'s defaults (in 3D: ``growth=2``, the macro mesh doubles per level;
-``weights="auto"``) and the default linear solver (``method=None``). The error of every level
+``solve_adaptive``'s defaults (in 3D: Doerfler's criterion with theta = 0.3, at most twice the
+cells per level; ``weights="auto"``) and the default linear solver (``method=None``). The error of every level
 is measured against the reference value of ``reference_3d.py`` (from J_h alone, with its
 uncertainty U; :func:`reference_3d.stored_reference`). The package's answer on a level is J_h,
 with the interval [J_low, J_high]; the table gives its width over the error. The script prints,
@@ -47,7 +47,7 @@ RESULTS = Path("benchmarks/results")
 
 def setups(comm: MPI.Comm) -> dict[str, dict[str, Any]]:
     """Per problem: the goal and the runs, each (macro mesh builder, solve_adaptive options)."""
-    # solve_adaptive's defaults: in 3D growth 2 (edges of the marked cells), weights "auto"
+    # solve_adaptive's defaults: in 3D Doerfler, theta = 0.3, growth <= 2; weights "auto"
     adaptive = {"refinement": "adaptive"}
     return {
         "indentation": {

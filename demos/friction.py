@@ -99,10 +99,11 @@ parser.add_argument("--shear", type=float, default=defaults["shear"],
 parser.add_argument("--press", type=float, default=defaults["press"],
                     help="normal displacement of the top (into the cylinder)")
 parser.add_argument("--fraction", type=float, default=None,
-                    help="marking fraction (default: solve_adaptive's, 0.2 in 2D)")
+                    help="marking fraction (default: solve_adaptive's, 0.2 in 2D, Doerfler's "
+                         "0.3 in 3D)")
 parser.add_argument("--growth", type=float, default=None,
                     help="cell count growth per adaptive level instead of a fraction "
-                         "(default: solve_adaptive's, 2 in 3D)")
+                         "(default: none; solve_adaptive's 3D default caps it at 2)")
 parser.add_argument("--weights", choices=ds.WEIGHTS, default="auto",
                     help="weights of the estimator")
 parser.add_argument("--max-cells", type=int, default=400_000,
