@@ -3,11 +3,11 @@
 For the 3D indentation of ``reference_3d.py`` (goal: the total contact force) and the paper's
 example 5.3, a uniform run to about 300k fine cells and adaptive runs, all with
 ``solve_adaptive``'s defaults (in 3D: Doerfler's criterion with theta = 0.3, at most twice the
-cells per level; ``weights="auto"``) and the default linear solver (``method=None``). The error of every level
-is measured against the reference value of ``reference_3d.py`` (from J_h alone, with its
-uncertainty U; :func:`reference_3d.stored_reference`). The package's answer on a level is J_h,
-with the interval [J_low, J_high]; the table gives its width over the error. The script prints,
-per problem:
+cells per level; ``weights="auto"``) and the default linear solver (``method=None``). The error
+of every level is measured against the reference value of ``reference_3d.py`` (from J_h alone,
+with its uncertainty U; :func:`reference_3d.stored_reference`). The package's answer on a level
+is J_h, with the interval [J_low, J_high]; the table gives its width over the error. The script
+prints, per problem:
 
 * a table per level: cells, DoFs, J_h, J_ref - J_h, the level's time and the cumulative time;
 * the target: the error of the uniform run's finest level; the first level of each adaptive run

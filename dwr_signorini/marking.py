@@ -301,6 +301,9 @@ def mark_at_most(
 
     Returns:
         The marked cells, the refined problem, the parent map and the fraction used.
+
+    Raises:
+        ValueError: If ``max_growth`` is not a number > 1.
     """
     if not max_growth > 1.0:
         raise ValueError(f"max_growth must be a number > 1, got {max_growth!r}")
