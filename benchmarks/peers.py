@@ -66,6 +66,10 @@ DEFAULT_OUTPUT = HERE / "results"
 DEFAULT_SIZES = (49152, 196608, 786432)
 #: Tags of analytic_2d_mesh (examples._mesh): clamped, traction-free, contact.
 DIRICHLET, CONTACT = 1, 3
+#: Our data's quadrature degree in the comparison: that of GetFEM's rule for its load data
+#: (``IM_TRIANGLE(3)``, ``peer_getfem.FASTEST["load_rule"]``). The package's default
+#: (``dwr_signorini.quadrature.DATA_QUADRATURE_DEGREE``) is timed beside it.
+OURS_DEGREE = 3
 SKIP_MESSAGE = (
     "SKIPPED: benchmarks/peers.py: GetFEM (Debian's python3-getfem) is not installed in this "
     "environment; `make peer-env` installs the optional peer packages (env/peer-packages.txt)"
@@ -192,8 +196,14 @@ def pressure_error_sq(
 # --------------------------------------------------------------------------------------------------
 
 
-def run_ours(comm: Any, nx: int, ny: int, method: str | None) -> tuple[dict[str, Any], Any]:
-    """Solve + estimate from the macro mesh on, timed; the errors and T_h afterwards."""
+def run_ours(
+    comm: Any, nx: int, ny: int, method: str | None, degree: int = OURS_DEGREE
+) -> tuple[dict[str, Any], Any]:
+    """Solve + estimate from the macro mesh on, timed; the errors and T_h afterwards.
+
+    ``degree`` is the problem's ``quadrature_degree``: the rule of the body force, which is not a
+    polynomial, in the Newton system and in the residuals of the estimate.
+    """
     from mpi4py import MPI
 
     from dolfinx.mesh import CellType
@@ -209,7 +219,7 @@ def run_ours(comm: Any, nx: int, ny: int, method: str | None) -> tuple[dict[str,
     tic = time.perf_counter()
     problem = ds.SignoriniProblem(
         msh, tags, contact=CONTACT, dirichlet=(DIRICHLET,), E=mat.E, nu=mat.nu, model=mat.model,
-        body_force=ex.analytic_body_force, gap=ex.analytic_gap,
+        body_force=ex.analytic_body_force, gap=ex.analytic_gap, quadrature_degree=degree,
     )
     sol = ds.solve(problem, method=method)
     comm.barrier()
@@ -409,6 +419,7 @@ def time_columns(peers: list[str]) -> list[tuple[str, str, str]]:
         ("ours [s]", "ours_time", "{:.2f}"),
         ("(solve)", "ours_solve_time", "{:.2f}"),
         ("Newton", "ours_newton", "{:d}"),
+        ("ours, default degree [s]", "ours_default_time", "{:.2f}"),
     ]
     names = {"getfem": "GetFEM", "snes": "SNES VI"}
     for p in peers:
@@ -466,6 +477,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
     parser.add_argument("--repeat", type=int, default=1,
                         help="time each code this many times per size, report the fastest")
+    parser.add_argument("--quadrature-degree", type=int, default=OURS_DEGREE,
+                        help="our data's quadrature degree (the problem's quadrature_degree; "
+                             f"default {OURS_DEGREE}, GetFEM's load rule); the package's default "
+                             "is timed beside it")
     parser.add_argument("--method", default=None, choices=("block", "schur"),
                         help="our linear solver (default: the package's choice)")
     parser.add_argument("--check", action="store_true",
@@ -514,6 +529,7 @@ def main(argv: list[str] | None = None) -> int:
     from mpi4py import MPI
 
     from dwr_signorini import examples as ex
+    from dwr_signorini.quadrature import DATA_QUADRATURE_DEGREE
 
     comm = MPI.COMM_WORLD
     rank0 = comm.rank == 0
@@ -531,7 +547,9 @@ def main(argv: list[str] | None = None) -> int:
               f"from T_H) against the peers' solve alone; J_a1 = {J_exact:.12e}", flush=True)
         if "getfem" in peers:
             print(f"GetFEM {version}: {getfem_config(args)}", flush=True)
-    run_ours(comm, 12, 8, args.method)  # warm-up: JIT compilation (cached on disk) not timed
+    # Warm-up: JIT compilation (cached on disk) not timed.
+    for degree in (args.quadrature_degree, DATA_QUADRATURE_DEGREE):
+        run_ours(comm, 12, 8, args.method, degree)
     if "snes" in peers:
         run_snesvi(comm, 12, 8, argparse.Namespace(**{**vars(args), "repeat": 1}))
 
@@ -539,12 +557,17 @@ def main(argv: list[str] | None = None) -> int:
     tag = "" if comm.size == 1 else f"_np{comm.size}"
     for num_fine in sizes:
         nx, ny = macro_size(num_fine)
-        times = []
+        times, default_times = [], []
         for _ in range(args.repeat):
-            info, fine = run_ours(comm, nx, ny, args.method)
+            info, fine = run_ours(comm, nx, ny, args.method, args.quadrature_degree)
             times.append((info["ours_time"], info["ours_solve_time"]))
+            default_times.append(run_ours(comm, nx, ny, args.method, DATA_QUADRATURE_DEGREE)[0])
         info["ours_time"], info["ours_solve_time"] = min(times)
         info["ours_times"] = [t for t, _ in times]
+        info["ours_degree"] = args.quadrature_degree
+        info["ours_default_time"] = min(d["ours_time"] for d in default_times)
+        info["ours_default_J_h"] = default_times[-1]["ours_J_h"]
+        info["ours_default_eta"] = default_times[-1]["ours_eta"]
         row = {**info, "macro": f"{nx}x{ny}"}
         if "getfem" in peers:
             row.update(run_getfem(fine, args))

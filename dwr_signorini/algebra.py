@@ -123,22 +123,25 @@ class ContactAlgebra:
         def form(expr: ufl.Form) -> fem.Form:
             return disc.form(expr, **options)
 
-        # Non-polynomial loads and gaps at DATA_QUADRATURE_DEGREE, as in the residuals (and the
-        # stiffness, if E or nu is a function of x).
+        # Non-polynomial loads and gaps at the problem's quadrature degree, as in the residuals
+        # (and the stiffness, if E or nu is a function of x).
+        degree = problem.quadrature_degree
         a = problem.elastic_form(u, v, m.dx)
         if callable(problem.E) or callable(problem.nu):
-            a = with_quadrature_degrees(a)
+            a = with_quadrature_degrees(a, degree)
         couplings = [
             ufl.inner(mu, ufl.dot(u, comp.direction(m.n))) * m.ds_contact
             for comp in self.components
         ]
         forms = {
             "a": form(a),
-            "L": form(with_quadrature_degrees(disc.load_form(v))),
+            "L": form(with_quadrature_degrees(disc.load_form(v), degree)),
             "N": [form(c) for c in couplings],
             "NT": [form(ufl.adjoint(c)) for c in couplings],
             "M": form(mu * m.ds_contact),
-            "g": form(with_quadrature_degrees(problem.gap_expr(m.x, m.n) * mu * m.ds_contact)),
+            "g": form(
+                with_quadrature_degrees(problem.gap_expr(m.x, m.n) * mu * m.ds_contact, degree)
+            ),
         }
         if disc.u_old is not None:  # the slip increment of a load step: g_k = B_k u_old
             forms["u_old"] = [
@@ -147,7 +150,7 @@ class ContactAlgebra:
             ]
         bound = problem.law.bound_expr(problem, m.x)
         if bound is not None:
-            forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact))
+            forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact, degree))
         if V is disc.V:
             self.bcs, self.prescribed_bcs = disc.bcs, disc.prescribed_bcs
         else:
@@ -278,7 +281,9 @@ class ContactAlgebra:
         if isinstance(problem.E, float):
             return problem.E
         E, _ = problem.material(m.x)
-        vec = self._vector(form(with_quadrature_degrees(E * mu * m.ds_contact)))
+        vec = self._vector(
+            form(with_quadrature_degrees(E * mu * m.ds_contact, problem.quadrature_degree))
+        )
         out = vec.array / M
         vec.destroy()
         return out

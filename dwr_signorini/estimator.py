@@ -32,7 +32,7 @@ from .hierarchical import hierarchical_solutions
 from .interval import contact_set_resolved, error_interval
 from .lifetime import Releasable
 from .newton import Solution
-from .quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
+from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .residuals import (
     active_set_remainder,
@@ -324,7 +324,7 @@ def estimate(
     estimator: str = "eta",
     weights: str = "auto",
     petsc_options: dict[str, Any] | None = None,
-    quadrature_degree: int | None = DATA_QUADRATURE_DEGREE,
+    quadrature_degree: int | str | None = "problem",
 ) -> Estimate:
     """Estimate J(w) - J(w_h) by eta_p or eta (Section 4), and an interval for J(w).
 
@@ -348,10 +348,11 @@ def estimate(
             options prefix ``<prefix of the solve>p2_``.
         quadrature_degree: Quadrature degree of the non-polynomial residual integrals (data);
             polynomial ones are integrated exactly (:mod:`dwr_signorini.quadrature`). The
-            default is the degree the solver integrates the load and gap with, so that the
-            residual vanishes on discrete test functions (Galerkin orthogonality). ``None``
-            lets UFL estimate every degree, which is very expensive for non-polynomial data.
-            On example 5.1 degrees 4, 6, 8 and UFL's estimate give the same Ieff to 6 digits.
+            default, ``"problem"``, is the degree the solver integrated the load and gap with
+            (the problem's ``quadrature_degree``, 8 unless set), so that the residual vanishes
+            on discrete test functions (Galerkin orthogonality). ``None`` lets UFL estimate
+            every degree, which is very expensive for non-polynomial data. On example 5.1
+            degrees 4, 6, 8 and UFL's estimate give the same Ieff to 6 digits.
 
     Returns:
         The :class:`Estimate` (collective; release it with ``destroy()`` or ``with``);
@@ -383,13 +384,16 @@ def estimate(
             "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
             f"{type(petsc_options).__name__}"
         )
+    if isinstance(quadrature_degree, str) and quadrature_degree == "problem":
+        quadrature_degree = sol.disc.problem.quadrature_degree
     if quadrature_degree is not None and (
         isinstance(quadrature_degree, bool)
         or not isinstance(quadrature_degree, int)
         or not 0 <= quadrature_degree <= 30
     ):
         raise ValueError(
-            f"quadrature_degree must be an integer in [0, 30] or None, got {quadrature_degree!r}"
+            "quadrature_degree must be an integer in [0, 30] or None, or 'problem' (the "
+            f"default), got {quadrature_degree!r}"
         )
     disc = sol.disc
     goal_forms = GoalForms(goal, sol.u, sol.lam, disc, sol.tangential or None)

@@ -33,6 +33,7 @@ from .problem_data import (
     _nonzero_literal,
     _tags,
 )
+from .quadrature import DATA_QUADRATURE_DEGREE
 
 __all__ = ["MODELS", "SignoriniProblem", "lame_parameters", "stress"]
 
@@ -124,6 +125,14 @@ class SignoriniProblem(ProblemDataChecks):
             (:func:`dwr_signorini.refine.refine_marked`).
         friction: The contact law (:mod:`dwr_signorini.laws`): ``None`` or
             ``ds.Frictionless()`` (the default, Signorini's problem) or ``ds.Tresca(s)``.
+        quadrature_degree: Degree of the quadrature rule for non-polynomial data (body force,
+            tractions, gap, the friction bound, ``E`` and ``nu`` given as functions of x) in
+            the Newton system, and by default in the residuals of the estimators
+            (:func:`~dwr_signorini.estimate`), so that they vanish on discrete test functions.
+            Polynomial integrands are integrated exactly whatever it is
+            (:mod:`dwr_signorini.quadrature`). The default, 8 (16 points per triangle),
+            integrates smooth data far below the discretisation error of P1; lower degrees
+            cost fewer evaluations of the data.
 
     Raises:
         ValueError: For any inconsistent or non-physical input, naming the argument.
@@ -145,6 +154,7 @@ class SignoriniProblem(ProblemDataChecks):
         cell_tags: dmesh.MeshTags | None = None,
         boundary_projection: Mapping[int, Callable[[np.ndarray], np.ndarray]] | None = None,
         friction: ContactLaw | None = None,
+        quadrature_degree: int = DATA_QUADRATURE_DEGREE,
     ) -> None:
         if not isinstance(mesh, dmesh.Mesh):
             raise TypeError(f"mesh must be a dolfinx.mesh.Mesh, got {type(mesh).__name__}")
@@ -192,6 +202,15 @@ class SignoriniProblem(ProblemDataChecks):
                 f"model={model!r} does not fit a {tdim}D mesh: use "
                 + ("'plane_strain' or 'plane_stress'" if tdim == 2 else "'3d'")
             )
+        if isinstance(quadrature_degree, bool) or not isinstance(quadrature_degree, int):
+            raise TypeError(
+                f"quadrature_degree must be an integer, got {type(quadrature_degree).__name__}"
+            )
+        if not 0 <= quadrature_degree <= 30:
+            raise ValueError(
+                f"quadrature_degree must be in [0, 30], got {quadrature_degree}"
+            )
+        self.quadrature_degree = int(quadrature_degree)
         self.mesh = mesh
         self.facet_tags = facet_tags
         self.model = model
@@ -501,4 +520,5 @@ class SignoriniProblem(ProblemDataChecks):
             cell_tags=cell_tags,
             boundary_projection=self.boundary_projection or None,
             friction=self.law,
+            quadrature_degree=self.quadrature_degree,
         )

@@ -28,7 +28,7 @@ from dolfinx import mesh as dmesh
 from . import compat
 from .problem import SignoriniProblem
 from .problem_data import _nonzero_literal
-from .quadrature import DATA_QUADRATURE_DEGREE, expand_integer_powers, is_polynomial
+from .quadrature import expand_integer_powers, is_polynomial
 from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
     cell_tags_on_fine,
     fine_to_macro_facets,
@@ -271,9 +271,9 @@ class Discretization:
     def load_form(self, v: Any) -> ufl.Form:
         """<l, v> on T_h (Section 2), for test functions or weights ``v`` of any degree.
 
-        A non-polynomial body force is integrated with the
-        degree-:data:`~dwr_signorini.quadrature.DATA_QUADRATURE_DEGREE` rule wherever it
-        appears (the Newton system, the residuals of the estimators), its integer powers
+        A non-polynomial body force is integrated with the rule of the problem's
+        ``quadrature_degree`` wherever it appears (the Newton system, the residuals of the
+        estimators), its integer powers
         written as products (:func:`~dwr_signorini.quadrature.expand_integer_powers`) once per
         mesh. Without ``pow`` calls, evaluating it inside each kernel costs less than storing
         its values at the quadrature points once (a quadrature space of 16 values per triangle
@@ -294,7 +294,7 @@ class Discretization:
         expr = self.problem.vector(self.problem.body_force, self.m.x)
         if is_polynomial(expr):
             return expr, self.m.dx
-        degree = {"quadrature_degree": DATA_QUADRATURE_DEGREE}
+        degree = {"quadrature_degree": self.problem.quadrature_degree}
         return expand_integer_powers(expr), self.m.dx(metadata=degree)
 
     def dirichlet_bcs(

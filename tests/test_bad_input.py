@@ -154,6 +154,10 @@ CASES = [
     ("model-unknown", lambda d: P(d, model="plane"), ValueError, r"model must be one of"),
     ("model-3d-on-2d", lambda d: P(d, model="3d"), ValueError,
      r"model='3d' does not fit a 2D mesh"),
+    ("quadrature_degree-negative", lambda d: P(d, quadrature_degree=-1), ValueError,
+     r"quadrature_degree must be in \[0, 30\], got -1"),
+    ("quadrature_degree-float", lambda d: P(d, quadrature_degree=4.0), TypeError,
+     r"quadrature_degree must be an integer, got float"),
     # -- loads -------------------------------------------------------------------------------
     ("body_force-dimension", lambda d: P(d, body_force=(0.0, 0.0, -1.0)), ValueError,
      r"body_force must have 2 components"),

@@ -7,7 +7,9 @@ import pytest
 import ufl
 from dolfinx import fem, mesh
 
+import dwr_signorini as ds
 from dwr_signorini import compat
+from dwr_signorini import examples as ex
 from dwr_signorini.quadrature import (
     DATA_QUADRATURE_DEGREE,
     expand_integer_powers,
@@ -107,3 +109,53 @@ def test_integer_powers_become_products_with_the_same_values(setting):
     integrals = [comm.allreduce(fem.assemble_scalar(fem.form(f)), op=MPI.SUM)
                  for f in (form, form_expanded)]
     assert np.isclose(integrals[0], integrals[1], rtol=1e-12, atol=0)
+
+
+def _analytic_problem(comm, quadrature_degree):
+    msh, tags = ex.analytic_2d_mesh(comm, 12, 8, mesh.CellType.triangle)
+    mat = ex.ANALYTIC_MATERIAL
+    return ds.SignoriniProblem(
+        msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,), E=mat.E, nu=mat.nu,
+        model=mat.model, body_force=ex.analytic_body_force, gap=ex.analytic_gap,
+        quadrature_degree=quadrature_degree,
+    )
+
+
+def _goal(u, lam, m):
+    return u[0] * m.ds_contact
+
+
+@pytest.mark.mpi
+def test_the_problem_degree_reaches_the_solver_and_the_estimate():
+    """Galerkin orthogonality at the problem's degree (example 5.1, whose body force is not a
+    polynomial): the discrete equation tested with u_h itself (0 on Gamma_D),
+    l(u_h) - a(u_h, u_h) - (lambda_h, u_h . n)_GC, vanishes to round-off with the problem's
+    degree 3 and not with the default 8, which the solver did not use. ``estimate`` takes the
+    problem's degree unless told otherwise, and a refined problem keeps it."""
+    comm = MPI.COMM_WORLD
+    problem = _analytic_problem(comm, 3)
+    assert problem.quadrature_degree == 3
+    assert problem.with_mesh(problem.mesh, problem.facet_tags).quadrature_degree == 3
+    with ds.solve(problem, method="block") as sol:
+        m = sol.disc.m
+        f = ex.analytic_body_force(m.x)  # no tractions on Gamma_N in example 5.1
+
+        def assemble(degree, load_only=False):
+            form = ufl.inner(f, sol.u) * m.dx(metadata={"quadrature_degree": degree})
+            if not load_only:
+                form -= (problem.elastic_form(sol.u, sol.u, m.dx)
+                         + sol.lam * ufl.dot(sol.u, m.n) * m.ds_contact)
+            local = fem.assemble_scalar(sol.disc.form(form))
+            return comm.allreduce(local, op=MPI.SUM)
+
+        scale = abs(assemble(3, load_only=True))
+        assert scale > 0
+        assert abs(assemble(3)) < 1e-11 * scale
+        assert abs(assemble(DATA_QUADRATURE_DEGREE)) > 1e-7 * scale
+        eta = {q: ds.estimate(sol, _goal, quadrature_degree=q) for q in ("problem", 3, 8)}
+        try:
+            assert eta["problem"].eta == eta[3].eta
+            assert abs(eta[8].eta - eta[3].eta) > 1e-9 * abs(eta[3].eta)
+        finally:
+            for est in eta.values():
+                est.destroy()
