@@ -6,7 +6,9 @@ builds from the macro mesh T_H it is given (``analytic_2d_mesh(nx, ny, triangle)
 * ours: ``SignoriniProblem`` on T_H, ``ds.solve`` and ``ds.estimate(sol, goal_a(-0.5))``, that is
   everything from the macro mesh on (refinement to T_h, spaces, assembly, semi-smooth Newton, dual
   problem, reconstructions, indicators; eta with patch weights): u_h in vector P1 on T_h,
-  lambda_H in P0 on the macro contact facets (H = 2h);
+  lambda_H in P0 on the macro contact facets (H = 2h); the body force integrated with the degree
+  of GetFEM's load rule (3, ``--quadrature-degree``), and again with the package's default (8),
+  timed beside it;
 * GetFEM (``benchmarks/peer_getfem.py``, a child process, serial): u in vector P1 on T_h and a
   continuous P1 multiplier on the macro contact vertices, the integral contact brick
   (non-symmetric Alart-Curnier), ``Model.solve`` (Newton, sequential MUMPS), in its fastest
