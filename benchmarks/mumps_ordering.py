@@ -2,10 +2,11 @@
 
 For the stiffness matrix K of example 5.1 (2D, triangles) and example 5.3 (3D, tetrahedra), one
 MUMPS LDL^T factorisation + solve with its default ordering (ICNTL(7)=7, automatic: METIS here),
-METIS (5) and AMD (0), and its LU with the ordering that
+METIS (5), AMD (0) and AMF (2), and its LU with the ordering that
 :func:`dwr_signorini.newton.default_petsc_options` chooses; then, for the symmetric form of the
 block Newton matrix of the last Newton step (method "block", see
-:meth:`dwr_signorini.newton.NewtonSystem.newton_matrix`), LDL^T against LU with that ordering.
+:meth:`dwr_signorini.newton.NewtonSystem.newton_matrix`), LDL^T against LU with that ordering,
+and LDL^T with each ordering.
 The best of ``--repeat`` runs, the ratio to the first row of the matrix, and MUMPS's factor
 entries. It justifies the defaults of ``default_petsc_options``::
 
@@ -30,7 +31,7 @@ from dwr_signorini.linalg.options import OptionsScope, default_petsc_options
 from dwr_signorini.spaces import discretize
 
 ORDERINGS = {"default (7)": {}, "METIS (5)": {"mat_mumps_icntl_7": 5},
-             "AMD (0)": {"mat_mumps_icntl_7": 0}}
+             "AMD (0)": {"mat_mumps_icntl_7": 0}, "AMF (2)": {"mat_mumps_icntl_7": 2}}
 FACTORISATIONS = {"LDL^T": {"pc_type": "cholesky"}, "LU": {"pc_type": "lu"}}
 
 
@@ -89,7 +90,7 @@ def main() -> None:
         print(f"{'mesh':>10} {'matrix':>7} {'DoFs':>9} {'option':>26} {'seconds':>9} "
               f"{'/ first':>9} {'factor entries':>14}")
     for name, problem in problems.items():
-        sol = ds.solve(discretize(problem))
+        sol = ds.solve(discretize(problem), method="block")  # K and the block matrix A
         tdim = problem.mesh.topology.dim
         chosen = default_petsc_options(tdim)
         rows = [("K", sol.system.K, f"LDL^T, ordering {key}", default_petsc_options() | value)
@@ -97,6 +98,8 @@ def main() -> None:
         rows.append(("K", sol.system.K, "LU, chosen ordering", chosen | FACTORISATIONS["LU"]))
         rows += [("Newton", sol.system.A, f"{key}, chosen ordering", chosen | value)
                  for key, value in FACTORISATIONS.items()]
+        rows += [("Newton", sol.system.A, f"LDL^T, ordering {key}", default_petsc_options() | value)
+                 for key, value in ORDERINGS.items()]
         first = {}
         for matrix_name, matrix, label, options in rows:
             rhs = matrix.createVecLeft()

@@ -40,6 +40,7 @@ from .collective import collective
 from .goal import GoalForms
 from .laws import multiplier_names
 from .linalg import NewtonLinearSystem
+from .quadrature import with_quadrature_degrees
 from .timing import timed
 
 __all__ = ["DualSolution", "dual_rhs", "solve_dual"]
@@ -63,8 +64,13 @@ class DualSolution:
 def dual_rhs(
     system: NewtonLinearSystem | ContactAlgebra, goal: GoalForms, out: PETSc.Vec
 ) -> PETSc.Vec:
-    """Assemble [J'_u(w_h); J'_lambda(w_h)] into the block vector ``out`` (zero on Gamma_D)."""
+    """Assemble [J'_u(w_h); J'_lambda(w_h)] into the block vector ``out`` (zero on Gamma_D).
+
+    Non-polynomial integrands of J' are integrated with the problem's ``quadrature_degree``, as
+    in the dual residual of the estimator, so that it vanishes on discrete test functions.
+    """
     disc = system.disc
+    degree = disc.problem.quadrature_degree
     arr = out.array_w
     arr[:] = 0.0
     V = system.V
@@ -72,7 +78,7 @@ def dual_rhs(
         form = goal.dJ_u
         if V is not goal.u.function_space:
             form = ufl.replace(form, {form.arguments()[0]: ufl.TestFunction(V)})
-        b = fem_petsc.assemble_vector(disc.form(form))
+        b = fem_petsc.assemble_vector(disc.form(with_quadrature_degrees(form, degree)))
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(b, system.bcs)
         arr[: system.n_u] = b.array
@@ -81,7 +87,7 @@ def dual_rhs(
     rows = algebra.components_of(arr[system.n_u :])
     for k, dJ in enumerate(goal.dJ_multipliers):
         if dJ is not None:
-            b = fem_petsc.assemble_vector(disc.form(dJ))
+            b = fem_petsc.assemble_vector(disc.form(with_quadrature_degrees(dJ, degree)))
             b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             rows[k][:] = b.array
             b.destroy()

@@ -324,14 +324,14 @@ def test_dual_needs_a_solved_system():
 @pytest.mark.mpi
 @pytest.mark.parametrize("method", [m for m in METHODS if m != "krylov"])  # the factored ones
 def test_solver_options_reach_mumps_and_are_removed(method):
-    """Options read only at the factorisation (mat_mumps_*) reach MUMPS: AMD ordering on 2D
+    """Options read only at the factorisation (mat_mumps_*) reach MUMPS: AMF ordering on 2D
     meshes by default, the user's choice over it; they stay in PETSc's database while the
     solution lives and none is left after its destroy()."""
     from petsc4py import PETSc
 
     problem = strip_problem(MPI.COMM_WORLD, 8, 2)
     for options, ordering, workspace in (
-        (None, 0, None),
+        (None, 2, None),
         ({"mat_mumps_icntl_7": 5, "mat_mumps_icntl_14": 70}, 5, 70),
     ):
         sol = ds.solve(problem, petsc_options=options, method=method)
