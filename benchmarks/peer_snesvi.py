@@ -8,7 +8,9 @@ classical obstacle-type discretisation; no multiplier, no estimate). The problem
 bounds, so the residual is ``F(u) = K u - f`` with K and f assembled once (set-up), and the
 Jacobian is K; PETSc's reduced-space active-set Newton method (``vinewtonrsls``) solves it,
 each step factoring the reduced matrix on the inactive set by MUMPS (``cholesky``, LDL^T of the
-symmetric K; ``--snes-pc lu`` for LU).
+symmetric K; ``--snes-pc lu`` for LU), ordered by approximate minimum fill (ICNTL(7)=2, the
+fastest ordering on these 2D matrices, ``benchmarks/mumps_ordering.py``; ``--snes-ordering 7``
+for MUMPS's default).
 
 Run through ``benchmarks/peers.py`` (``--peers snesvi``), serial or under ``mpirun -n 2``.
 """
@@ -41,6 +43,7 @@ class SnesOptions:
         atol: ``snes_atol``.
         linesearch: ``snes_linesearch_type`` (``"basic"``: full steps; ``"bt"``: PETSc's
             default backtracking, which evaluates the residual more often).
+        ordering: MUMPS's ICNTL(7) (2: AMF; 0: AMD; 5: METIS; 7: MUMPS's choice).
     """
 
     pc: str = "cholesky"
@@ -48,6 +51,7 @@ class SnesOptions:
     rtol: float = 1e-10
     atol: float = 1e-12
     linesearch: str = "basic"
+    ordering: int = 2
 
 
 def _plane_strain_stress(u: Any, E: float, nu: float) -> Any:
@@ -132,6 +136,8 @@ def solve_snesvi(fine: mesh.Mesh, opts: SnesOptions) -> dict[str, Any]:
     snes.setOptionsPrefix("peer_snesvi_")
     options = PETSc.Options()
     options["peer_snesvi_snes_linesearch_type"] = opts.linesearch
+    # Read when MUMPS factors (in SNES.solve): kept in the database until the solve is done.
+    options["peer_snesvi_mat_mumps_icntl_7"] = opts.ordering
     ksp = snes.getKSP()
     ksp.setType("preonly")
     pc = ksp.getPC()
@@ -146,6 +152,7 @@ def solve_snesvi(fine: mesh.Mesh, opts: SnesOptions) -> dict[str, Any]:
     snes.solve(None, sol.x.petsc_vec)
     comm.barrier()
     t_solve = time.perf_counter() - tic
+    del options["peer_snesvi_mat_mumps_icntl_7"]
     sol.x.scatter_forward()
 
     # Displacement at the geometry nodes (P1 on a P1 mesh: the dofs sit at the vertices).

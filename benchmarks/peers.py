@@ -288,7 +288,7 @@ def run_snesvi(comm: Any, nx: int, ny: int, args: argparse.Namespace) -> dict[st
     t_refine = time.perf_counter() - tic
     opts = SnesOptions(
         pc=args.snes_pc, dirichlet=args.snes_dirichlet, linesearch=args.snes_linesearch,
-        rtol=args.snes_rtol,
+        rtol=args.snes_rtol, ordering=args.snes_ordering,
     )
     times, out = [], None
     for _ in range(args.repeat):
@@ -301,6 +301,7 @@ def run_snesvi(comm: Any, nx: int, ny: int, args: argparse.Namespace) -> dict[st
         "snes_times": times,
         "snes_setup_time": t_refine + out["t_setup"],
         "snes_newton": out["newton"],
+        "snes_ordering": opts.ordering,
         "snes_reason": out["reason"],
         "snes_dofs": out["dofs"],
         "snes_u_L2": errors["u_L2"],
@@ -511,6 +512,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     s.add_argument("--snes-dirichlet", default="bc", choices=("bc", "bounds"))
     s.add_argument("--snes-linesearch", default="basic", choices=("basic", "bt", "l2", "cp"))
     s.add_argument("--snes-rtol", type=float, default=1e-10)
+    s.add_argument("--snes-ordering", type=int, default=2, choices=(0, 2, 4, 5, 6, 7),
+                   help="MUMPS's ICNTL(7) (2: AMF, the default; 7: MUMPS's choice)")
     return parser.parse_args(argv)
 
 
