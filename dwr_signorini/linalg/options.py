@@ -68,7 +68,7 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
     Args:
         tdim: Topological dimension of the mesh, if known. On 2D meshes MUMPS orders with
             approximate minimum fill (AMF, ``mat_mumps_icntl_7=2``): on example 5.1's K and
-            Newton matrix (50k-790k DoFs) it factored in 0.38-0.56 of the time of MUMPS's
+            Newton matrix (50k-790k DoFs) it factored in 0.38-0.60 of the time of MUMPS's
             default, METIS nested dissection, and 0.66-0.89 of that of AMD on 1 rank (about the
             same as AMD on 2), with 15-30 % fewer factor entries than AMD. METIS stays for 3D,
             where it is several times faster than AMD (see ``benchmarks/mumps_ordering.py``).
