@@ -65,6 +65,8 @@ def factor_times(
             )
         factor = mumps_factor(ksp)
         runs.append((elapsed, 0 if factor is None else factor.getMumpsInfog(20)))
+        # A reference to the factor held past ksp.destroy() keeps MUMPS's memory alive.
+        del factor
         ksp.destroy()
         scope.destroy()
     x.destroy()

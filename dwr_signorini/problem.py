@@ -282,6 +282,14 @@ class SignoriniProblem(ProblemDataChecks):
         if contact_indicators is not None:
             data["contact_indicators"] = dict(contact_indicators)
 
+    def unregister_mesh(self, msh: dmesh.Mesh) -> None:
+        """Forget the data registered for ``msh`` (not T_H's): its discretisation is gone.
+
+        A problem solved many times would otherwise hold every fine mesh it was discretised on.
+        """
+        if msh is not self.mesh:
+            self._mesh_data.pop(id(msh._cpp_object), None)
+
     def registered_cell_tags(self, msh: dmesh.Mesh) -> dmesh.MeshTags | None:
         """The cell tags of ``msh`` if registered (``self.cell_tags`` on T_H), else ``None``."""
         return self._data(msh).get("cell_tags", self.cell_tags if msh is self.mesh else None)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -267,6 +268,8 @@ class Discretization:
                 indicators[t] = chi
         problem.register_mesh(self.mesh, cell_tags=fine_tags, contact_indicators=indicators)
         problem.register_mesh(self.macro_mesh, problem.cell_tags, contact_indicators=indicators)
+        # The problem keeps T_h's data only while this discretisation lives.
+        weakref.finalize(self, problem.unregister_mesh, self.mesh)
 
     def load_form(self, v: Any) -> ufl.Form:
         """<l, v> on T_h (Section 2), for test functions or weights ``v`` of any degree.

@@ -6,6 +6,7 @@
 * Singular Newton matrices that appear only at a later step are found on all three paths.
 * ``-<prefix>...`` options on the command line and ``jit_options`` take effect.
 * Nothing a rank-0-only branch reads is collective.
+* A problem solved again does not keep the fine meshes of its earlier solves.
 * Every timed interval is charged to exactly one phase.
 """
 
@@ -126,6 +127,25 @@ def test_solution_and_result_release_their_objects():
         prefix = res.solution.system.prefix
         assert _options_with(prefix)
     assert not _options_with(prefix)
+
+
+@pytest.mark.mpi
+def test_a_problem_solved_again_does_not_keep_the_fine_meshes():
+    """Each solve refines T_H anew and registers T_h's data with the problem; the problem lets
+    go of a fine mesh when its discretisation is gone, so solving one problem many times holds
+    one fine mesh at most, not one per solve."""
+    import gc
+    import weakref
+
+    problem = strip_problem(MPI.COMM_WORLD, 8, 2)
+    fine_meshes = []
+    for _ in range(3):
+        with ds.solve(problem) as sol:
+            fine_meshes.append(weakref.ref(sol.disc.mesh))
+        del sol
+        gc.collect()
+    assert all(ref() is None for ref in fine_meshes)
+    assert problem.registered_cell_tags(problem.mesh) is problem.cell_tags
 
 
 @pytest.mark.mpi
