@@ -215,6 +215,8 @@ class SignoriniProblem(ProblemDataChecks):
         self.facet_tags = facet_tags
         self.model = model
         self._mesh_data: dict[int, _MeshData] = {}
+        #: Registrations of each fine mesh not yet unregistered (see unregister_mesh).
+        self._mesh_users: dict[int, int] = {}
         self.cell_tags = self._check_cell_tags(cell_tags, E, nu)
         self.E = self._check_material(E, "E")
         self.nu = self._check_material(nu, "nu")
@@ -276,19 +278,29 @@ class SignoriniProblem(ProblemDataChecks):
         from T_H through the parent cells) and, for a gap per contact tag, the indicator of each
         contact tag (functions of Lambda_H, 1 on that tag's macro facets).
         """
-        data = self._mesh_data.setdefault(id(msh._cpp_object), {"mesh": msh})
+        key = id(msh._cpp_object)
+        data = self._mesh_data.setdefault(key, {"mesh": msh})
         if cell_tags is not None:
             data["cell_tags"] = cell_tags
         if contact_indicators is not None:
             data["contact_indicators"] = dict(contact_indicators)
+        if msh is not self.mesh:
+            self._mesh_users[key] = self._mesh_users.get(key, 0) + 1
 
     def unregister_mesh(self, msh: dmesh.Mesh) -> None:
-        """Forget the data registered for ``msh`` (not T_H's): its discretisation is gone.
+        """One registration of ``msh`` (not T_H) fewer; its data go with the last one.
 
-        A problem solved many times would otherwise hold every fine mesh it was discretised on.
+        Each discretisation registers its T_h once and unregisters it when it is gone (two may
+        share T_h: :meth:`~dwr_signorini.spaces.Discretization.for_problem`). A problem solved
+        many times would otherwise hold every fine mesh it was discretised on.
         """
-        if msh is not self.mesh:
-            self._mesh_data.pop(id(msh._cpp_object), None)
+        key = id(msh._cpp_object)
+        if msh is self.mesh or key not in self._mesh_users:
+            return
+        self._mesh_users[key] -= 1
+        if self._mesh_users[key] == 0:
+            del self._mesh_users[key]
+            self._mesh_data.pop(key, None)
 
     def registered_cell_tags(self, msh: dmesh.Mesh) -> dmesh.MeshTags | None:
         """The cell tags of ``msh`` if registered (``self.cell_tags`` on T_H), else ``None``."""

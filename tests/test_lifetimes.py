@@ -137,15 +137,30 @@ def test_a_problem_solved_again_does_not_keep_the_fine_meshes():
     import gc
     import weakref
 
-    problem = strip_problem(MPI.COMM_WORLD, 8, 2)
+    strip = strip_problem(MPI.COMM_WORLD, 8, 2)
+    num_cells = strip.mesh.topology.index_map(2).size_local
+    cells = mesh.meshtags(strip.mesh, 2, np.arange(num_cells, dtype=np.int32),
+                          np.full(num_cells, 7, dtype=np.int32))
+    problem = strip.with_mesh(strip.mesh, strip.facet_tags, cell_tags=cells)
     fine_meshes = []
     for _ in range(3):
         with ds.solve(problem) as sol:
             fine_meshes.append(weakref.ref(sol.disc.mesh))
+            assert problem.registered_cell_tags(sol.disc.mesh) is not None
         del sol
         gc.collect()
     assert all(ref() is None for ref in fine_meshes)
-    assert problem.registered_cell_tags(problem.mesh) is problem.cell_tags
+    assert problem.registered_cell_tags(problem.mesh) is cells
+    # Two discretisations share T_h (for_problem): its data stay while one of them lives.
+    disc = ds.discretize(problem)
+    same = disc.for_problem(problem)
+    del disc
+    gc.collect()
+    assert problem.registered_cell_tags(same.mesh) is not None
+    fine = weakref.ref(same.mesh)
+    del same
+    gc.collect()
+    assert fine() is None
 
 
 @pytest.mark.mpi
