@@ -21,6 +21,7 @@ from ufl.algorithms import expand_derivatives
 
 from .collective import call_collectively
 from .laws import tangent_basis
+from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
 from .timing import timed
 
@@ -162,9 +163,14 @@ class GoalForms:
         self.is_linear = all(_is_empty(f) for f in second)
 
     def value(self) -> float:
-        """J(w_h), reduced over all ranks."""
+        """J(w_h), reduced over all ranks.
+
+        Non-polynomial integrands take the problem's ``quadrature_degree``, the rule of J' in
+        the dual problem (:func:`~dwr_signorini.dual.dual_rhs`); polynomial ones are exact.
+        """
+        degree = self.disc.problem.quadrature_degree
         with timed("goal"):
-            local = fem.assemble_scalar(self.disc.form(self.J))
+            local = fem.assemble_scalar(self.disc.form(with_quadrature_degrees(self.J, degree)))
         return self.disc.comm.allreduce(local, op=MPI.SUM)
 
     def directional(self, du: Any, *dlams: Any) -> ufl.Form:

@@ -159,3 +159,38 @@ def test_the_problem_degree_reaches_the_solver_and_the_estimate():
         finally:
             for est in eta.values():
                 est.destroy()
+
+
+def _weighted_goal(u, lam, m):
+    """Linear in u, with a weight that is not a polynomial (J_{a,m}'s cut-off function)."""
+    return ex.omega(m.x, -0.5) * u[0] * m.dx
+
+
+@pytest.mark.mpi
+def test_the_goal_value_and_its_derivative_share_the_problem_degree():
+    """For a goal linear in u, J(u_h) = J'(u_h)(u_h): the value ``estimate`` reports and the
+    right-hand side of the dual problem (the vector of J'_u) satisfy this identity to round-off
+    only if both integrate the non-polynomial weight with the same rule, the problem's degree 3,
+    under which the value differs from that of the default degree 8."""
+    from dwr_signorini.dual import dual_rhs
+    from dwr_signorini.goal import GoalForms
+
+    comm = MPI.COMM_WORLD
+    problem = _analytic_problem(comm, 3)
+    with ds.solve(problem, method="block") as sol:
+        system = sol.system
+        goal = GoalForms(_weighted_goal, sol.u, sol.lam, sol.disc)
+        rhs = system.x.duplicate()
+        try:
+            j_u = dual_rhs(system, goal, rhs).array_r[: system.n_u]
+            derivative = comm.allreduce(float(j_u @ sol.u.x.array[: system.n_u]), op=MPI.SUM)
+        finally:
+            rhs.destroy()
+        form = _weighted_goal(sol.u, sol.lam, sol.disc.m)
+        eight = ufl.Form([i.reconstruct(metadata={"quadrature_degree": DATA_QUADRATURE_DEGREE})
+                          for i in form.integrals()])
+        J8 = comm.allreduce(fem.assemble_scalar(sol.disc.form(eight)), op=MPI.SUM)
+        with ds.estimate(sol, _weighted_goal) as est:
+            assert abs(derivative) > 0
+            assert est.J_h == pytest.approx(derivative, rel=1e-12, abs=0)
+            assert abs(est.J_h - J8) > 1e-9 * abs(J8)
