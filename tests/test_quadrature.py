@@ -182,6 +182,7 @@ def test_the_goal_value_and_its_derivative_share_the_problem_degree():
         goal = GoalForms(_weighted_goal, sol.u, sol.lam, sol.disc)
         rhs = system.x.duplicate()
         try:
+            # zero on the Dirichlet rows, where u_h = 0 (example 5.1 clamps Gamma_D)
             j_u = dual_rhs(system, goal, rhs).array_r[: system.n_u]
             derivative = comm.allreduce(float(j_u @ sol.u.x.array[: system.n_u]), op=MPI.SUM)
         finally:
