@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import ufl
 
-from .laws import Component, ContactLaw, Normal, _cleaned
+from .laws import ROUNDOFF, Component, ContactLaw, Normal, _cleaned
 
 __all__ = [
     "Coulomb",
@@ -211,13 +211,58 @@ class CoulombCone:
             [[Mlam[0] - np.maximum(0.0, x[0])], Mlam[1:] - self._project(x[1:], s)]
         )
 
+    @staticmethod
+    def transitions(
+        Mlam: np.ndarray, xt: np.ndarray, force_size: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The facets entering contact and the facets reversing their slip (two set rules).
+
+        Two transitions of the set test are taken in two steps. A facet that carries no
+        normal force at the iterate (lambda_n = 0: it was out of contact in the last step)
+        and is in contact by the test enters *without friction*: its normal row is
+        constrained and its tangential traction is 0 for one step, so that the next test sees
+        the direction in which it slides. A facet in contact whose test argument x_t points
+        against its tangential traction (x_t . lambda_t < 0: the last step's friction pushed
+        it back) reverses through *stick*. Neither condition holds at a solution of the NCP
+        (there lambda_n > 0 where x_n > 0, and lambda_t = P(x_t) points along x_t), so the
+        rules leave the solutions, the last Newton matrix and the dual problem as they are;
+        they decide the sets of the steps before it.
+
+        Why: the tangential test x_t = lambda_t + c (u_t - u_t^old) weighs the slip with the
+        facet-scale stiffness c = E / H, while a step that applies the wrong friction force
+        moves the whole contact zone through the body's global compliance, up to L / H times
+        more. The slip of such a step overshoots, x_t lands beyond the opposite edge of the
+        cone, and the plain rule alternates between slipping one way and the other without
+        visiting stick (a 2-cycle, measured on the uniform patch tests at stick ratios 0.5 to
+        0.83). From stick, x_t = lambda_t is the trial traction: the facet slips where it
+        exceeds mu lambda_n, along the traction, as a return mapping does. From a no-contact
+        iterate (lambda = 0, the first step from zero) u_t is the displacement of a free
+        body, and neither stick (it can pull the facet off the obstacle where its neighbours
+        slip, measured: a 2-cycle of stick and separation at slip ratio 10) nor that slip
+        direction is a safe guess: without friction the facet slides where the body pushes it.
+
+        Args:
+            Mlam: (k, m) the iterate's multipliers times M (normal first).
+            xt: (k - 1, m) the tangential test argument, round-off cleaned.
+            force_size: The round-off scale of M lambda (max over all rows).
+
+        Returns:
+            ``(entering, reversing)``: masks of the m facets.
+        """
+        tiny = ROUNDOFF * force_size
+        entering = Mlam[0] <= tiny
+        reversing = np.einsum("km,km->m", xt, Mlam[1:]) < -tiny * np.sum(np.abs(xt), axis=0)
+        return entering, reversing
+
     def newton_set(
         self, Mlam: np.ndarray, residual: np.ndarray, c: np.ndarray, M: np.ndarray,
         g: np.ndarray, u_max: float, force_size: float, bound: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
         """The set test of a facet's rows (as :meth:`TangentialBall.newton_set`, arrays (k, m)).
 
-        ``bound`` is the friction coefficient mu_i of each facet (its facet mean).
+        ``bound`` is the friction coefficient mu_i of each facet (its facet mean). A facet in
+        contact sticks where ``|x_t| < mu x_n`` and where it reverses; it enters contact
+        without friction (:meth:`transitions`).
 
         Returns:
             ``(constrained, free, ncp, size, (slip, J, r))``: active rows and sticking
@@ -235,8 +280,9 @@ class CoulombCone:
         s = mu * np.maximum(clean[0], 0.0)
         xt = clean[1:]
         norm = np.abs(xt[0]) if k == 2 else np.hypot(xt[0], xt[1])
-        stick = active & (norm < s)
-        slip = active & ~stick
+        entering, reversing = self.transitions(Mlam, xt, force_size)
+        stick = active & ~entering & ((norm < s) | reversing)
+        slip = active & ~entering & ~stick
         m = int(slip.sum())
         J = np.zeros((m, k, k))
         J[:, 0, 0] = 1.0

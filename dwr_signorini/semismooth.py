@@ -163,7 +163,11 @@ class NewtonLoop:
     def finished(self, it: int) -> bool:
         """Converged (True), or one more step to take; raises when the method has failed."""
         record = self.history[-1]
-        settled = self.previous is not None and record["num_changed"] == 0
+        # after a damped step the iterate is not the solution of its sets' system: their full
+        # step comes next (the sets repeating is what ends the damping, see _damped)
+        settled = (
+            self.previous is not None and record["num_changed"] == 0 and self.step_length == 1.0
+        )
         self.resolve = settled and self.loose
         if self.resolve:  # the sets have settled: solve their system again, accurately
             self.loose = self.system.set_loose(False)

@@ -12,8 +12,9 @@ Factor reuse: a step whose active set differs from that of the factors in r mult
 solved with those factors and a rank-2r correction (:class:`~.lowrank.WoodburyUpdate`), when its
 solves (one of 2k right-hand sides for the k of those rows that no earlier step against the same
 factors had changed, priced at :data:`BLOCK_SOLVE_COST` single solves each, and two single ones)
-and its dense products (:data:`DENSE_FLOPS`) take less than :data:`REUSE_FRACTION` of the last
-factorisation's time (both measured, the maximum over ranks). The columns of earlier steps are
+and its dense products take less than :data:`REUSE_FRACTION` of the last factorisation, both
+priced from MUMPS's counts (:class:`~.factor.FactorCost`: never measured time, so the same input
+takes the same decisions and iterates on every run). The columns of earlier steps are
 kept (:class:`~.lowrank.FactorColumns`). Steps of iterative refinement (at most
 :data:`REFINE_STEPS`) correct it until the correction, the estimate of the error, is below
 :data:`REUSE_RTOL`; a refused or inaccurate update falls back to factoring the new matrix, so
@@ -24,7 +25,6 @@ problem after them, then cost a few solves instead of a factorisation.
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 from mpi4py import MPI
@@ -34,6 +34,7 @@ import numpy as np
 
 from ..timing import timed
 from .base import NewtonLinearSystem
+from .factor import FactorCost
 from .lowrank import FactorColumns, WoodburyUpdate
 from .mumps import mumps_failure, null_pivots, set_up
 from .nullspace import rigid_body_modes
@@ -43,16 +44,13 @@ __all__ = ["LinearSolveError", "NewtonSystem"]
 #: Multigrid preconditioners: for K (``method="schur"``), not for the block Newton matrix.
 MULTIGRID = ("gamg", "hypre", "ml", "mg")
 
-#: A step reuses the factors if its solves take less than this part of a factorisation.
+#: A step reuses the factors if its solves take less than this part of a factorisation
+#: (priced by :class:`~.factor.FactorCost`).
 REUSE_FRACTION = 0.7
 
 #: The time of a solve of k right-hand sides at once with MUMPS's factors, in single solves per
 #: right-hand side (about 0.2-0.3 for 8-40 right-hand sides on 3D factors of 30k DoFs).
 BLOCK_SOLVE_COST = 0.3
-
-#: Floating-point operations per second assumed for the dense products of an update (its
-#: 2r x 2r capacitance from n x 2r blocks): a conservative rate for BLAS-3 on one core.
-DENSE_FLOPS = 1e10
 
 #: Largest relative error (estimated by iterative refinement, per block, max norms)
 #: of a step solved by reusing the factors.
@@ -116,7 +114,7 @@ class NewtonSystem(NewtonLinearSystem):
         self._factored_active: np.ndarray | None = None
         self._update: WoodburyUpdate | None = None
         self._columns: FactorColumns | None = None  # of the current factors, per changed row
-        self._t_factor = self._t_solve = 0.0
+        self._cost: FactorCost | None = None  # the counts of the last factorisation
         self.factorizations = self.reused = 0
         comm, alg = self.disc.comm, self.algebra
         with timed("assemble"):
@@ -206,9 +204,7 @@ class NewtonSystem(NewtonLinearSystem):
             return
         self._factor()
         with timed("newton solve"):
-            tic = time.perf_counter()
             self.ksp.solve(self.b, self.x)
-            self._t_solve = time.perf_counter() - tic
         reason = self.ksp.getConvergedReason()
         if reason < 0:
             cause = mumps_failure(self.ksp)
@@ -229,9 +225,8 @@ class NewtonSystem(NewtonLinearSystem):
             self._columns.destroy()
             self._columns = None
         with timed("factorize"):
-            tic = time.perf_counter()
             set_up(self.ksp, self._A_factored)
-            self._t_factor = time.perf_counter() - tic
+        self._cost = FactorCost.of(self.ksp)
         self.factorizations += 1
         count = null_pivots(self.ksp)
         if count > 0:
@@ -253,21 +248,19 @@ class NewtonSystem(NewtonLinearSystem):
         Returns:
             Whether :attr:`x` holds the step.
         """
-        if not self._reuse or self._factored_active is None:
+        if not self._reuse or self._factored_active is None or self._cost is None:
             return False
         comm = self.disc.comm
         rows = self._changed_rows(active)
-        t_factor = comm.allreduce(self._t_factor, op=MPI.MAX)
-        t_solve = comm.allreduce(self._t_solve, op=MPI.MAX)
         if len(rows) == 0:  # the factored matrix itself
             with timed("newton solve"):
                 self.ksp.solve(self.b, self.x)
             return self.ksp.getConvergedReason() > 0
         new_rows = len(self._columns.missing(rows))
         lo, hi = self.A.getOwnershipRange()
-        dense = (hi - lo) * (2 * len(rows)) ** 2 / DENSE_FLOPS  # U^T Z: n x 2r by 2r x 2r
-        cost = (2 + BLOCK_SOLVE_COST * 2 * new_rows) * t_solve + comm.allreduce(dense, MPI.MAX)
-        if cost > REUSE_FRACTION * t_factor:
+        dense = comm.allreduce((hi - lo) * (2 * len(rows)) ** 2, MPI.MAX)  # U^T Z
+        cost = (2 + BLOCK_SOLVE_COST * 2 * new_rows) * self._cost.solve + self._cost.dense(dense)
+        if cost > REUSE_FRACTION:
             return False
         with timed("newton solve"):
             try:

@@ -41,7 +41,6 @@ path. The dual problem (and a forward solve) after such a step factors the step'
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 from mpi4py import MPI
@@ -55,6 +54,7 @@ from ..timing import timed
 from . import block
 from .base import NewtonLinearSystem
 from .block import BLOCK_SOLVE_COST, MULTIGRID, LinearSolveError, refine_update
+from .factor import FactorCost
 from .lowrank import RowUpdate
 from .mumps import mumps_failure, null_pivots, set_up
 from .schur import owned_rows
@@ -107,7 +107,7 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         self.A: PETSc.Mat | None = None
         self._A_factored: PETSc.Mat | None = None  # the matrix whose factors the KSP holds
         self._current = False  # whether those factors are the last step's matrix
-        self._t_factor = self._t_solve = 0.0
+        self._cost: FactorCost | None = None  # the counts of the last factorisation
         self.factorizations = self.reused = 0
         self._N = owned_rows(self.N).tocsr()
         self._lo = self.N.getOwnershipRange()[0]
@@ -233,9 +233,7 @@ class CoupledNewtonSystem(NewtonLinearSystem):
             return
         self._factor()
         with timed("newton solve"):
-            tic = time.perf_counter()
             self.ksp.solve(self.b, self.x)
-            self._t_solve = time.perf_counter() - tic
         self._check("linear solve of the Newton step")
         self.solved = True
 
@@ -250,9 +248,8 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         else:  # the same pattern: the factorisation's analysis is kept
             self.A.copy(self._A_factored, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         with timed("factorize"):
-            tic = time.perf_counter()
             set_up(self.ksp, self._A_factored)
-            self._t_factor = time.perf_counter() - tic
+        self._cost = FactorCost.of(self.ksp)
         self.factorizations += 1
         self._current = True
         count = null_pivots(self.ksp)
@@ -275,19 +272,17 @@ class CoupledNewtonSystem(NewtonLinearSystem):
 
         The update (:class:`~.lowrank.RowUpdate`) costs a solve of r right-hand sides with the
         old factors (r the changed rows) and two single solves; it is taken when that is less
-        than :data:`~.block.REUSE_FRACTION` of the last factorisation (both measured), and its
+        than :data:`~.block.REUSE_FRACTION` of the last factorisation (both priced from MUMPS's
+        counts, :class:`~.factor.FactorCost`), and its
         result is accepted after iterative refinement (:func:`~.block.refine_update`).
 
         Returns:
             Whether :attr:`x` holds the step.
         """
-        if self._A_factored is None or block.REUSE_FRACTION < 0:
+        if self._A_factored is None or block.REUSE_FRACTION < 0 or self._cost is None:
             return False
-        comm = self.disc.comm
         rows = self._changed_rows()
-        t_factor = comm.allreduce(self._t_factor, op=MPI.MAX)
-        t_solve = comm.allreduce(self._t_solve, op=MPI.MAX)
-        if (2 + BLOCK_SOLVE_COST * len(rows)) * t_solve > block.REUSE_FRACTION * t_factor:
+        if (2 + BLOCK_SOLVE_COST * len(rows)) * self._cost.solve > block.REUSE_FRACTION:
             return False
         with timed("newton solve"):
             try:
