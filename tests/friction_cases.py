@@ -48,7 +48,7 @@ CELLS = {
 STICK_RATIOS = (0.05, 0.5, 0.9, 0.999)
 SLIP_RATIOS = (1.001, 1.1, 2.0, 10.0, 100.0)
 #: Friction coefficients of the sweep.
-MUS = (0.01, 0.3, 2.0)
+MUS = (0.01, 0.3, 0.9, 2.0)
 
 
 @dataclass(frozen=True)

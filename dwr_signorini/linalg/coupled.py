@@ -282,6 +282,11 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         if self._A_factored is None or block.REUSE_FRACTION < 0 or self._cost is None:
             return False
         rows = self._changed_rows()
+        if len(rows) == 0:  # the factored matrix itself (a RowUpdate of rank 0 has no columns)
+            with timed("newton solve"):
+                self.ksp.solve(self.b, self.x)
+            self._current = True
+            return self.ksp.getConvergedReason() > 0
         if (2 + BLOCK_SOLVE_COST * len(rows)) * self._cost.solve > block.REUSE_FRACTION:
             return False
         with timed("newton solve"):

@@ -94,7 +94,22 @@ def mumps_failure(ksp: PETSc.KSP) -> str | None:
         )
     if code in (-6, -10):  # structurally or numerically singular
         return None
-    return f"MUMPS failed with INFOG(1) = {code}, INFOG(2) = {detail}"
+    meaning = _MUMPS_MEANINGS.get(code, "an error of MUMPS this package does not expect")
+    return f"MUMPS failed with INFOG(1) = {code}, INFOG(2) = {detail}: {meaning}"
+
+
+#: What the other error codes of MUMPS (INFOG(1), MUMPS 5 user guide, section "Error
+#: diagnostics") mean for a Newton step; the rest is named as unexpected.
+_MUMPS_MEANINGS = {
+    -1: "an error on the rank INFOG(2) (see that rank's INFO(1))",
+    -2: "the matrix has an invalid number of entries (an assembly error)",
+    -3: "MUMPS was called in the wrong order (a factorisation was not set up before a solve)",
+    -16: "the matrix has an invalid size (empty system?)",
+    -22: "an array handed to MUMPS is missing (an internal error of the solver's set-up)",
+    -44: "the factors needed for the solve are not available",
+    -45: "a solve was asked with no right-hand side (NRHS <= 0: an internal error)",
+    -51: "an integer overflow in MUMPS's 32-bit indices: the factors are too large",
+}
 
 
 #: Most factorisations :func:`set_up` tries when MUMPS's workspace was too small.
