@@ -217,3 +217,80 @@ def test_api_docstrings_complete():
                 doc = _sections(inspect.getdoc(getattr(obj, member)))
                 problems += [f"{name}.{member}: {m}" for m in _missing(value, doc)]
     assert problems == [], "\n".join(problems)
+
+
+# --------------------------------------------------------------------------------------------------
+# Every ```python block of README.md and docs/ runs
+# --------------------------------------------------------------------------------------------------
+
+#: The pages whose code blocks are run: the README, every Markdown page of the site and the
+#: measurement logs the site includes.
+DOC_PAGES = [
+    ROOT / "README.md",
+    *sorted(p for p in DOCS.rglob("*.md") if "_build" not in p.relative_to(DOCS).parts),
+    ROOT / "benchmarks" / "README.md",
+]
+
+FENCE = re.compile(r"^```([^\n]*)\n(.*?)^```[ \t]*$", re.M | re.S)
+#: A block's set-up, hidden on the rendered page: an HTML comment right before the block,
+#: ``<!-- set-up:`` on its own line, then Python, then ``-->``.
+SET_UP = re.compile(r"<!-- set-up:\n(.*?)^-->\s*\Z", re.M | re.S)
+#: Fences that would hold Python under another name: not allowed, so that no block is skipped
+#: because of how it is marked.
+OTHER_PYTHON = re.compile(
+    r"^(py|python3|pycon|ipython3?|\{code-block\}\s*python.*|\{code-cell\}.*)$")
+
+
+def doc_blocks(page):
+    """``(line, set_up, code)`` of every ```python block of a page, in order."""
+    text = page.read_text()
+    blocks, end = [], 0
+    for fence in FENCE.finditer(text):
+        info = fence.group(1).strip()
+        assert not OTHER_PYTHON.match(info), f"{page}: a ```{info} block is not run; mark it python"
+        if info != "python":
+            continue
+        before = SET_UP.search(text, end, fence.start())
+        line = text.count("\n", 0, fence.start()) + 1
+        blocks.append((line, before.group(1) if before else "", fence.group(2)))
+        end = fence.end()
+    return blocks
+
+
+def _page_id(page):
+    return str(page.relative_to(ROOT))
+
+
+@pytest.mark.parametrize(
+    "page", [p for p in DOC_PAGES if "```python" in p.read_text()], ids=_page_id)
+def test_doc_blocks_run(page, tmp_path, monkeypatch):
+    """The page's ```python blocks run, in order and in one namespace (as a reader pastes them
+    into one session), each after its marked set-up, in a scratch directory; a block that
+    raises fails the test with its page and line, and every block of the page must have run."""
+    blocks = doc_blocks(page)
+    assert len(blocks) == page.read_text().count("```python"), "a ```python block was not parsed"
+    monkeypatch.chdir(tmp_path)
+    namespace = {"__name__": "__doc_block__"}
+    ran = 0
+    for line, set_up, code in blocks:
+        where = f"{_page_id(page)}:{line}"
+        try:
+            if set_up:
+                exec(compile(set_up, f"{where} (set-up)", "exec"), namespace)
+            exec(compile(code, where, "exec"), namespace)
+        except Exception as error:
+            raise AssertionError(
+                f"the block at {where} raised {type(error).__name__}: {error}") from error
+        ran += 1
+    for value in list(namespace.values()):     # what the blocks left open, collectively
+        if hasattr(value, "destroy") and hasattr(value, "__exit__"):
+            value.destroy()
+    assert ran == len(blocks)
+
+
+def test_doc_blocks_all_found():
+    """Every page with a ```python block is run by test_doc_blocks_run, and none hides Python
+    under another fence name; the total is what the tests above run."""
+    total = sum(len(doc_blocks(page)) for page in DOC_PAGES)
+    assert total == sum(page.read_text().count("```python") for page in DOC_PAGES)
+    assert total >= 15

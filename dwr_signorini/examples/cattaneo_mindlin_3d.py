@@ -43,8 +43,9 @@ in contact and sticking, and the relative L2 errors are integrated on every macr
 collapsed Gauss-Legendre rule. The facets are gathered on rank 0
 (:func:`gather_contact_patch`) and the results broadcast.
 
-The mesh builder reads the gmsh script ``meshes/hertz_3d.py`` of the project's checkout; pass
-``mesh=(msh, cell_tags, facet_tags)`` with the script's tags to use another mesh.
+The mesh builder reads the gmsh script ``meshes/hertz_3d.py`` through the package
+(:mod:`dwr_signorini.meshes`); pass ``mesh=(msh, cell_tags, facet_tags)`` with the script's tags
+to use another mesh.
 """
 
 from __future__ import annotations
