@@ -243,7 +243,7 @@ def goal_a2_weight(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
 
 
 def goal_a(m_center: float = -0.5) -> Goal:
-    """Quantity of interest J_{a,m}(u) = int_Omega omega_m(x) |u|^2 dx (Section 5.1).
+    """Quantity of interest ``J_{a,m}(u) = int_Omega omega_m(x) |u|^2 dx`` (Section 5.1).
 
     ``J_{a,1}`` is ``m_center = -0.5``; Figure 4 varies m in [-3, 0].
 
@@ -462,12 +462,13 @@ def _agreed(coarse: float, fine: float, what: str) -> float:
 
 @functools.lru_cache(maxsize=64)
 def exact_J_a(m_center: float = -0.5) -> float:
-    """Exact J_{a,m}(u) = int_Omega omega_m |u|^2 dx of Example 5.1 (Section 5.1).
+    """Exact ``J_{a,m}(u) = int_Omega omega_m |u|^2 dx`` of Example 5.1 (Section 5.1).
 
     Computed with numpy only (no finite elements): composite Gauss-Legendre quadrature on the
-    supports of u1 and u2, split at the curves |y| = x^2/18 + 1/2 and |y| = 1/2 and at the centre
-    (m, 0) of the weight; two rules (16 points on subintervals <= 0.1, 24 points on subintervals
-    <= 0.0625) must agree to 1e-12 relative. J_{a,1} = J_{a,-0.5} = 4.78055755404685e-4.
+    supports of u1 and u2, split at the curves ``|y| = x^2/18 + 1/2`` and ``|y| = 1/2`` and at
+    the centre (m, 0) of the weight; two rules (16 points on subintervals <= 0.1, 24 points on
+    subintervals <= 0.0625) must agree to 1e-12 relative.
+    J_{a,1} = J_{a,-0.5} = 4.78055755404685e-4.
 
     Args:
         m_center: Abscissa m of the centre of the weight omega_m, m in [-3, 0].

@@ -134,7 +134,7 @@ def hertz_half_width(P: float, radius: float, E: float, nu: float) -> tuple[floa
 
 
 def hertz_pressure(x: npt.ArrayLike, a: float, p0: float) -> np.ndarray:
-    """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on |x| <= a, 0 outside, eq. (H3).
+    """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on ``|x| <= a``, 0 outside, eq. (H3).
 
     Also the sphere's p(r), eq. (H3') of :mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`.
 
@@ -151,7 +151,7 @@ def hertz_pressure(x: npt.ArrayLike, a: float, p0: float) -> np.ndarray:
 
 
 def stick_half_width(a: float, Q: float, mu: float, P: float) -> float:
-    """Cattaneo-Mindlin's stick half-width c = a sqrt(1 - |Q| / (mu P)), eq. (CM1).
+    """Cattaneo-Mindlin's stick half-width ``c = a sqrt(1 - |Q| / (mu P))``, eq. (CM1).
 
     Args:
         a: The contact half-width.
@@ -185,7 +185,7 @@ def cm_traction(x: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> n
 
     Returns:
         q at ``x``: mu p0 / a (sqrt(a^2 - x^2) - sqrt(c^2 - x^2)) (the second root only where
-        |x| < c), zero outside the contact |x| > a.
+        ``|x| < c``), zero outside the contact ``|x| > a``.
     """
     x = np.asarray(x, dtype=float)
     if a <= 0:

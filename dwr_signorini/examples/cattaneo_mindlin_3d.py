@@ -120,7 +120,7 @@ def hertz_radius(P: float, radius: float, E: float, nu: float) -> tuple[float, f
 
 
 def stick_radius(a: float, Q: float, mu: float, P: float) -> float:
-    """Mindlin's stick radius c = a (1 - |Q| / (mu P))^(1/3), eq. (CM1').
+    """Mindlin's stick radius ``c = a (1 - |Q| / (mu P))^(1/3)``, eq. (CM1').
 
     Args:
         a: The contact radius.
