@@ -306,3 +306,16 @@ def test_doc_blocks_all_found():
     total = sum(len(doc_blocks(page)) for page in DOC_PAGES)
     assert total == sum(page.read_text().count("```python") for page in DOC_PAGES)
     assert total >= 15
+
+
+def test_api_docstrings_parameters_first():
+    """Every entry of the API reference gives its parameters (or attributes) after a short
+    description of at most three lines; what the implementation does follows them."""
+    long = []
+    for name, obj, _ in _api_objects():
+        lines = (inspect.getdoc(obj) or "").splitlines()
+        heads = [i for i, line in enumerate(lines)
+                 if re.fullmatch(r"(Args|Attributes|Returns|Yields|Raises):", line)]
+        if heads and len([line for line in lines[1:heads[0]] if line.strip()]) > 3:
+            long.append(name)
+    assert long == [], "\n".join(long)

@@ -216,12 +216,6 @@ def cattaneo_mindlin_path_3d(
 ) -> list[SignoriniProblem]:
     """The 3D load path of the module docstring: the half sphere y >= 0, pressed, then sheared.
 
-    As :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_path` on
-    :func:`cattaneo_mindlin_mesh_3d`: the top z = R is displaced by ``(0, 0, -press)``, then by
-    ``(k shear / steps, 0, -press)``; the plane y = 0 is a symmetry plane (u_y = 0; a shear
-    along x keeps the whole sphere's problem symmetric about it). The sphere is projected onto
-    itself when the mesh is refined.
-
     Args:
         comm: The communicator (collective).
         h_contact: Macro facet size at the contact (:func:`cattaneo_mindlin_mesh_3d`).
@@ -242,6 +236,12 @@ def cattaneo_mindlin_path_3d(
 
     Raises:
         ValueError: If ``steps`` is not a positive integer.
+
+    As :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_path` on
+    :func:`cattaneo_mindlin_mesh_3d`: the top z = R is displaced by ``(0, 0, -press)``, then by
+    ``(k shear / steps, 0, -press)``; the plane y = 0 is a symmetry plane (u_y = 0; a shear
+    along x keeps the whole sphere's problem symmetric about it). The sphere is projected onto
+    itself when the mesh is refined.
     """
     _check_steps(steps)
     if mesh is None:

@@ -171,11 +171,6 @@ def plot_contact_force(
 ) -> Path | None:
     """The contact force lambda_H on Gamma_C (paper Figures 3b and 5b). Collective.
 
-    2D: lambda_H is piecewise constant on the macro contact facets (Sigma_H); it is drawn as
-    steps over the coordinate along Gamma_C (the coordinate in which Gamma_C extends most),
-    active facets shaded. 3D: a map of lambda_H over the contact face, one colour per macro
-    facet, in the two tangential coordinates.
-
     Args:
         sol: A :class:`~dwr_signorini.Solution`.
         path: The PNG to write (on rank 0).
@@ -185,6 +180,11 @@ def plot_contact_force(
 
     Returns:
         The path on rank 0, ``None`` on the other ranks.
+
+    2D: lambda_H is piecewise constant on the macro contact facets (Sigma_H); it is drawn as
+    steps over the coordinate along Gamma_C (the coordinate in which Gamma_C extends most),
+    active facets shaded. 3D: a map of lambda_H over the contact face, one colour per macro
+    facet, in the two tangential coordinates.
     """
     data = gather_contact_force(sol)
     del sol  # draw without references to dolfinx objects (see dwr_signorini.viz.gather)

@@ -147,17 +147,6 @@ def plot_convergence(
 ) -> Path | None:
     """Errors and estimates against cells or cumulative run time, log-log (paper Figure 6).
 
-    Where the rows have ``J_low`` and ``J_high``, the ``estimate`` series carries error bars:
-    the least and the largest ``|J - J_h| / |J|`` over the interval [J_low, J_high] (down to the
-    axis where J_h lies inside it).
-
-    Each run (e.g. ``{"adaptive": rows, "uniform": rows}``) gets a colour and each quantity a
-    line style. Estimate-type quantities (``estimate``, ``eta``, ``eta_p``, ``contact_term``) are
-    plotted as ``|value| / |J|`` so that they compare with ``E_rel``; ``J`` is ``reference`` if
-    given, else ``J_h`` of each row. Quantities without any finite value (e.g. ``rel_error``
-    when the exact J is unknown) are left out. Dotted grey lines show reference slopes, anchored
-    at the first point of the first run.
-
     Args:
         runs: Label -> table rows (dicts from ``AdaptiveResult.rows()`` or :func:`read_rows`).
         path: The PNG to write.
@@ -176,6 +165,17 @@ def plot_convergence(
 
     Raises:
         ValueError: For an unknown ``x`` or quantity.
+
+    Where the rows have ``J_low`` and ``J_high``, the ``estimate`` series carries error bars:
+    the least and the largest ``|J - J_h| / |J|`` over the interval [J_low, J_high] (down to the
+    axis where J_h lies inside it).
+
+    Each run (e.g. ``{"adaptive": rows, "uniform": rows}``) gets a colour and each quantity a
+    line style. Estimate-type quantities (``estimate``, ``eta``, ``eta_p``, ``contact_term``) are
+    plotted as ``|value| / |J|`` so that they compare with ``E_rel``; ``J`` is ``reference`` if
+    given, else ``J_h`` of each row. Quantities without any finite value (e.g. ``rel_error``
+    when the exact J is unknown) are left out. Dotted grey lines show reference slopes, anchored
+    at the first point of the first run.
     """
     if x not in ("num_cells", "time"):
         raise ValueError(f"x must be 'num_cells' or 'time', got {x!r}")
