@@ -266,7 +266,33 @@ def doc_blocks(page):
         line = text.count("\n", 0, fence.start()) + 1
         blocks.append((line, before.group(1) if before else "", fence.group(2)))
         end = fence.end()
+    assert len(blocks) == text.count("```python"), f"{page}: a ```python block was not parsed"
+    assert sum(1 for b in blocks if b[1]) == len(re.findall(r"^<!-- set-up:$", text, re.M)), (
+        f"{page}: a set-up that is not right before a ```python block")
     return blocks
+
+
+def run_page(page, name=None):
+    """Run a page's blocks as test_doc_blocks_run does; the number of blocks run."""
+    name = name or str(page)
+    namespace = {"__name__": "__doc_block__"}
+    ran = 0
+    try:
+        for line, set_up, code in doc_blocks(page):
+            where = f"{name}:{line}"
+            try:
+                if set_up:
+                    exec(compile(set_up, f"{where} (set-up)", "exec"), namespace)
+                exec(compile(code, where, "exec"), namespace)
+            except Exception as error:
+                raise AssertionError(
+                    f"the block at {where} raised {type(error).__name__}: {error}") from error
+            ran += 1
+    finally:
+        for value in list(namespace.values()):     # what the blocks left open, collectively
+            if hasattr(value, "destroy") and hasattr(value, "__exit__"):
+                value.destroy()
+    return ran
 
 
 def _page_id(page):
@@ -279,25 +305,8 @@ def test_doc_blocks_run(page, tmp_path, monkeypatch):
     """The page's ```python blocks run, in order and in one namespace (as a reader pastes them
     into one session), each after its marked set-up, in a scratch directory; a block that
     raises fails the test with its page and line, and every block of the page must have run."""
-    blocks = doc_blocks(page)
-    assert len(blocks) == page.read_text().count("```python"), "a ```python block was not parsed"
     monkeypatch.chdir(tmp_path)
-    namespace = {"__name__": "__doc_block__"}
-    ran = 0
-    for line, set_up, code in blocks:
-        where = f"{_page_id(page)}:{line}"
-        try:
-            if set_up:
-                exec(compile(set_up, f"{where} (set-up)", "exec"), namespace)
-            exec(compile(code, where, "exec"), namespace)
-        except Exception as error:
-            raise AssertionError(
-                f"the block at {where} raised {type(error).__name__}: {error}") from error
-        ran += 1
-    for value in list(namespace.values()):     # what the blocks left open, collectively
-        if hasattr(value, "destroy") and hasattr(value, "__exit__"):
-            value.destroy()
-    assert ran == len(blocks)
+    assert run_page(page, _page_id(page)) == len(doc_blocks(page))
 
 
 def test_doc_blocks_all_found():
@@ -306,6 +315,46 @@ def test_doc_blocks_all_found():
     total = sum(len(doc_blocks(page)) for page in DOC_PAGES)
     assert total == sum(page.read_text().count("```python") for page in DOC_PAGES)
     assert total >= 15
+
+
+PAGE = """\
+# A page
+
+<!-- set-up:
+x = 2
+-->
+```python
+y = x + 1
+```
+
+```bash
+not python
+```
+
+```python
+assert y == 3
+z = y / ({zero})
+```
+"""
+
+
+def test_doc_block_runner(tmp_path):
+    """The runner itself: set-up, order, one namespace, shell blocks left out, a raising block
+    fails with its line, and a set-up without its block or Python under another fence name is
+    refused."""
+    page = tmp_path / "page.md"
+    page.write_text(PAGE.format(zero=1))
+    assert [line for line, _, _ in doc_blocks(page)] == [6, 14]
+    assert run_page(page) == 2
+    page.write_text(PAGE.format(zero=0))
+    with pytest.raises(AssertionError, match=r"page.md:14 raised ZeroDivisionError"):
+        run_page(page)
+    page.write_text(PAGE.format(zero=1).replace("```python\ny =", "```\ny ="))
+    with pytest.raises(AssertionError, match="set-up that is not right before"):
+        doc_blocks(page)
+    page.write_text(PAGE.format(zero=1).replace("```python\nassert", "```py\nassert"))
+    with pytest.raises(AssertionError, match="```py block is not run"):
+        doc_blocks(page)
 
 
 def test_api_docstrings_parameters_first():
