@@ -1,4 +1,4 @@
-# The two commands a newcomer needs: `make test` and `make demo`.
+# The two commands a newcomer needs: `make test` and `make demo` (`make test-quick` while working).
 # Everything runs through scripts/fenicsx, which provides dolfinx (building a cached Debian
 # trixie root on hosts that lack it). `make test-current` / `make env-current` do the same with the
 # current dolfinx release (Debian sid, DWR_SIGNORINI_SUITE=sid).
@@ -8,10 +8,20 @@ NP ?= 2
 PYTEST := python3 -m pytest -q
 DEMO_ARGS ?=
 
-.PHONY: test test-serial test-mpi test-slow demo env lint figures test-current env-current compare-versions \
+.PHONY: test test-quick test-serial test-mpi test-slow demo env lint figures test-current env-current compare-versions \
 	docs docs-check docs-env
 
 test: test-serial test-mpi
+
+# The fast inner loop while working (about a minute, serial): the unit tests, the documentation
+# (site, docstrings, every code block of README.md and docs/), an installed copy of the package,
+# and one 2D solve + estimate per contact law (tests/test_quick.py). `make test` is the full run.
+QUICK_TESTS := tests/test_quick.py tests/test_units.py tests/test_compat.py tests/test_stack.py \
+	tests/test_quadrature.py tests/test_reconstruction.py tests/test_tensor_refine.py \
+	tests/test_refinement_rules.py tests/test_bad_input.py tests/test_lifetimes.py \
+	tests/test_docs.py tests/test_install.py
+test-quick:
+	$(FENICSX) $(PYTEST) -m "not slow" $(QUICK_TESTS)
 
 test-serial:
 	$(FENICSX) $(PYTEST) -m "not slow" tests

@@ -38,7 +38,7 @@
 # goal with four arguments `goal(u, lam, m, lam_t)`. The dual problem is the transposed last
 # Newton system (the stick rows hold $u_t$, the slip rows $\lambda_t = \pm s$), and the estimate
 # $\eta$ carries the tangential residual and contact term besides the normal ones. Every level
-# prints the interval $[J_{low}, J_{high}]$ for $J$ of :mod:`dwr_signorini.interval`.
+# prints the interval $[J_{low}, J_{high}]$ for $J$ of {mod}`dwr_signorini.interval`.
 #
 # Run it with
 #
@@ -77,8 +77,8 @@ def print0(*args: object) -> None:
 
 # ## Options
 #
-# The defaults finish in about a minute, serial or on two processes (2D), and in a few
-# minutes in 3D.
+# The defaults finish in about 15 s, serial or on two processes (2D), and in a few minutes
+# in 3D.
 
 # +
 defaults = ex.FRICTION_DEFAULTS

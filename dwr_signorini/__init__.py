@@ -1,10 +1,10 @@
 """dwr_signorini: goal-oriented adaptive finite elements for Signorini's contact problem.
 
 Signorini's problem (contact of a linear-elastic body with a rigid obstacle, frictionless or with
-Tresca friction, :mod:`dwr_signorini.laws`) in mixed form, solved by a semi-smooth Newton
-(primal-dual active set) method; the error in a user's quantity of interest J(u, lambda) estimated
-by the dual weighted residual method with the NCP-based error identities (13) and (15); adaptive
-refinement in parallel.
+Tresca or Coulomb friction, :mod:`dwr_signorini.laws`, also along load paths) in mixed form, solved
+by a semi-smooth Newton (primal-dual active set) method; the error in a user's quantity of
+interest J(u, lambda) estimated by the dual weighted residual method with the NCP-based error
+identities (13) and (15), with an interval for J; adaptive refinement in parallel.
 """
 
 from . import obstacles

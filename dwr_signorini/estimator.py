@@ -101,8 +101,13 @@ class Estimate(Releasable):
         rho: rho(w_h)(A z_h - z_h).
         rho_star: rho*(w_h, z_h)(A w_h - w_h), or ``None``.
         estimator: Which estimator the indicators belong to ("eta" or "eta_p").
-        weights: The weights it was computed with: "patch", "higher_order" or "hierarchical"
-            (``weights="auto"`` gives "patch" or "hierarchical").
+        weights: The weights it was computed with: "patch", "higher_order" or "hierarchical".
+            ``weights="auto"`` takes "patch" where the contact set is resolved, and P2 weights
+            on a level whose contact set is not (``resolved`` below, with the patch weights)
+            and on every level of a nearly incompressible material
+            (:func:`nearly_incompressible`, nu >= 0.45): "hierarchical" for a symmetric
+            Newton matrix, "higher_order" for a law with coupled rows (Tresca friction in 3D,
+            Coulomb friction), whose nonsymmetric matrix the two-level solver does not take.
         indicators: DG0 function on T_h of signed cell indicators; their sum is the estimate.
         dual: z_h = (y_h, xi_H).
         goal_is_linear: Whether J is linear in (u, lambda) (then R_J vanishes).

@@ -147,6 +147,10 @@ class TangentialBall:
 class CoulombCone:
     """Coulomb's law on a facet: the normal condition and the tangential one in a cone.
 
+    Args:
+        tangential: The tangential projection: :class:`Tangential` (2D) or
+            :class:`TangentialBall` (3D).
+
     The projection of Coulomb's NCP acts on all components of a facet, x = (x_n, x_t):
     P_n(x) = max(0, x_n) (Signorini) and P_t(x) = the projection of x_t onto the interval
     [-s, s] (2D) or the disc of radius s (3D), s = mu max(0, x_n) (module docstring of
@@ -156,10 +160,6 @@ class CoulombCone:
     tangential rows are lambda_t = mu d lambda_n linearised (2D) or the ball's rows with the
     column mu q (3D).
     Active and sticking: every row constrained; inactive: every row free (lambda = 0).
-
-    Args:
-        tangential: The tangential projection: :class:`Tangential` (2D) or
-            :class:`TangentialBall` (3D).
     """
 
     def __init__(self, tangential: Tangential | TangentialBall) -> None:
@@ -392,6 +392,14 @@ class Tresca(_Friction):
 class Coulomb(_Friction):
     """Coulomb friction with friction coefficient mu >= 0: slip threshold mu lambda_n.
 
+    Args:
+        mu: The friction coefficient: a number >= 0, a callable x -> UFL scalar, or
+            ``{contact tag: number | callable}``.
+
+    Raises:
+        TypeError, ValueError: ``mu`` of the wrong type, or a number that is not finite and
+            >= 0.
+
     The NCP of the tangential traction (with the slip increment of a load step,
     u_t - u_t^old; :func:`~dwr_signorini.path.solve_path` carries u^old from step to step,
     a single solve has u^old = 0)
@@ -408,14 +416,6 @@ class Coulomb(_Friction):
     mu small enough (the classical bound of Necas, Jarusek and Haslinger in the continuum,
     mu < sqrt(3 - 4 nu) / (2 - 2 nu) for the discrete problems of Haslinger's analysis),
     possibly not above. mu = 0 gives lambda_t = 0: the frictionless problem.
-
-    Args:
-        mu: The friction coefficient: a number >= 0, a callable x -> UFL scalar, or
-            ``{contact tag: number | callable}``.
-
-    Raises:
-        TypeError, ValueError: ``mu`` of the wrong type, or a number that is not finite and
-            >= 0.
     """
 
     name = "coulomb"
@@ -439,17 +439,17 @@ class Coulomb(_Friction):
 def tangent_basis(n: Any) -> tuple[Any, Any]:
     """An orthonormal basis (t_1, t_2) of the plane normal to the unit vector n (3D, UFL).
 
-    t_1 is the unit projection of e_1 onto that plane (of e_2 where ``|n_1| >= 0.9``, so that the
-    projection is not short) and t_2 = n x t_1; (t_1, t_2, n) is right-handed. On a flat face
-    the basis is constant; the switch between e_1 and e_2 is a jump of the basis where the
-    normal crosses ``|n_1| = 0.9``, so a contact zone should not straddle it (a face with normal
-    +-e_1 and one with ``|n_1| < 0.9`` are each fine).
-
     Args:
         n: The unit normal (a UFL vector of length 3).
 
     Returns:
         (t_1, t_2) as UFL vectors.
+
+    t_1 is the unit projection of e_1 onto that plane (of e_2 where ``|n_1| >= 0.9``, so that the
+    projection is not short) and t_2 = n x t_1; (t_1, t_2, n) is right-handed. On a flat face
+    the basis is constant; the switch between e_1 and e_2 is a jump of the basis where the
+    normal crosses ``|n_1| = 0.9``, so a contact zone should not straddle it (a face with normal
+    +-e_1 and one with ``|n_1| < 0.9`` are each fine).
     """
     use_e1 = ufl.lt(abs(n[0]), 0.9)
     a = ufl.as_vector((ufl.conditional(use_e1, 1.0, 0.0), ufl.conditional(use_e1, 0.0, 1.0), 0.0))

@@ -50,7 +50,12 @@ def _flatten(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def write_csv(path: str | os.PathLike, rows: Sequence[dict[str, Any]]) -> None:
-    """Write rows (dicts with the same keys) as CSV."""
+    """Write rows (dicts with the same keys) as CSV.
+
+    Args:
+        path: The file, overwritten.
+        rows: The rows; a dict value (the timings) becomes columns ``key_subkey``.
+    """
     flat = [_flatten(r) for r in rows]
     with open(path, "w", newline="") as fh:
         if not flat:
@@ -61,7 +66,12 @@ def write_csv(path: str | os.PathLike, rows: Sequence[dict[str, Any]]) -> None:
 
 
 def write_json(path: str | os.PathLike, data: Any) -> None:
-    """Write JSON atomically: a reader never sees a half-written file."""
+    """Write JSON atomically: a reader never sees a half-written file.
+
+    Args:
+        path: The file, replaced in one step (written beside it first).
+        data: What ``json`` writes; NaN and infinities (in dicts and at the top) become null.
+    """
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     with os.fdopen(fd, "w") as fh:
@@ -73,6 +83,15 @@ def write_json(path: str | os.PathLike, data: Any) -> None:
 
 def check_output_dir(output_dir: str | os.PathLike, comm: MPI.Comm) -> Path:
     """Check that ``output_dir`` can be created and written, without creating anything.
+
+    Collective: rank 0 checks and broadcasts its verdict.
+
+    Args:
+        output_dir: The directory.
+        comm: The communicator of the run.
+
+    Returns:
+        ``output_dir`` as a path.
 
     Raises:
         ValueError: If the path is a file, or its nearest existing ancestor is not writable.
@@ -96,6 +115,11 @@ def check_output_dir(output_dir: str | os.PathLike, comm: MPI.Comm) -> Path:
 
 class OutputDirectory:
     """Writes the table rows and fields of each level of an adaptive run.
+
+    Args:
+        output_dir: The directory (:func:`check_output_dir`).
+        comm: The communicator of the run (collective).
+        name: The tables' file name without suffix: ``<name>.csv``, ``<name>.json``.
 
     The directory is checked at once but created only when the first level is written, so a
     run that fails before finishing a level leaves nothing behind.
@@ -131,6 +155,10 @@ class OutputDirectory:
     def append(self, row: dict[str, Any], meta: dict[str, Any] | None = None) -> None:
         """Append a finished level's row to the CSV and rewrite the JSON (rank 0).
 
+        Args:
+            row: The level's record as a dict (``LevelRecord.as_dict()``).
+            meta: Written with the rows into the JSON (the run's settings), if given.
+
         Both files are complete after every level (the CSV row is flushed to disk, the JSON
         replaced atomically); a run killed between the two writes of a level leaves the JSON
         one level behind the CSV.
@@ -154,7 +182,14 @@ class OutputDirectory:
     def write_fields(
         self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]
     ) -> None:
-        """Write the fine-mesh fields and the contact-facet fields of one level (XDMF)."""
+        """Write the fine-mesh fields and the contact-facet fields of one level (XDMF).
+
+        Args:
+            level: The level, in the file names ``level_<level>.xdmf`` and
+                ``level_<level>_contact.xdmf``.
+            fields: Functions on the fine mesh.
+            contact_fields: Functions on the contact facets' mesh.
+        """
         self._create()
         for suffix, funcs in (("", fields), ("_contact", contact_fields)):
             if not funcs:

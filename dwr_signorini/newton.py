@@ -214,40 +214,6 @@ def solve(
 ) -> Solution:
     """Solve Signorini's problem with the semi-smooth Newton method (paper eq. 19-22).
 
-    The active set of step k is A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21), evaluated at
-    the previous iterate, with two safeguards:
-
-    * *Round-off.* In the test (M lam + c_n (N u - g))_i > 0 each part counts as zero below its
-      round-off level (``1e-10`` relative to ``M_i max|u| + |g_i|`` and to ``max_j |(M lam)_j|``).
-      Without it a bi-active index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g.
-      grazing contact) would change sides on round-off noise and the iteration could cycle; and
-      the decisions stay independent of c_n.
-    * *Cycling.* If an active set repeats, the update switches to Murty's least-index rule: of the
-      indices the rule (21) would change, only the one with the smallest global number changes
-      sides. On the multipliers the contact conditions are a linear complementarity problem with
-      the matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the
-      body, for which this rule terminates finitely (K. G. Murty, Opsearch 11, 1974, 123-130).
-      A law with coupled rows (Coulomb's, Tresca's in 3D) is not such a problem, and on it the
-      rule can cycle too: there a repeat switches to damped steps instead (the rule's sets,
-      half the Newton update, while the sets change; full steps once they repeat).
-
-    With a Krylov solver of K (``method="schur"``, :class:`KrylovSchurComplement`) the steps are
-    *inexact* while the active set changes: their solves stop at the relative tolerances
-    :data:`LOOSE_RTOL`, which are enough to decide the next active set. When it settles, its
-    system is solved once more at the tolerances of ``petsc_options`` (one more step, whose
-    iterate the convergence test then checks); direct solvers are always exact. A loose solve
-    can put a nearly degenerate row on the wrong side, so loose steps can cycle on the solves'
-    error alone: a set that repeats among loose steps makes every following step accurate
-    (instead of the least-index rule), and the accurate steps keep their own record of the
-    sets they visit (a set a loose step visited is no cycle when an accurate one returns to
-    it). Measured on an adaptive 3D level of 1.08M DoFs: 6 rows cycled under loose solves,
-    and the least-index rule took 12 steps in all.
-
-    After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
-    lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``ncp_scale``)
-    only weighs an initial guess against the gap, and the iterates from a zero initial guess do
-    not depend on it.
-
     Args:
         problem_or_disc: A :class:`~dwr_signorini.SignoriniProblem` or a ready
             :class:`~dwr_signorini.spaces.Discretization`.
@@ -302,6 +268,40 @@ def solve(
         ConvergenceError: No convergence in ``max_iterations`` steps, active-set cycling that
             the safeguard could not break, a failed linear solve, NaN/Inf in the data (loads,
             gap) or in an iterate; with the iteration history. Raised on every rank.
+
+    The active set of step k is A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21), evaluated at
+    the previous iterate, with two safeguards:
+
+    * *Round-off.* In the test (M lam + c_n (N u - g))_i > 0 each part counts as zero below its
+      round-off level (``1e-10`` relative to ``M_i max|u| + |g_i|`` and to ``max_j |(M lam)_j|``).
+      Without it a bi-active index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g.
+      grazing contact) would change sides on round-off noise and the iteration could cycle; and
+      the decisions stay independent of c_n.
+    * *Cycling.* If an active set repeats, the update switches to Murty's least-index rule: of the
+      indices the rule (21) would change, only the one with the smallest global number changes
+      sides. On the multipliers the contact conditions are a linear complementarity problem with
+      the matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the
+      body, for which this rule terminates finitely (K. G. Murty, Opsearch 11, 1974, 123-130).
+      A law with coupled rows (Coulomb's, Tresca's in 3D) is not such a problem, and on it the
+      rule can cycle too: there a repeat switches to damped steps instead (the rule's sets,
+      half the Newton update, while the sets change; full steps once they repeat).
+
+    With a Krylov solver of K (``method="schur"``, :class:`KrylovSchurComplement`) the steps are
+    *inexact* while the active set changes: their solves stop at the relative tolerances
+    :data:`LOOSE_RTOL`, which are enough to decide the next active set. When it settles, its
+    system is solved once more at the tolerances of ``petsc_options`` (one more step, whose
+    iterate the convergence test then checks); direct solvers are always exact. A loose solve
+    can put a nearly degenerate row on the wrong side, so loose steps can cycle on the solves'
+    error alone: a set that repeats among loose steps makes every following step accurate
+    (instead of the least-index rule), and the accurate steps keep their own record of the
+    sets they visit (a set a loose step visited is no cycle when an accurate one returns to
+    it). Measured on an adaptive 3D level of 1.08M DoFs: 6 rows cycled under loose solves,
+    and the least-index rule took 12 steps in all.
+
+    After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
+    lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``ncp_scale``)
+    only weighs an initial guess against the gap, and the iterates from a zero initial guess do
+    not depend on it.
     """
     from .problem import SignoriniProblem
     from .spaces import discretize

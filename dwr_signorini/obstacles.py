@@ -251,13 +251,6 @@ class Cylinder(Obstacle):
 class Graph(Obstacle):
     r"""The obstacle above a graph: ``{y : y_axis >= psi(y)}``, the body below it.
 
-    The gap is the paper's formula of Section 2: for a contact boundary that is itself a graph
-    ``x_axis = phi(x')``, ``g = (psi - phi) (1 + |grad phi|^2)^(-1/2)``. At a boundary point,
-    ``phi(x') = x_axis`` and ``(1 + |grad phi|^2)^(-1/2) = n_axis`` (the normal of the graph), so
-    ``g = (psi(x) - x_axis) n_axis`` where ``n_axis > 0``, and ``miss`` where the boundary does not
-    face the obstacle (``n_axis <= 0``). This is the first-order (in the slopes) approximation
-    of the distance along n that the paper uses, exact for a flat psi and phi parallel to it.
-
     Args:
         psi: ``x -> UFL scalar``, the height of the obstacle's surface; it is called with the
             full spatial coordinate and must not depend on ``x[axis]``.
@@ -266,6 +259,13 @@ class Graph(Obstacle):
 
     Raises:
         TypeError: If ``psi`` is not callable or ``axis`` is not an integer.
+
+    The gap is the paper's formula of Section 2: for a contact boundary that is itself a graph
+    ``x_axis = phi(x')``, ``g = (psi - phi) (1 + |grad phi|^2)^(-1/2)``. At a boundary point,
+    ``phi(x') = x_axis`` and ``(1 + |grad phi|^2)^(-1/2) = n_axis`` (the normal of the graph), so
+    ``g = (psi(x) - x_axis) n_axis`` where ``n_axis > 0``, and ``miss`` where the boundary does not
+    face the obstacle (``n_axis <= 0``). This is the first-order (in the slopes) approximation
+    of the distance along n that the paper uses, exact for a flat psi and phi parallel to it.
     """
 
     def __init__(

@@ -56,17 +56,17 @@ __all__ = ["PathResult", "StepRecord", "history_estimates", "history_goal", "sol
 class StepRecord(LevelRecord):
     """One row of a load path's table: a :class:`~dwr_signorini.adapt.LevelRecord` of the step.
 
+    Attributes:
+        step: The load step, from 0 (``level`` is the refinement level of its mesh).
+        eta_history: The estimated error that the earlier steps carry into this step's goal,
+            or None where it is not estimated (``history=False``, adaptive paths).
+
     ``estimate``, ``J_low`` and ``J_high`` include the error the history carries into the
     step's goal (:func:`history_estimates`) when it is estimated; ``eta`` and ``eta_p`` are
     those of the step's own residuals.
 
     ``time`` has the phases of a level and ``history`` (the backward chain of the history's
     estimates).
-
-    Attributes:
-        step: The load step, from 0 (``level`` is the refinement level of its mesh).
-        eta_history: The estimated error that the earlier steps carry into this step's goal,
-            or None where it is not estimated (``history=False``, adaptive paths).
     """
 
     step: int = 0
@@ -355,6 +355,13 @@ def _step(
 def history_goal(sol: Solution, est: Estimate) -> Goal:
     """The sensitivity of a step's goal to its history, as a goal of the step before.
 
+    Args:
+        sol: The step's solution (its discretisation's meshes are the previous step's).
+        est: The estimate of the step's goal (its dual solution).
+
+    Returns:
+        ``goal(u, lam, m, lam_t) -> ufl.Form``, L(u).
+
     A step's tangential offsets are g_l = B_l u_old (the slip increment u - u_old,
     :class:`~dwr_signorini.laws.Coulomb`), so the step's J depends on the previous step's
     displacement. With the step's final sets, the derivative of its right-hand side in g_l is
@@ -367,13 +374,6 @@ def history_goal(sol: Solution, est: Estimate) -> Goal:
     exactly for the discrete problem while the sets hold (w_l is P0 on the macro facets). Its
     error at the previous step, L(u - u_h), is the part of the step's error that the history
     carries (module docstring).
-
-    Args:
-        sol: The step's solution (its discretisation's meshes are the previous step's).
-        est: The estimate of the step's goal (its dual solution).
-
-    Returns:
-        ``goal(u, lam, m, lam_t) -> ufl.Form``, L(u).
     """
     system = sol.system
     algebra = system.algebra
@@ -406,11 +406,6 @@ def history_estimates(
 ) -> list[tuple[float, float, float]]:
     """The error that each earlier step carries into this step's goal, by a backward chain.
 
-    From the last step back to the first: the history goal of the later step
-    (:func:`history_goal`) is estimated at the earlier one (its own residuals, weighted by the
-    dual solution of that goal), and that estimate's dual gives the next goal back. Costs one
-    estimate per earlier step (with the earlier step's factorisation).
-
     Args:
         kept: The earlier steps' solutions, first step first (on the same meshes).
         sol: This step's solution.
@@ -420,6 +415,11 @@ def history_estimates(
     Returns:
         One ``(estimate, low, high)`` per earlier step (last first): the estimated error of the
         history goal and its interval's ends relative to the goal's value.
+
+    From the last step back to the first: the history goal of the later step
+    (:func:`history_goal`) is estimated at the earlier one (its own residuals, weighted by the
+    dual solution of that goal), and that estimate's dual gives the next goal back. Costs one
+    estimate per earlier step (with the earlier step's factorisation).
     """
     out = []
     later_sol, later_est, owned = sol, est, None

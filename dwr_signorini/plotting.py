@@ -21,3 +21,22 @@ from .viz import read_rows as read_rows
 from .viz import snapshot_mesh as snapshot_mesh
 from .viz import virtual_display as virtual_display
 from .viz import von_mises_2d as von_mises_2d
+
+__all__ = [
+    "QUANTITY_LABELS",
+    "MeshSnapshot",
+    "cumulative_time",
+    "plot_contact_force",
+    "plot_convergence",
+    "plot_effectivity",
+    "plot_friction",
+    "plot_interval",
+    "plot_mesh",
+    "plot_solution_2d",
+    "plot_solution_3d",
+    "plot_sweep",
+    "read_rows",
+    "snapshot_mesh",
+    "virtual_display",
+    "von_mises_2d",
+]

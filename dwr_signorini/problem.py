@@ -95,7 +95,10 @@ _MeshData = dict[str, Any]
 
 
 class SignoriniProblem(ProblemDataChecks):
-    """Frictionless contact of a linear-elastic body with a rigid obstacle (paper eq. 1-3).
+    """Signorini's problem (eq. 1-3): an elastic body on a rigid obstacle, with or without friction.
+
+    The contact is frictionless (the paper's problem) or follows Tresca's or Coulomb's law
+    (``friction``).
 
     Args:
         mesh: The macro mesh T_H (simplices for adaptivity; quadrilaterals/hexahedra for uniform
@@ -124,7 +127,9 @@ class SignoriniProblem(ProblemDataChecks):
             of T_H the vertices on those facets are moved onto it
             (:func:`dwr_signorini.refine.refine_marked`).
         friction: The contact law (:mod:`dwr_signorini.laws`): ``None`` or
-            ``ds.Frictionless()`` (the default, Signorini's problem) or ``ds.Tresca(s)``.
+            ``ds.Frictionless()`` (the default, Signorini's problem), ``ds.Tresca(s)`` (the slip
+            threshold s) or ``ds.Coulomb(mu)`` (the threshold mu lambda_n; a sequence of such
+            problems is a load path for :func:`~dwr_signorini.solve_path`).
         quadrature_degree: Degree of the quadrature rule for non-polynomial data (body force,
             tractions, gap, the friction bound, ``E`` and ``nu`` given as functions of x) in
             the Newton system, and by default in the residuals of the estimators

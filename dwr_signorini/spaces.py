@@ -91,6 +91,14 @@ class Measures:
 class Discretization:
     """Macro mesh, fine mesh, the spaces V_h and Lambda_H and the maps between them.
 
+    Args:
+        problem: The problem; its mesh is the macro mesh T_H (collective: T_h is refined on
+            every rank).
+
+    Raises:
+        RuntimeError: If a fine contact facet has no parent macro contact facet (a refinement
+            that broke the parent maps; not expected from dolfinx's refinement).
+
     Attributes:
         problem: The problem on the macro mesh.
         macro_mesh: T_H.
@@ -110,14 +118,6 @@ class Discretization:
         u_old: The displacement at the end of the previous load step (a function on V), whose
             tangential part a frictional law's slip is measured from (u_t - u_t^old); None
             (zero) outside a load path. Set it with :meth:`set_u_old` before solving.
-
-    Args:
-        problem: The problem; its mesh is the macro mesh T_H (collective: T_h is refined on
-            every rank).
-
-    Raises:
-        RuntimeError: If a fine contact facet has no parent macro contact facet (a refinement
-            that broke the parent maps; not expected from dolfinx's refinement).
     """
 
     def __init__(self, problem: SignoriniProblem) -> None:

@@ -125,6 +125,14 @@ def test_site(tmp_path):
             assert re.search(rf'id="dwr_signorini\.(\w+\.)?{name}"', api), name
     for name in dwr_signorini.obstacles.__all__:
         assert f'id="dwr_signorini.obstacles.{name}"' in api, name
+    # the public modules beside ds: their pages' names and what they export
+    for module in ("obstacles", "interval", "examples", "plotting", "io", "meshes"):
+        assert f'id="module-dwr_signorini.{module}"' in api, module
+    for name in ("plot_convergence", "plot_interval", "plot_friction"):
+        assert f'id="dwr_signorini.plotting.{name}"' in api, name
+    for name in ("bar_problem", "friction_problem", "cattaneo_mindlin_path", "goal_bar"):
+        assert f'id="dwr_signorini.examples.{name}"' in api, name
+    assert 'id="dwr_signorini.io.write_csv"' in api
     guide = (out / "guide" / "estimate.html").read_text()
     assert 'id="how-far-can-i-trust-the-number"' in guide
 
@@ -193,7 +201,8 @@ def test_api_docstrings_complete():
         if not inspect.isclass(obj):
             continue
         doc = _sections(inspect.getdoc(obj))
-        if "__init__" in vars(obj):
+        own_init = getattr(vars(obj).get("__init__"), "__module__", "") or ""
+        if own_init.startswith("dwr_signorini"):    # not typing.Protocol's, say
             init = vars(obj)["__init__"]
             missing = _missing(init, doc, returns=False)
             if "Args" in missing and "Attributes" in doc and dataclasses.is_dataclass(obj):
@@ -217,3 +226,145 @@ def test_api_docstrings_complete():
                 doc = _sections(inspect.getdoc(getattr(obj, member)))
                 problems += [f"{name}.{member}: {m}" for m in _missing(value, doc)]
     assert problems == [], "\n".join(problems)
+
+
+# --------------------------------------------------------------------------------------------------
+# Every ```python block of README.md and docs/ runs
+# --------------------------------------------------------------------------------------------------
+
+#: The pages whose code blocks are run: the README, every Markdown page of the site and the
+#: measurement logs the site includes. Not the demos' pages, which the build generates from
+#: ``demos/*.py`` (not committed: ``docs/demos/.gitignore``); test_demos runs the demos.
+DOC_PAGES = [
+    ROOT / "README.md",
+    *sorted(p for p in DOCS.rglob("*.md")
+            if "_build" not in p.relative_to(DOCS).parts
+            and not (p.parent == DOCS / "demos" and p.name != "index.md")),
+    ROOT / "benchmarks" / "README.md",
+]
+
+FENCE = re.compile(r"^```([^\n]*)\n(.*?)^```[ \t]*$", re.M | re.S)
+#: A block's set-up, hidden on the rendered page: an HTML comment right before the block,
+#: ``<!-- set-up:`` on its own line, then Python, then ``-->``.
+SET_UP = re.compile(r"<!-- set-up:\n(.*?)^-->\s*\Z", re.M | re.S)
+#: Fences that would hold Python under another name: not allowed, so that no block is skipped
+#: because of how it is marked.
+OTHER_PYTHON = re.compile(
+    r"^(py|python3|pycon|ipython3?|\{code-block\}\s*python.*|\{code-cell\}.*)$")
+
+
+def doc_blocks(page):
+    """``(line, set_up, code)`` of every ```python block of a page, in order."""
+    text = page.read_text()
+    blocks, end = [], 0
+    for fence in FENCE.finditer(text):
+        info = fence.group(1).strip()
+        assert not OTHER_PYTHON.match(info), f"{page}: a ```{info} block is not run; mark it python"
+        if info != "python":
+            continue
+        before = SET_UP.search(text, end, fence.start())
+        line = text.count("\n", 0, fence.start()) + 1
+        blocks.append((line, before.group(1) if before else "", fence.group(2)))
+        end = fence.end()
+    assert len(blocks) == text.count("```python"), f"{page}: a ```python block was not parsed"
+    assert sum(1 for b in blocks if b[1]) == len(re.findall(r"^<!-- set-up:$", text, re.M)), (
+        f"{page}: a set-up that is not right before a ```python block")
+    return blocks
+
+
+def run_page(page, name=None):
+    """Run a page's blocks as test_doc_blocks_run does; the number of blocks run."""
+    name = name or str(page)
+    namespace = {"__name__": "__doc_block__"}
+    ran = 0
+    try:
+        for line, set_up, code in doc_blocks(page):
+            where = f"{name}:{line}"
+            try:
+                if set_up:
+                    exec(compile(set_up, f"{where} (set-up)", "exec"), namespace)
+                exec(compile(code, where, "exec"), namespace)
+            except Exception as error:
+                raise AssertionError(
+                    f"the block at {where} raised {type(error).__name__}: {error}") from error
+            ran += 1
+    finally:
+        for value in list(namespace.values()):     # what the blocks left open, collectively
+            if hasattr(value, "destroy") and hasattr(value, "__exit__"):
+                value.destroy()
+    return ran
+
+
+def _page_id(page):
+    return str(page.relative_to(ROOT))
+
+
+@pytest.mark.parametrize(
+    "page", [p for p in DOC_PAGES if "```python" in p.read_text()], ids=_page_id)
+def test_doc_blocks_run(page, tmp_path, monkeypatch):
+    """The page's ```python blocks run, in order and in one namespace (as a reader pastes them
+    into one session), each after its marked set-up, in a scratch directory; a block that
+    raises fails the test with its page and line, and every block of the page must have run."""
+    monkeypatch.chdir(tmp_path)
+    assert run_page(page, _page_id(page)) == len(doc_blocks(page))
+
+
+def test_doc_blocks_all_found():
+    """Every page with a ```python block is run by test_doc_blocks_run, and none hides Python
+    under another fence name; the total is what the tests above run."""
+    total = sum(len(doc_blocks(page)) for page in DOC_PAGES)
+    assert total == sum(page.read_text().count("```python") for page in DOC_PAGES)
+    assert total >= 15
+
+
+PAGE = """\
+# A page
+
+<!-- set-up:
+x = 2
+-->
+```python
+y = x + 1
+```
+
+```bash
+not python
+```
+
+```python
+assert y == 3
+z = y / ({zero})
+```
+"""
+
+
+def test_doc_block_runner(tmp_path):
+    """The runner itself: set-up, order, one namespace, shell blocks left out, a raising block
+    fails with its line, and a set-up without its block or Python under another fence name is
+    refused."""
+    page = tmp_path / "page.md"
+    page.write_text(PAGE.format(zero=1))
+    assert [line for line, _, _ in doc_blocks(page)] == [6, 14]
+    assert run_page(page) == 2
+    page.write_text(PAGE.format(zero=0))
+    with pytest.raises(AssertionError, match=r"page.md:14 raised ZeroDivisionError"):
+        run_page(page)
+    page.write_text(PAGE.format(zero=1).replace("```python\ny =", "```\ny ="))
+    with pytest.raises(AssertionError, match="set-up that is not right before"):
+        doc_blocks(page)
+    page.write_text(PAGE.format(zero=1).replace("```python\nassert", "```py\nassert"))
+    with pytest.raises(AssertionError, match="```py block is not run"):
+        doc_blocks(page)
+
+
+def test_api_docstrings_parameters_first():
+    """Every entry of the API reference gives its parameters (or attributes) after a short
+    description of at most three lines; what the implementation does follows them."""
+    long = []
+    for name, obj, _ in _api_objects():
+        lines = (inspect.getdoc(obj) or "").splitlines()
+        heads = [i for i, line in enumerate(lines)
+                 if re.fullmatch(r"(Args|Attributes|Returns|Yields|Raises):", line)]
+        if heads and len([line for line in lines[1:heads[0]] if line.strip()]) > 3:
+            long.append(name)
+    assert long == [], "\n".join(long)

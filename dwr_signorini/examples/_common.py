@@ -36,11 +36,22 @@ class Material:
     model: str = "plane_strain"
 
     def lame(self) -> tuple[float, float]:
-        """Return ``(mu, lambda)``, see :func:`dwr_signorini.problem.lame_parameters`."""
+        """The Lame parameters of the material.
+
+        Returns:
+            ``(mu, lambda)``, see :func:`dwr_signorini.problem.lame_parameters`.
+        """
         return lame_parameters(self.E, self.nu, self.model)
 
     def sigma(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
-        """Return the stress tensor ``sigma(u)``, see :func:`dwr_signorini.problem.stress`."""
+        """The stress of Hooke's law of the material.
+
+        Args:
+            u: The displacement (UFL).
+
+        Returns:
+            The stress tensor ``sigma(u)``, see :func:`dwr_signorini.problem.stress`.
+        """
         return stress(u, self.E, self.nu, self.model)
 
 

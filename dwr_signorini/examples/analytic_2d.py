@@ -65,14 +65,6 @@ def analytic_2d_mesh(
 ) -> tuple[Mesh, MeshTags]:
     """Mesh of Example 5.1 (Section 5.1): Omega = (-3, 0) x (-1, 1).
 
-    Tags: 1 on Gamma_D = {-3} x [-1, 1], 2 on Gamma_N = (-3, 0) x {-1, 1},
-    3 on Gamma_C = {0} x [-1, 1].
-
-    The default 12 x 8 quadrilaterals is the coarsest macro mesh T_H of the paper; its uniform
-    refinement (24 x 16, M_Omega = 384 cells, level L = 0 of Tables 1-2) carries the
-    displacement, since the paper uses H = 2h (Section 4). With ``ny`` a multiple of 4 the kinks
-    of u_2 at y = +-1/2 are mesh lines.
-
     Args:
         comm: MPI communicator.
         nx: Number of cells in x.
@@ -81,6 +73,14 @@ def analytic_2d_mesh(
 
     Returns:
         The mesh (``GhostMode.none``) and its exterior facet tags.
+
+    Tags: 1 on Gamma_D = {-3} x [-1, 1], 2 on Gamma_N = (-3, 0) x {-1, 1},
+    3 on Gamma_C = {0} x [-1, 1].
+
+    The default 12 x 8 quadrilaterals is the coarsest macro mesh T_H of the paper; its uniform
+    refinement (24 x 16, M_Omega = 384 cells, level L = 0 of Tables 1-2) carries the
+    displacement, since the paper uses H = 2h (Section 4). With ``ny`` a multiple of 4 the kinks
+    of u_2 at y = +-1/2 are mesh lines.
     """
     check_cell_type(cell_type, (CellType.triangle, CellType.quadrilateral))
     msh = _mesh.create_rectangle(
@@ -123,16 +123,16 @@ def _u2_ufl(X: ufl.core.expr.Expr | float, Y: ufl.core.expr.Expr) -> ufl.core.ex
 def analytic_displacement(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
     """Exact displacement u = (u1, u2) of Example 5.1 (Section 5.1).
 
-    ``u1 = -(x+3)^2 (y - x^2/18 - 1/2)^4 (y + x^2/18 + 1/2)^4`` for ``|y| < x^2/18 + 1/2``,
-    ``u2 = 27/pi sin(4 pi (x+3)/3) [(y-1/2)^3 (y+1/2)^4 + (y-1/2)^4 (y+1/2)^3]`` for
-    ``|y| < 1/2``, both zero elsewhere. The pieces join C^2 (u1 even C^3) across the curves
-    ``|y| = x^2/18 + 1/2`` and ``|y| = 1/2``.
-
     Args:
         x: Spatial coordinate of a 2D mesh.
 
     Returns:
         The vector expression built with ``ufl.conditional``.
+
+    ``u1 = -(x+3)^2 (y - x^2/18 - 1/2)^4 (y + x^2/18 + 1/2)^4`` for ``|y| < x^2/18 + 1/2``,
+    ``u2 = 27/pi sin(4 pi (x+3)/3) [(y-1/2)^3 (y+1/2)^4 + (y-1/2)^4 (y+1/2)^3]`` for
+    ``|y| < 1/2``, both zero elsewhere. The pieces join C^2 (u1 even C^3) across the curves
+    ``|y| = x^2/18 + 1/2`` and ``|y| = 1/2``.
     """
     return ufl.as_vector((_u1_ufl(x[0], x[1]), _u2_ufl(x[0], x[1])))
 
@@ -243,7 +243,7 @@ def goal_a2_weight(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
 
 
 def goal_a(m_center: float = -0.5) -> Goal:
-    """Quantity of interest J_{a,m}(u) = int_Omega omega_m(x) |u|^2 dx (Section 5.1).
+    """Quantity of interest ``J_{a,m}(u) = int_Omega omega_m(x) |u|^2 dx`` (Section 5.1).
 
     ``J_{a,1}`` is ``m_center = -0.5``; Figure 4 varies m in [-3, 0].
 
@@ -462,12 +462,7 @@ def _agreed(coarse: float, fine: float, what: str) -> float:
 
 @functools.lru_cache(maxsize=64)
 def exact_J_a(m_center: float = -0.5) -> float:
-    """Exact J_{a,m}(u) = int_Omega omega_m |u|^2 dx of Example 5.1 (Section 5.1).
-
-    Computed with numpy only (no finite elements): composite Gauss-Legendre quadrature on the
-    supports of u1 and u2, split at the curves |y| = x^2/18 + 1/2 and |y| = 1/2 and at the centre
-    (m, 0) of the weight; two rules (16 points on subintervals <= 0.1, 24 points on subintervals
-    <= 0.0625) must agree to 1e-12 relative. J_{a,1} = J_{a,-0.5} = 4.78055755404685e-4.
+    """Exact ``J_{a,m}(u) = int_Omega omega_m |u|^2 dx`` of Example 5.1 (Section 5.1).
 
     Args:
         m_center: Abscissa m of the centre of the weight omega_m, m in [-3, 0].
@@ -477,6 +472,12 @@ def exact_J_a(m_center: float = -0.5) -> float:
 
     Raises:
         RuntimeError: If the two quadrature rules disagree.
+
+    Computed with numpy only (no finite elements): composite Gauss-Legendre quadrature on the
+    supports of u1 and u2, split at the curves ``|y| = x^2/18 + 1/2`` and ``|y| = 1/2`` and at
+    the centre (m, 0) of the weight; two rules (16 points on subintervals <= 0.1, 24 points on
+    subintervals <= 0.0625) must agree to 1e-12 relative.
+    J_{a,1} = J_{a,-0.5} = 4.78055755404685e-4.
     """
     m_center = float(m_center)
     return _agreed(
@@ -490,11 +491,6 @@ def exact_J_a(m_center: float = -0.5) -> float:
 def exact_J_a2(E: float = 10.0, nu: float = 0.3) -> float:
     """Exact J_{a,2}(lambda_n) of Example 5.1 (Section 5.1).
 
-    ``int_{-1}^{1} (0.5 tanh(20 (0.25 - |y - 0.125|)) + 0.5) lambda_n(y)^2 dy`` with the exact
-    ``lambda_n = -sigma_nn(u)`` on x = 0, by composite Gauss-Legendre quadrature split at the
-    kinks y = -1/2, 0.125, 1/2; two rules must agree to 1e-12 relative.
-    J_{a,2} = 2.50310203659923e-2 for E = 10, nu = 0.3.
-
     Args:
         E: Young's modulus.
         nu: Poisson's ratio.
@@ -504,6 +500,11 @@ def exact_J_a2(E: float = 10.0, nu: float = 0.3) -> float:
 
     Raises:
         RuntimeError: If the two quadrature rules disagree.
+
+    ``int_{-1}^{1} (0.5 tanh(20 (0.25 - |y - 0.125|)) + 0.5) lambda_n(y)^2 dy`` with the exact
+    ``lambda_n = -sigma_nn(u)`` on x = 0, by composite Gauss-Legendre quadrature split at the
+    kinks y = -1/2, 0.125, 1/2; two rules must agree to 1e-12 relative.
+    J_{a,2} = 2.50310203659923e-2 for E = 10, nu = 0.3.
     """
     return _agreed(
         _J_a2_quadrature(E, nu, 0.1, 16),

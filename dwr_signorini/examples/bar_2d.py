@@ -130,13 +130,13 @@ def bar_gap(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
 def goal_bar() -> Goal:
     """Quantity of interest of Example 5.2 (Section 5.2): J(u) = int_B grad u : grad u dx.
 
+    Returns:
+        ``goal(u, lam, m) -> chi_B * inner(grad u, grad u) * m.dx``.
+
     B = [0, 0.05]^2 is the part y <= 0.05 of the bar (its clamped end). It is represented by a
     ``ufl.conditional`` indicator evaluated at the quadrature points, which is exact only if B is
     resolved by the mesh: y = 0.05 is a mesh line of :func:`bar_2d_mesh` (``ny`` a multiple of 4)
     and stays one under refinement.
-
-    Returns:
-        ``goal(u, lam, m) -> chi_B * inner(grad u, grad u) * m.dx``.
     """
 
     def goal(u: ufl.core.expr.Expr, lam: ufl.core.expr.Expr, m: GoalContext) -> ufl.Form:

@@ -41,13 +41,15 @@ The measurements against this theory (and that of the sphere) are in
 :mod:`~dwr_signorini.examples.cattaneo_mindlin_3d` (a sphere) imports the pieces the two
 dimensions share from here (the tags, the gmsh reader, the load path).
 
-The mesh builder reads the gmsh script ``meshes/cattaneo_2d.py`` of the project's checkout (the
-folder next to the package); pass ``mesh=(msh, cell_tags, facet_tags)`` with the script's tags
-to use another mesh.
+The mesh builder reads the gmsh script ``meshes/cattaneo_2d.py``, found through the package
+(:mod:`dwr_signorini.meshes`, the checkout's ``meshes/`` installed with it), so it works from the
+checkout and after ``pip install .``; pass ``mesh=(msh, cell_tags, facet_tags)`` with the
+script's tags to use another mesh.
 """
 
 from __future__ import annotations
 
+import importlib.resources
 import importlib.util
 import math
 from pathlib import Path
@@ -89,7 +91,9 @@ CM_DEFAULTS: dict[str, float] = {
     "steps": 4, "h": 0.2, "h_contact": 0.01, "refine_radius": 0.15,
 }
 
-_MESHES = Path(__file__).resolve().parents[2] / "meshes"
+# The gmsh scripts: the checkout's meshes/, installed with the package as dwr_signorini.meshes
+# (found through the package, wherever it is imported from).
+_MESHES = Path(str(importlib.resources.files("dwr_signorini.meshes")))
 _MESH_SCRIPT = _MESHES / "cattaneo_2d.py"
 
 
@@ -130,7 +134,7 @@ def hertz_half_width(P: float, radius: float, E: float, nu: float) -> tuple[floa
 
 
 def hertz_pressure(x: npt.ArrayLike, a: float, p0: float) -> np.ndarray:
-    """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on |x| <= a, 0 outside, eq. (H3).
+    """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on ``|x| <= a``, 0 outside, eq. (H3).
 
     Also the sphere's p(r), eq. (H3') of :mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`.
 
@@ -147,7 +151,7 @@ def hertz_pressure(x: npt.ArrayLike, a: float, p0: float) -> np.ndarray:
 
 
 def stick_half_width(a: float, Q: float, mu: float, P: float) -> float:
-    """Cattaneo-Mindlin's stick half-width c = a sqrt(1 - |Q| / (mu P)), eq. (CM1).
+    """Cattaneo-Mindlin's stick half-width ``c = a sqrt(1 - |Q| / (mu P))``, eq. (CM1).
 
     Args:
         a: The contact half-width.
@@ -181,7 +185,7 @@ def cm_traction(x: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> n
 
     Returns:
         q at ``x``: mu p0 / a (sqrt(a^2 - x^2) - sqrt(c^2 - x^2)) (the second root only where
-        |x| < c), zero outside the contact |x| > a.
+        ``|x| < c``), zero outside the contact ``|x| > a``.
     """
     x = np.asarray(x, dtype=float)
     if a <= 0:
@@ -197,11 +201,11 @@ def cm_traction(x: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> n
 
 
 def _mesh_script(script: Path = _MESH_SCRIPT) -> Any:
-    """The module ``meshes/cattaneo_2d.py`` (or ``script``) of the checkout."""
+    """The module ``dwr_signorini/meshes/cattaneo_2d.py`` (or ``script``) of the package."""
     if not script.is_file():
         raise FileNotFoundError(
             f"the Cattaneo-Mindlin mesh builders read the gmsh script {script}, which is missing "
-            "(an installed package has no meshes/ folder): pass mesh=(msh, cell_tags, facet_tags)"
+            "(a package installed without its meshes/): pass mesh=(msh, cell_tags, facet_tags)"
         )
     spec = importlib.util.spec_from_file_location(f"meshes_{script.stem}", script)
     module = importlib.util.module_from_spec(spec)

@@ -43,8 +43,9 @@ in contact and sticking, and the relative L2 errors are integrated on every macr
 collapsed Gauss-Legendre rule. The facets are gathered on rank 0
 (:func:`gather_contact_patch`) and the results broadcast.
 
-The mesh builder reads the gmsh script ``meshes/hertz_3d.py`` of the project's checkout; pass
-``mesh=(msh, cell_tags, facet_tags)`` with the script's tags to use another mesh.
+The mesh builder reads the gmsh script ``meshes/hertz_3d.py`` through the package
+(:mod:`dwr_signorini.meshes`); pass ``mesh=(msh, cell_tags, facet_tags)`` with the script's tags
+to use another mesh.
 """
 
 from __future__ import annotations
@@ -119,7 +120,7 @@ def hertz_radius(P: float, radius: float, E: float, nu: float) -> tuple[float, f
 
 
 def stick_radius(a: float, Q: float, mu: float, P: float) -> float:
-    """Mindlin's stick radius c = a (1 - |Q| / (mu P))^(1/3), eq. (CM1').
+    """Mindlin's stick radius ``c = a (1 - |Q| / (mu P))^(1/3)``, eq. (CM1').
 
     Args:
         a: The contact radius.
@@ -215,12 +216,6 @@ def cattaneo_mindlin_path_3d(
 ) -> list[SignoriniProblem]:
     """The 3D load path of the module docstring: the half sphere y >= 0, pressed, then sheared.
 
-    As :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_path` on
-    :func:`cattaneo_mindlin_mesh_3d`: the top z = R is displaced by ``(0, 0, -press)``, then by
-    ``(k shear / steps, 0, -press)``; the plane y = 0 is a symmetry plane (u_y = 0; a shear
-    along x keeps the whole sphere's problem symmetric about it). The sphere is projected onto
-    itself when the mesh is refined.
-
     Args:
         comm: The communicator (collective).
         h_contact: Macro facet size at the contact (:func:`cattaneo_mindlin_mesh_3d`).
@@ -241,6 +236,12 @@ def cattaneo_mindlin_path_3d(
 
     Raises:
         ValueError: If ``steps`` is not a positive integer.
+
+    As :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_path` on
+    :func:`cattaneo_mindlin_mesh_3d`: the top z = R is displaced by ``(0, 0, -press)``, then by
+    ``(k shear / steps, 0, -press)``; the plane y = 0 is a symmetry plane (u_y = 0; a shear
+    along x keeps the whole sphere's problem symmetric about it). The sphere is projected onto
+    itself when the mesh is refined.
     """
     _check_steps(steps)
     if mesh is None:

@@ -133,31 +133,31 @@ class CMMeasure:
     Attributes:
         P: int_GC lambda_n ds, the normal force per unit length.
         Q: int_GC lambda_t ds, the tangential force (with its sign).
-        ratio: |Q| / (mu P).
+        ratio: ``|Q| / (mu P)``.
         a: Hertz's half-width for P, eq. (H1).
         p0: Hertz's peak pressure for P, eq. (H2).
-        c: Cattaneo-Mindlin's stick half-width for P and Q, eq. (CM1) (nan if |Q| > mu P).
+        c: Cattaneo-Mindlin's stick half-width for P and Q, eq. (CM1) (nan if ``|Q| > mu P``).
         a_h: Half the extent along x of the macro facets in contact (outer vertices).
         c_h: Half the extent along x of the sticking macro facets (outer vertices; 0 if none).
         stick_center: The middle of the sticking facets' extent (0 in the theory).
-        h_facet: The longest macro facet of the contact zone |x| <= a: the unit of "within
+        h_facet: The longest macro facet of the contact zone ``|x| <= a``: the unit of "within
             one macro facet".
         c_error_facets: (c_h - c) / h_facet.
         a_error_facets: (a_h - a) / h_facet.
         num_stick, num_slip: The numbers of sticking and slipping macro facets.
-        l2_lam_t: ||lambda_t - sign(Q) q||_L2(GC) / ||q||_L2(GC), eq. (CM2).
+        l2_lam_t: ``||lambda_t - sign(Q) q||_L2(GC) / ||q||_L2(GC)``, eq. (CM2).
         l2_best: The relative L2 error of the best approximation of q by macro-facet constants
             (the facet means of q): what lambda_t's P0 space allows at best.
-        l2_lam: ||lambda_n - p||_L2(GC) / ||p||_L2(GC), eq. (H3).
-        max_lam_t: max |lambda_t| / (mu p0): a coupling measure of the press step.
-        rms_lam_t: ||lambda_t||_L2(GC) / ||mu p||_L2(GC), eq. (H3): another one.
+        l2_lam: ``||lambda_n - p||_L2(GC) / ||p||_L2(GC)``, eq. (H3).
+        max_lam_t: ``max |lambda_t| / (mu p0)``: a coupling measure of the press step.
+        rms_lam_t: ``||lambda_t||_L2(GC) / ||mu p||_L2(GC)``, eq. (H3): another one.
         coupling: int_{GC, x > 0} lambda_t ds / (mu int_{GC, x > 0} lambda_n ds): the mean
             friction on one half of the contact in units of its Coulomb limit, the coupling
             measure of the press step (the press alone gives an odd lambda_t, zero for
             beta = 0).
         dim: 2, or 3 for a solution of
             :func:`~dwr_signorini.examples.cattaneo_mindlin_3d.cattaneo_mindlin_path_3d`.
-        l2_lam_ty: In 3D ||lambda_t . e_y||_L2(GC) / ||q||_L2(GC), the traction across the shear
+        l2_lam_ty: In 3D ``||lambda_t . e_y||_L2(GC) / ||q||_L2(GC)``, the traction across the shear
             (zero in Mindlin's approximation); nan in 2D.
 
     In 3D (:func:`~dwr_signorini.examples.cattaneo_mindlin_3d.cattaneo_mindlin_path_3d`, the
@@ -332,6 +332,9 @@ def measure_cattaneo_mindlin(
 
     Returns:
         The :class:`CMMeasure`, the same on every rank.
+
+    Raises:
+        Exception: What the measurement raised on rank 0, raised on every rank.
     """
     comm = sol.disc.comm
     on_root: Callable[[], CMMeasure]

@@ -49,7 +49,13 @@ FRICTION_DEFAULTS_3D = {"radius": 4.0, "nx": 6, "ny": 3, "s": 0.1}
 def friction_gap(radius: float, dim: int = 2) -> Any:
     """The gap to a cylinder (2D) or sphere (3D) of ``radius`` touching the bottom's centre.
 
-    A paraboloid: ``|x' - x'_0|^2 / (2 R)`` in the bottom's coordinates x' = x (2D), (x, y) (3D).
+    Args:
+        radius: The radius R of the cylinder or sphere.
+        dim: 2 or 3.
+
+    Returns:
+        ``gap(x) -> UFL scalar``, the paraboloid ``|x' - x'_0|^2 / (2 R)`` in the bottom's
+        coordinates x' = x (2D), (x, y) (3D), x'_0 the bottom's centre.
     """
 
     def gap(x: Any) -> Any:
@@ -72,6 +78,23 @@ def friction_problem(
     dim: int = 2,
 ) -> SignoriniProblem:
     """The sheared block on a cylinder or sphere (module docstring).
+
+    Args:
+        comm: The communicator (collective).
+        nx: Macro cells along x (and y in 3D).
+        ny: Macro cells across the block's height.
+        radius: The radius R of the cylinder (sphere).
+        press: The top's displacement into the obstacle.
+        shear: The top's displacement along x.
+        s: Tresca's slip threshold.
+        dim: 2 or 3.
+
+    Returns:
+        The :class:`~dwr_signorini.SignoriniProblem` with ``friction=Tresca(s)``, tags
+        :data:`DIRICHLET` (the top), :data:`CONTACT` (the bottom) and :data:`NEUMANN`.
+
+    Raises:
+        ValueError: If ``dim`` is neither 2 nor 3.
 
     In 2D an nx x ny triangle macro mesh; the default nx, ny give macro triangles without two
     edges of the same length (dolfinx's refinement orders edges by length, and ties broken by
@@ -109,7 +132,9 @@ def friction_problem(
 def goal_friction_force() -> Any:
     """``goal(u, lam, m, lam_t) = int_GC lambda_t ds``, the total friction force on the body.
 
-    In 3D (lam_t the traction vector) its x component, ``int_GC lambda_t . e_x ds``.
+    Returns:
+        The goal; in 3D (lam_t the traction vector) the force's x component,
+        ``int_GC lambda_t . e_x ds``.
     """
 
     def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> ufl.Form:

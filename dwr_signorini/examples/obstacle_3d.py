@@ -48,11 +48,6 @@ def obstacle_3d_mesh(
 ) -> tuple[Mesh, MeshTags]:
     """Mesh of Example 5.3 (Section 5.3): Omega = (0, 0.25) x (0, 1) x (0, 1).
 
-    Tags: 1 on Gamma_D = {x1 = 0}, 3 on Gamma_C = {x1 = 0.25, 0 <= x2, x3 <= 0.5}, 2 on the rest.
-    ``n[1]`` and ``n[2]`` must be even so that Gamma_C is a union of facets; with multiples of 8
-    (the default) the region B = {0.625 <= x2, x3 <= 0.875} of the quantity of interest is also
-    resolved by the mesh (see :func:`goal_obstacle`).
-
     Args:
         comm: MPI communicator.
         n: Numbers of cells in x1, x2, x3.
@@ -63,6 +58,11 @@ def obstacle_3d_mesh(
 
     Raises:
         ValueError: If ``n[1]`` or ``n[2]`` is odd or the cell type is not 3D.
+
+    Tags: 1 on Gamma_D = {x1 = 0}, 3 on Gamma_C = {x1 = 0.25, 0 <= x2, x3 <= 0.5}, 2 on the rest.
+    ``n[1]`` and ``n[2]`` must be even so that Gamma_C is a union of facets; with multiples of 8
+    (the default) the region B = {0.625 <= x2, x3 <= 0.875} of the quantity of interest is also
+    resolved by the mesh (see :func:`goal_obstacle`).
     """
     check_cell_type(cell_type, (CellType.tetrahedron, CellType.hexahedron))
     n = [int(k) for k in n]
@@ -94,16 +94,16 @@ def obstacle_3d_mesh(
 def obstacle_psi(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
     """Obstacle surface psi of Example 5.3 (Section 5.3).
 
-    With ``z = sqrt((x2 - 0.25)^2 + (x3 - 0.25)^2)``:
-    ``psi = 0.25 + 0.05 (65536 z^8 - 1)`` for ``z <= 0.25`` and 0.25 otherwise. Since
-    ``65536 = 4^8``, psi is continuous (and C^0 only) at z = 0.25 and ``psi = 0.2`` at the centre.
-    Written in ``z^2`` (no square root).
-
     Args:
         x: Spatial coordinate of a 3D mesh.
 
     Returns:
         The scalar expression psi.
+
+    With ``z = sqrt((x2 - 0.25)^2 + (x3 - 0.25)^2)``:
+    ``psi = 0.25 + 0.05 (65536 z^8 - 1)`` for ``z <= 0.25`` and 0.25 otherwise. Since
+    ``65536 = 4^8``, psi is continuous (and C^0 only) at z = 0.25 and ``psi = 0.2`` at the centre.
+    Written in ``z^2`` (no square root).
     """
     z2 = (x[1] - 0.25) ** 2 + (x[2] - 0.25) ** 2
     return ufl.conditional(ufl.le(z2, 0.0625), 0.25 + 0.05 * (65536.0 * z2**4 - 1.0), 0.25)
@@ -129,14 +129,14 @@ def obstacle_gap(x: ufl.SpatialCoordinate) -> ufl.core.expr.Expr:
 def goal_obstacle() -> Goal:
     """Quantity of interest of Example 5.3 (Section 5.3).
 
+    Returns:
+        ``goal(u, lam, m) -> 1e-3 * chi_B * inner(m.sigma(u), m.sigma(u)) * m.dx
+        + lam * m.ds_contact``.
+
     ``J(u, lambda_n) = 1e-3 int_B sigma(u) : sigma(u) dx + int_{Gamma_C} lambda_n ds`` with
     B = {0.625 <= x2, x3 <= 0.875}. B is represented by a ``ufl.conditional`` indicator at the
     quadrature points, exact if B is resolved by the mesh (n[1], n[2] multiples of 8 in
     :func:`obstacle_3d_mesh`, preserved under refinement).
-
-    Returns:
-        ``goal(u, lam, m) -> 1e-3 * chi_B * inner(m.sigma(u), m.sigma(u)) * m.dx
-        + lam * m.ds_contact``.
     """
 
     def goal(u: ufl.core.expr.Expr, lam: ufl.core.expr.Expr, m: GoalContext) -> ufl.Form:

@@ -78,6 +78,18 @@ def choose_method(
 ) -> str:
     """The linear solver of the Newton steps when the user gives neither method nor options.
 
+    Args:
+        tdim: The topological dimension of the mesh.
+        num_dofs: The number of displacement DoFs (global).
+        num_multipliers: The number of contact multipliers (global).
+        cold_start: Whether the Newton method starts from zero (no initial guess).
+        symmetric: Whether the law's Newton matrices are symmetric (else only ``"block"``
+            serves, :func:`system_class`).
+        fits: Whether a factorisation of K fits in memory.
+
+    Returns:
+        ``"schur"``, ``"block"`` or ``"krylov"``.
+
     ``"schur"`` (K factored once, S = N K^-1 N^T dense) for 3D problems of at least
     :data:`AUTO_SCHUR_MIN_DOFS` DoFs with at most :data:`AUTO_SCHUR_MAX_MULTIPLIERS`
     multipliers, ``"block"`` otherwise. Measured (docs, Performance): on a uniform 3D level of
@@ -98,18 +110,6 @@ def choose_method(
     --weights patch``, 1 rank, uniform levels): example 5.3 at 29.5k DoFs 1.2 s factored against
     1.8 s by ``"krylov"``, at 216k DoFs 35.2 s against 16.9 s; the indentation at 56k DoFs 3.7 s
     against 2.4 s.
-
-    Args:
-        tdim: The topological dimension of the mesh.
-        num_dofs: The number of displacement DoFs (global).
-        num_multipliers: The number of contact multipliers (global).
-        cold_start: Whether the Newton method starts from zero (no initial guess).
-        symmetric: Whether the law's Newton matrices are symmetric (else only ``"block"``
-            serves, :func:`system_class`).
-        fits: Whether a factorisation of K fits in memory.
-
-    Returns:
-        ``"schur"``, ``"block"`` or ``"krylov"``.
     """
     if not symmetric:
         return "block"

@@ -150,11 +150,6 @@ class _BlockTriangular:
 class KrylovNewtonSystem(NewtonLinearSystem):
     """``method="krylov"``: each Newton step and the dual as one saddle-point system by GMRES.
 
-    See the module docstring. ``petsc_options`` are for the multigrid of K (defaults
-    :func:`~dwr_signorini.linalg.options.iterative_petsc_options`; only its preconditioner is
-    used); the GMRES reads ``<prefix>saddle_`` options (defaults :data:`SADDLE_KRYLOV_OPTIONS`),
-    the factorisation of S~ ``<prefix>schur_`` options.
-
     Args:
         disc, petsc_options, V, kwargs: See
             :class:`~dwr_signorini.linalg.base.NewtonLinearSystem`.
@@ -163,6 +158,11 @@ class KrylovNewtonSystem(NewtonLinearSystem):
         masks: The active set of the last step as the operator's arrays.
         iterations: GMRES iterations so far (all steps and dual solves).
         direct: False (nothing of the size of K is factored).
+
+    See the module docstring. ``petsc_options`` are for the multigrid of K (defaults
+    :func:`~dwr_signorini.linalg.options.iterative_petsc_options`; only its preconditioner is
+    used); the GMRES reads ``<prefix>saddle_`` options (defaults :data:`SADDLE_KRYLOV_OPTIONS`),
+    the factorisation of S~ ``<prefix>schur_`` options.
     """
 
     _petsc_objects = (

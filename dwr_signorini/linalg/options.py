@@ -55,16 +55,6 @@ def unique_prefix() -> str:
 def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
     """A direct solver: MUMPS's LDL^T where PETSc has MUMPS, PETSc's LU otherwise.
 
-    Both matrices the package factors are symmetric: K (``method="schur"``) and the symmetric
-    form of the block Newton matrix (``method="block"``, indefinite, see
-    :meth:`~dwr_signorini.linalg.block.NewtonSystem.newton_matrix`). MUMPS's LDL^T
-    (``pc_type="cholesky"`` on an AIJ matrix; 2 x 2 pivots where needed) stores half the factor
-    entries of its LU and factors in less time (see ``benchmarks/mumps_ordering.py``). PETSc's
-    own Cholesky does not pivot, so without MUMPS the solver is PETSc's LU.
-
-    MUMPS counts null pivots (``mat_mumps_icntl_24=1``), which the Newton systems report as a
-    singular matrix (:func:`~dwr_signorini.linalg.mumps.null_pivots`).
-
     Args:
         tdim: Topological dimension of the mesh, if known. On 2D meshes MUMPS orders with
             approximate minimum fill (AMF, ``mat_mumps_icntl_7=2``): on example 5.1's K and
@@ -75,6 +65,16 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
 
     Returns:
         A new dict.
+
+    Both matrices the package factors are symmetric: K (``method="schur"``) and the symmetric
+    form of the block Newton matrix (``method="block"``, indefinite, see
+    :meth:`~dwr_signorini.linalg.block.NewtonSystem.newton_matrix`). MUMPS's LDL^T
+    (``pc_type="cholesky"`` on an AIJ matrix; 2 x 2 pivots where needed) stores half the factor
+    entries of its LU and factors in less time (see ``benchmarks/mumps_ordering.py``). PETSc's
+    own Cholesky does not pivot, so without MUMPS the solver is PETSc's LU.
+
+    MUMPS counts null pivots (``mat_mumps_icntl_24=1``), which the Newton systems report as a
+    singular matrix (:func:`~dwr_signorini.linalg.mumps.null_pivots`).
     """
     opts: dict[str, Any] = {"ksp_type": "preonly", "pc_type": "lu"}
     if PETSc.Sys.hasExternalPackage("mumps"):
@@ -91,6 +91,9 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
 def iterative_petsc_options() -> dict[str, Any]:
     """Krylov solver of K for ``method="schur"`` on large (3D) meshes: CG with GAMG.
 
+    Returns:
+        A new dict of PETSc options (keys without prefix), the caller's to change.
+
     Algebraic multigrid (smoothed aggregation, Chebyshev/Jacobi smoothing) with the rigid body
     modes as near-nullspace; each solve with K reduces the true residual by 1e-10, so that the
     Newton iterates meet the default ``rtol`` of :func:`~dwr_signorini.newton.solve`. S_AA is then
@@ -98,9 +101,6 @@ def iterative_petsc_options() -> dict[str, Any]:
     prefix ``<prefix>schur_``, defaults in :data:`SCHUR_KRYLOV_OPTIONS`), and no factorisation
     of the size of K is made. Pass it (or a variant) as ``petsc_options`` together with
     ``method="schur"``.
-
-    Returns:
-        A new dict of PETSc options (keys without prefix), the caller's to change.
     """
     return {
         "ksp_type": "cg",
@@ -119,15 +119,15 @@ def iterative_petsc_options() -> dict[str, Any]:
 def fieldsplit_petsc_options() -> dict[str, Any]:
     """Krylov solver of the block Newton matrix (``method="block"``): Schur field split.
 
+    Returns:
+        A new dict of PETSc options (keys without prefix), the caller's to change.
+
     FGMRES on the block matrix; the displacement block by CG with algebraic multigrid (rigid
     body modes as near-nullspace), the multiplier block by the "selfp" Schur approximation,
     factored (it is small). The inner solves stop at a relative 1e-3 (FGMRES allows a varying
     preconditioner; the outer tolerance decides the accuracy). Every application of the Schur
     complement costs an inner solve with K, and the multigrid is set up anew in every Newton
     step: for large meshes ``method="schur"`` with :func:`iterative_petsc_options` is faster.
-
-    Returns:
-        A new dict of PETSc options (keys without prefix), the caller's to change.
     """
     return {
         "ksp_type": "fgmres",

@@ -16,13 +16,16 @@ __all__ = ["virtual_display"]
 def virtual_display(timeout: float = 20.0) -> Iterator[str | None]:
     """Provide an X display for VTK: the current one, or a private Xvfb started and stopped here.
 
-    Xvfb chooses a free display number itself (``-displayfd``), so concurrent runs do not clash.
+    Args:
+        timeout: Seconds to wait for Xvfb to report its display.
 
     Yields:
         The display name, e.g. ``":1"``.
 
     Raises:
         RuntimeError: If no display is set, and Xvfb is missing or does not start.
+
+    Xvfb chooses a free display number itself (``-displayfd``), so concurrent runs do not clash.
     """
     if os.environ.get("DISPLAY"):
         yield os.environ["DISPLAY"]

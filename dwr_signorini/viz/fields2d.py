@@ -48,17 +48,12 @@ def plot_solution_2d(
 ) -> Path | None:
     """The deformed body and the obstacle (paper Figures 3a and 5a). Collective.
 
-    The fine mesh T_h is drawn displaced by ``scale * u_h``. The obstacle is drawn at
-    ``x + scale * g(x) n`` on Gamma_C (g the gap, n the outer normal): with the same
-    magnification as the body, so the body touches the obstacle line exactly where
-    ``u_n = g`` (the active contact zone). The reference configuration is outlined.
-
     Args:
         sol: A :class:`~dwr_signorini.Solution` on a 2D mesh.
         path: The PNG to write (on rank 0).
-        scale: Displacement magnification; default: 1, or larger so that max |u| is 8% of the
+        scale: Displacement magnification; default: 1, or larger so that max ``|u|`` is 8% of the
             body's size when the displacement is smaller than 2% of it.
-        color: ``"magnitude"`` (|u_h|, continuous) or ``"von_mises"`` (the paper's sigma_{M,2}
+        color: ``"magnitude"`` (``|u_h|``, continuous) or ``"von_mises"`` (the paper's sigma_{M,2}
             of Figure 5, cell-wise, colour scale clipped at the 99th percentile).
         obstacle: Draw the obstacle on Gamma_C.
         show_mesh: Draw the cell edges.
@@ -66,6 +61,14 @@ def plot_solution_2d(
 
     Returns:
         The path on rank 0, ``None`` on the other ranks.
+
+    Raises:
+        ValueError: For another ``color``, or a mesh that is not 2D.
+
+    The fine mesh T_h is drawn displaced by ``scale * u_h``. The obstacle is drawn at
+    ``x + scale * g(x) n`` on Gamma_C (g the gap, n the outer normal): with the same
+    magnification as the body, so the body touches the obstacle line exactly where
+    ``u_n = g`` (the active contact zone). The reference configuration is outlined.
     """
     if color not in ("magnitude", "von_mises"):
         raise ValueError(f"color must be 'magnitude' or 'von_mises', got {color!r}")
@@ -168,11 +171,6 @@ def plot_contact_force(
 ) -> Path | None:
     """The contact force lambda_H on Gamma_C (paper Figures 3b and 5b). Collective.
 
-    2D: lambda_H is piecewise constant on the macro contact facets (Sigma_H); it is drawn as
-    steps over the coordinate along Gamma_C (the coordinate in which Gamma_C extends most),
-    active facets shaded. 3D: a map of lambda_H over the contact face, one colour per macro
-    facet, in the two tangential coordinates.
-
     Args:
         sol: A :class:`~dwr_signorini.Solution`.
         path: The PNG to write (on rank 0).
@@ -182,6 +180,11 @@ def plot_contact_force(
 
     Returns:
         The path on rank 0, ``None`` on the other ranks.
+
+    2D: lambda_H is piecewise constant on the macro contact facets (Sigma_H); it is drawn as
+    steps over the coordinate along Gamma_C (the coordinate in which Gamma_C extends most),
+    active facets shaded. 3D: a map of lambda_H over the contact face, one colour per macro
+    facet, in the two tangential coordinates.
     """
     data = gather_contact_force(sol)
     del sol  # draw without references to dolfinx objects (see dwr_signorini.viz.gather)

@@ -1,4 +1,4 @@
-"""The deformed 3D body coloured by |u_h|, with the obstacle (paper Figure 8a).
+"""The deformed 3D body coloured by ``|u_h|``, with the obstacle (paper Figure 8a).
 
 Collective: the solution is gathered on rank 0 by :mod:`.gather`; rank 0 renders it with one of
 the backends of :mod:`.render3d`.
@@ -36,12 +36,7 @@ def plot_solution_3d(
     title: str | None = None,
     backend: str = "auto",
 ) -> Path | None:
-    """The deformed 3D body coloured by |u_h|, with the obstacle (paper Figure 8a). Collective.
-
-    Rendered by pyvista off screen: the boundary of T_h displaced by ``scale * u_h`` with the
-    cell edges, and the obstacle surface ``x + scale * g(x) n`` over Gamma_C (translucent).
-    Falls back to matplotlib (boundary facets coloured by |u_h|) as
-    :func:`~.meshes.plot_mesh` does.
+    """The deformed 3D body coloured by ``|u_h|``, with the obstacle (paper Figure 8a). Collective.
 
     Args:
         sol: A :class:`~dwr_signorini.Solution` on a 3D mesh.
@@ -53,6 +48,14 @@ def plot_solution_3d(
 
     Returns:
         The path on rank 0, ``None`` on the other ranks.
+
+    Raises:
+        ValueError: For an unknown ``backend``, or a mesh that is not 3D.
+
+    Rendered by pyvista off screen: the boundary of T_h displaced by ``scale * u_h`` with the
+    cell edges, and the obstacle surface ``x + scale * g(x) n`` over Gamma_C (translucent).
+    Falls back to matplotlib (boundary facets coloured by ``|u_h|``) as
+    :func:`~.meshes.plot_mesh` does.
     """
     check_backend(backend)
     if sol.disc.mesh.topology.dim != 3:

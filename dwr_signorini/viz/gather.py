@@ -156,7 +156,11 @@ def _cellwise(msh: dmesh.Mesh, expr: ufl.core.expr.Expr) -> np.ndarray:
 def von_mises_2d(sigma: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
     """Von Mises equivalent stress of a 2x2 stress tensor (plane stress, sigma_e = 1).
 
-    ``sqrt(s11^2 + s22^2 - s11 s22 + 3 s12^2)``, the paper's sigma_{M,2} of Figure 5.
+    Args:
+        sigma: The stress tensor, a 2x2 UFL expression.
+
+    Returns:
+        ``sqrt(s11^2 + s22^2 - s11 s22 + 3 s12^2)``, the paper's sigma_{M,2} of Figure 5.
     """
     s11, s22, s12 = sigma[0, 0], sigma[1, 1], sigma[0, 1]
     return ufl.sqrt(s11**2 + s22**2 - s11 * s22 + 3.0 * s12**2)

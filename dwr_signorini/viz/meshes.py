@@ -39,12 +39,6 @@ def plot_mesh(
 ) -> Path | None:
     """Draw a 2D or 3D mesh (paper Figures 7 and 8b).
 
-    Collective over the mesh's communicator when given a mesh; given a :class:`MeshSnapshot`
-    (or ``None``, as :func:`snapshot_mesh` returns on ranks other than 0) it only draws.
-    2D: all cells as polygons (matplotlib). 3D: the boundary of the mesh with its edges, rendered
-    by pyvista off screen (see :func:`~.display.virtual_display`), or by matplotlib if pyvista is
-    not available or ``backend="matplotlib"``.
-
     Args:
         mesh: The mesh (e.g. ``sol.disc.mesh``, the fine mesh T_h), or a snapshot of it.
         path: The PNG to write (on rank 0).
@@ -54,6 +48,15 @@ def plot_mesh(
 
     Returns:
         The path on rank 0, ``None`` on the other ranks.
+
+    Raises:
+        ValueError: For an unknown ``backend``, or a mesh that is neither 2D nor 3D.
+
+    Collective over the mesh's communicator when given a mesh; given a :class:`MeshSnapshot`
+    (or ``None``, as :func:`snapshot_mesh` returns on ranks other than 0) it only draws.
+    2D: all cells as polygons (matplotlib). 3D: the boundary of the mesh with its edges, rendered
+    by pyvista off screen (see :func:`~.display.virtual_display`), or by matplotlib if pyvista is
+    not available or ``backend="matplotlib"``.
     """
     check_backend(backend)
     snap = mesh if mesh is None or isinstance(mesh, MeshSnapshot) else snapshot_mesh(mesh)

@@ -107,6 +107,12 @@ def _column(rows: Sequence[Mapping[str, Any]], key: str) -> npt.NDArray[np.float
 def cumulative_time(rows: Sequence[Mapping[str, Any]]) -> npt.NDArray[np.float64]:
     """Wall-clock time spent up to and including each level (sum of ``time_total``).
 
+    Args:
+        rows: Table rows with ``time_total`` (a missing or NaN time counts as 0).
+
+    Returns:
+        The cumulative times, one per row.
+
     An adaptive run needs every earlier level to reach a mesh, so its cost at level L is the
     sum over levels 0..L; the same convention is used for uniform runs.
     """
@@ -141,17 +147,6 @@ def plot_convergence(
 ) -> Path | None:
     """Errors and estimates against cells or cumulative run time, log-log (paper Figure 6).
 
-    Where the rows have ``J_low`` and ``J_high``, the ``estimate`` series carries error bars:
-    the least and the largest |J - J_h| / |J| over the interval [J_low, J_high] (down to the
-    axis where J_h lies inside it).
-
-    Each run (e.g. ``{"adaptive": rows, "uniform": rows}``) gets a colour and each quantity a
-    line style. Estimate-type quantities (``estimate``, ``eta``, ``eta_p``, ``contact_term``) are
-    plotted as ``|value| / |J|`` so that they compare with ``E_rel``; ``J`` is ``reference`` if
-    given, else ``J_h`` of each row. Quantities without any finite value (e.g. ``rel_error``
-    when the exact J is unknown) are left out. Dotted grey lines show reference slopes, anchored
-    at the first point of the first run.
-
     Args:
         runs: Label -> table rows (dicts from ``AdaptiveResult.rows()`` or :func:`read_rows`).
         path: The PNG to write.
@@ -170,6 +165,17 @@ def plot_convergence(
 
     Raises:
         ValueError: For an unknown ``x`` or quantity.
+
+    Where the rows have ``J_low`` and ``J_high``, the ``estimate`` series carries error bars:
+    the least and the largest ``|J - J_h| / |J|`` over the interval [J_low, J_high] (down to the
+    axis where J_h lies inside it).
+
+    Each run (e.g. ``{"adaptive": rows, "uniform": rows}``) gets a colour and each quantity a
+    line style. Estimate-type quantities (``estimate``, ``eta``, ``eta_p``, ``contact_term``) are
+    plotted as ``|value| / |J|`` so that they compare with ``E_rel``; ``J`` is ``reference`` if
+    given, else ``J_h`` of each row. Quantities without any finite value (e.g. ``rel_error``
+    when the exact J is unknown) are left out. Dotted grey lines show reference slopes, anchored
+    at the first point of the first run.
     """
     if x not in ("num_cells", "time"):
         raise ValueError(f"x must be 'num_cells' or 'time', got {x!r}")
@@ -340,6 +346,9 @@ def plot_effectivity(
 
     Returns:
         The path written, or ``None`` on ranks other than 0 of ``comm``.
+
+    Raises:
+        ValueError: If ``x`` is neither ``"level"`` nor ``"num_cells"``.
     """
     if x not in ("level", "num_cells"):
         raise ValueError(f"x must be 'level' or 'num_cells', got {x!r}")
