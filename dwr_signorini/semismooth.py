@@ -177,7 +177,7 @@ class NewtonLoop:
             raise ConvergenceError(
                 f"the active set is stationary but the residuals are not below rtol={self.rtol:g}: "
                 "the linear solves are inaccurate (check petsc_options; a direct solver is "
-                "the default)",
+                "the default)" + self.unsettled_facets(),
                 self.history,
             )
         if it == self.max_iterations:
@@ -188,10 +188,49 @@ class NewtonLoop:
             )
             raise ConvergenceError(
                 f"no convergence in max_iterations={self.max_iterations} Newton steps{extra}; "
-                "raise max_iterations or warm-start from a nearby solution",
+                "raise max_iterations or warm-start from a nearby solution"
+                + self.unsettled_facets(),
                 self.history,
             )
         return False
+
+    def unsettled_facets(self, most: int = 8) -> str:
+        """Where the method has not settled, for a :class:`ConvergenceError`'s message.
+
+        The macro contact facets whose sets the last test would change or whose NCP residual
+        is above ``rtol`` (their midpoints, at most ``most``, with the component), the last
+        residuals, and for a frictional law what to try. Collective.
+        """
+        system, comm = self.system, self.comm
+        algebra = system.algebra
+        mask = np.zeros(algebra.n_q * len(algebra.components), dtype=bool)
+        if self.violated is not None:
+            mask |= self.violated
+        x = system.disc.Q.tabulate_dof_coordinates()[: algebra.n_q]
+        names = [c.name for c in algebra.components]
+        local = [
+            (names[k], tuple(np.round(x[i, : system.disc.mesh.geometry.dim], 6)))
+            for k, part in enumerate(algebra.components_of(mask))
+            for i in np.flatnonzero(part)
+        ]
+        found = [f for rank in comm.allgather(local) for f in rank]
+        record = self.history[-1] if self.history else None
+        lines = [f"; {len(found)} facet rows not settled"]
+        if found:
+            shown = ", ".join(f"{name} at {point}" for name, point in found[:most])
+            lines.append(f" ({shown}{', ...' if len(found) > most else ''})")
+        if record is not None:
+            lines.append(
+                f"; last residuals: equilibrium {record['residual_equilibrium']:.2e}, "
+                f"NCP {record['residual_ncp']:.2e}"
+            )
+        if algebra.disc.problem.law.frictional:
+            lines.append(
+                "; to try: ds.solve_path with the load in n steps (e.g. press first, then "
+                "shear), a smaller friction coefficient or threshold first (its solution as "
+                "initial_guess), or more max_iterations"
+            )
+        return "".join(lines)
 
     def next_set(
         self, it: int, wanted: np.ndarray, free: np.ndarray
@@ -228,7 +267,7 @@ class NewtonLoop:
                 raise ConvergenceError(
                     f"active-set cycling: the set of step {it} repeats step {self.seen[key]} "
                     "even under the least-index safeguard (is the body clamped, i.e. is "
-                    "N K^-1 N^T positive definite?)",
+                    "N K^-1 N^T positive definite?)" + self.unsettled_facets(),
                     self.history,
                 )
             logger.warning(
