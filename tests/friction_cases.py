@@ -125,8 +125,8 @@ class UniformCase:
             )
         return msh, block_tags(msh)
 
-    def problem(self, comm) -> ds.SignoriniProblem:
-        """The patch test as a problem with Coulomb's law."""
+    def problem(self, comm, law: ds.laws.ContactLaw | None = None) -> ds.SignoriniProblem:
+        """The patch test as a problem with Coulomb's law (or ``law``)."""
         msh, tags = self.mesh(comm)
         ex = self.exact()
         sigma = ex["sigma"]
@@ -140,7 +140,7 @@ class UniformCase:
         return ds.SignoriniProblem(
             msh, tags, contact=BOTTOM, dirichlet={TOP: top}, E=E, nu=self.nu,
             model="plane_strain" if d == 2 else "3d", traction=traction, gap=0.0,
-            friction=ds.Coulomb(self.mu),
+            friction=ds.Coulomb(self.mu) if law is None else law,
         )
 
 
