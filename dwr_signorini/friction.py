@@ -33,6 +33,26 @@ __all__ = [
 ThresholdData = float | Callable[[Any], Any] | Mapping[int, Any]
 
 
+def reversing(Mlam_t: np.ndarray, xt: np.ndarray, force_size: float) -> np.ndarray:
+    """The facets whose slip reverses: the test argument x_t points against lambda_t.
+
+    A set rule of every friction law (Tresca's and Coulomb's): where x_t . lambda_t < 0 the
+    last step's friction force pushed the facet back, and the step holds it (stick) instead
+    of letting it slip the other way. At a solution lambda_t = P(x_t) points along x_t, so the
+    rule never fires there (:meth:`CoulombCone.transitions` says why it is needed).
+
+    Args:
+        Mlam_t: (k, m) the tangential multipliers times M.
+        xt: (k, m) the tangential test argument, round-off cleaned.
+        force_size: The round-off scale of M lambda.
+
+    Returns:
+        A mask of the m facets.
+    """
+    tiny = ROUNDOFF * force_size
+    return np.einsum("km,km->m", xt, Mlam_t) < -tiny * np.sum(np.abs(xt), axis=0)
+
+
 class Tangential(Component):
     """Tresca's condition in 2D: P_t(x) = max(-s, min(s, x)); constrained = stick.
 
@@ -68,7 +88,7 @@ class Tangential(Component):
 
     def newton_set(self, Mlam, residual, c, M, g, u_max, force_size, bound):  # noqa: D102  (see Component)
         clean, test, size = _cleaned(Mlam, residual, c, M, g, u_max, force_size)
-        stick = np.abs(clean) < bound
+        stick = (np.abs(clean) < bound) | reversing(Mlam[None], clean[None], force_size)
         free = np.where(stick, 0.0, np.sign(clean) * bound / M)
         return stick, free, np.abs(self.ncp(Mlam, test, bound)), size + bound
 
@@ -133,7 +153,7 @@ class TangentialBall:
         test = np.array([p[1] for p in parts])
         size = np.array([p[2] for p in parts])
         norm = np.hypot(clean[0], clean[1])
-        stick = norm < bound
+        stick = (norm < bound) | reversing(Mlam, clean, force_size)
         slip = ~stick
         q = clean[:, slip] / norm[slip]
         alpha = bound[slip] / norm[slip]
@@ -249,10 +269,7 @@ class CoulombCone:
         Returns:
             ``(entering, reversing)``: masks of the m facets.
         """
-        tiny = ROUNDOFF * force_size
-        entering = Mlam[0] <= tiny
-        reversing = np.einsum("km,km->m", xt, Mlam[1:]) < -tiny * np.sum(np.abs(xt), axis=0)
-        return entering, reversing
+        return Mlam[0] <= ROUNDOFF * force_size, reversing(Mlam[1:], xt, force_size)
 
     def newton_set(
         self, Mlam: np.ndarray, residual: np.ndarray, c: np.ndarray, M: np.ndarray,

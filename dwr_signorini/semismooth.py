@@ -209,7 +209,8 @@ class NewtonLoop:
         x = system.disc.Q.tabulate_dof_coordinates()[: algebra.n_q]
         names = [c.name for c in algebra.components]
         local = [
-            (names[k], tuple(np.round(x[i, : system.disc.mesh.geometry.dim], 6)))
+            (names[k], "(" + ", ".join(f"{v:.6g}" for v in x[i, : system.disc.mesh.geometry.dim])
+             + ")")
             for k, part in enumerate(algebra.components_of(mask))
             for i in np.flatnonzero(part)
         ]

@@ -30,15 +30,18 @@ COMM = MPI.COMM_WORLD
 TOL = 1e-8
 
 
-def _solve_case(case, rtol=1e-10):
-    """(Newton steps, errors) of one case solved from zero."""
-    with ds.solve(case.problem(COMM), rtol=rtol) as sol:
+def _solve_case(case, law, rtol=1e-10):
+    """(Newton steps, errors) of one case solved from zero with Coulomb's law or with
+    Tresca's of the same threshold on this problem (s = mu lambda_n)."""
+    law = ds.Coulomb(case.mu) if law == "coulomb" else ds.Tresca(case.mu * case.exact()["lam_n"])
+    with ds.solve(case.problem(COMM, law), rtol=rtol) as sol:
         return sol.newton_iterations, fc.errors(case, sol)
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("law", ["coulomb", "tresca"])
 @pytest.mark.parametrize("cell", list(fc.CELLS))
-def test_uniform_patch_tests_converge_from_zero_to_the_exact_solution(cell):
+def test_uniform_patch_tests_converge_from_zero_to_the_exact_solution(cell, law):
     """Every stick and slip ratio, mu = 0.01, 0.3 and 0.9 (both shear directions in 3D): exact to
     1e-8 (relative to lambda_n, and to the top's displacement for the slip), at most 15
     Newton steps, median at most 8."""
@@ -46,7 +49,7 @@ def test_uniform_patch_tests_converge_from_zero_to_the_exact_solution(cell):
     assert len(cases) == len(fc.STICK_RATIOS + fc.SLIP_RATIOS) * 3 * (c_dim(cell) - 1)
     steps, wrong = [], []
     for case in cases:
-        n, err = _solve_case(case)
+        n, err = _solve_case(case, law)
         steps.append(n)
         if max(err.values()) > TOL:
             wrong.append((case.label, err))
