@@ -21,7 +21,7 @@ from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
 from . import compat
-from .collective import call_collectively
+from .collective import call_collectively, shadow
 from .obstacles import Graph, Obstacle
 
 __all__ = ["DirichletData", "DirichletValue", "GapData", "MaterialData", "ProblemDataChecks",
@@ -211,9 +211,10 @@ class ProblemDataChecks:
         covered = np.zeros(num, dtype=bool)
         keep = np.isin(tags.values, list(values)) & (tags.indices < num)
         covered[tags.indices[keep]] = True
-        missing = self.mesh.comm.allreduce(int((~covered).sum()), op=MPI.SUM)
+        comm = shadow(self.mesh.comm)
+        missing = comm.allreduce(int((~covered).sum()), op=MPI.SUM)
         if missing:
-            present = sorted(set(self.mesh.comm.allreduce(list(map(int, np.unique(tags.values))))))
+            present = sorted(set(comm.allreduce(list(map(int, np.unique(tags.values))))))
             raise ValueError(
                 f"{name} is given for cell tags {sorted(values)}, but {missing} cells carry none "
                 f"of them (cell tags present: {present})"
@@ -231,7 +232,7 @@ class ProblemDataChecks:
             f = fem.Function(space)
             f.interpolate(fem.Expression(expr, compat.interpolation_points(space.element)))
             vals = f.x.array
-        comm = self.mesh.comm
+        comm = shadow(self.mesh.comm)
         lo = comm.allreduce(float(np.min(vals, initial=np.inf)), op=MPI.MIN)
         hi = comm.allreduce(float(np.max(vals, initial=-np.inf)), op=MPI.MAX)
         if not (np.isfinite(lo) and np.isfinite(hi)) or lo <= low or hi >= high:
@@ -347,7 +348,7 @@ class ProblemDataChecks:
         fdim = msh.topology.dim - 1
         msh.topology.create_connectivity(fdim, fdim + 1)
         boundary = dmesh.exterior_facet_indices(msh.topology)
-        comm = msh.comm
+        comm = shadow(msh.comm)
         for name, tag in (
             [("contact", t) for t in self.contact_tags]
             + [("dirichlet", t) for t in self.dirichlet]
