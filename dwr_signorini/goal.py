@@ -15,11 +15,12 @@ from typing import Any
 
 from mpi4py import MPI
 
+import numpy as np
 import ufl
 from dolfinx import fem
 from ufl.algorithms import expand_derivatives
 
-from .collective import call_collectively
+from .collective import call_collectively, shadow
 from .laws import tangent_basis
 from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
@@ -128,6 +129,7 @@ class GoalForms:
                 )
             _check_measure(itg)
             _check_domains(itg, disc, multipliers)
+            _check_tags_exist(itg, disc)
             used = ufl.algorithms.extract_coefficients(itg.integrand())
             for name, f in zip(("lam", "lam_t", "lam_t"), multipliers, strict=False):
                 if f in used:
@@ -244,3 +246,25 @@ def _check_domains(
                 "the fine mesh T_h of the solution: use m.x (the spatial coordinate of the "
                 "current mesh) and functions on the spaces of u and lam"
             )
+
+
+def _check_tags_exist(itg: ufl.Integral, disc: Discretization) -> None:
+    """A tag of ``m.ds(tag)`` marks facets of the mesh on some rank (else J is silently 0).
+
+    Collective (one ``allgather`` on the mesh's processes, for every integral with a tag).
+    """
+    data = itg.subdomain_data()
+    ids = itg.subdomain_id()
+    ids = ids if isinstance(ids, tuple) else (ids,)
+    tagged = [i for i in ids if i not in ("everywhere", "otherwise")]
+    if not tagged or not hasattr(data, "values") or itg.integral_type() != "exterior_facet":
+        return
+    present = {int(v) for v in np.unique(data.values)}
+    present = set().union(*shadow(disc.comm).allgather(present))
+    missing = sorted(int(i) for i in tagged if i not in present)
+    if missing:
+        raise ValueError(
+            f"goal integrates over m.ds({', '.join(map(str, missing))}), but no facet carries "
+            f"that tag (facet tags present: {sorted(present)}): J would be 0; pass a tag of "
+            "facet_tags, or m.ds_contact for Gamma_C"
+        )
