@@ -1,11 +1,11 @@
 """A mistake in a call that frees problems raises and exits instead of hanging (issue 48).
 
 ``ds.solve_path([make(d) for d in loads])`` with the goal forgotten raises a TypeError while the
-list of problems, and with it the last reference to each mesh, dies. The problems' checks must
-leave no mpi4py state on the meshes' communicators: their delete callback, run by the C++
-destructor while the exception propagates, used to fail and leave the process waiting on a lock
-for ever (:func:`dwr_signorini.collective.shadow`). The call runs in a subprocess, serially and on
-2 ranks, with a timeout, so a regression fails the test instead of hanging the suite.
+list of problems, and with it the last reference to each mesh, dies. The problems' checks and
+solves must leave no mpi4py state on the meshes' communicators: its delete callback, run by the
+C++ destructor while the exception propagates, used to fail and leave the process waiting on a
+lock for ever (:func:`dwr_signorini.collective.shadow`). The call runs in a subprocess, serially
+and on 2 ranks, with a timeout, so a regression fails the test instead of hanging the suite.
 """
 
 import os
@@ -27,6 +27,8 @@ pytestmark = [
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 SCRIPT = textwrap.dedent("""
+    import sys
+
     from mpi4py import MPI
 
     import numpy as np
@@ -46,8 +48,12 @@ SCRIPT = textwrap.dedent("""
     def make(d):
         msh = mesh.create_rectangle(MPI.COMM_WORLD, [(0.0, 0.0), (4.0, 1.0)], [8, 2],
                                     ghost_mode=mesh.GhostMode.none)
-        return ds.SignoriniProblem(msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
-                                   dirichlet={ex.DIRICHLET: (0.0, -d)}, gap=0.0)
+        problem = ds.SignoriniProblem(msh, ex.tag_exterior_facets(msh, classify),
+                                      contact=ex.CONTACT, dirichlet={ex.DIRICHLET: (0.0, -d)},
+                                      gap=0.0)
+        if sys.argv[1] == "solved":  # the solve's reductions ran on the processes of the mesh
+            ds.solve(problem).destroy()
+        return problem
 
 
     def main():
@@ -64,10 +70,10 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-def _run(tmp_path, nprocs):
+def _run(tmp_path, nprocs, variant):
     script = tmp_path / "forgotten_goal.py"
     script.write_text(SCRIPT)
-    cmd = [sys.executable, str(script)]
+    cmd = [sys.executable, str(script), variant]
     if nprocs > 1:
         mpirun = shutil.which("mpirun") or shutil.which("mpiexec")
         if mpirun is None:
@@ -85,11 +91,13 @@ def _run(tmp_path, nprocs):
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
 
 
+@pytest.mark.parametrize("variant", ["built", "solved"])
 @pytest.mark.parametrize("nprocs", [1, 2])
-def test_forgotten_goal_raises_and_exits(tmp_path, nprocs):
+def test_forgotten_goal_raises_and_exits(tmp_path, nprocs, variant):
     """Caught, the TypeError is printed and the script goes on; uncaught, the process exits with
-    status 1 and its traceback (on every rank), and mpi4py reports no failed callback."""
-    proc = _run(tmp_path, nprocs)
+    status 1 and its traceback (on every rank), and mpi4py reports no failed callback. The
+    problems are only built, or also solved once (their solutions destroyed)."""
+    proc = _run(tmp_path, nprocs, variant)
     out, err = proc.stdout, proc.stderr
     assert out.count("raised: solve_path() missing 1 required positional argument: 'goal'") \
         == nprocs, out + err
