@@ -34,6 +34,15 @@ communicate: only the outermost guard agrees, so that a rank that fails before i
 inner guard cannot pair that guard's exchange with the outer one of another rank.
 ``KeyboardInterrupt`` and other ``BaseException`` classes that are not ``Exception`` classes are
 not intercepted: a signal reaches every rank of an ``mpirun`` anyway.
+
+The exchanges of Python objects (``allgather``, ``allreduce``, ``bcast`` in lower case) run on
+:func:`shadow` of a communicator, never on a mesh's own. mpi4py 4.0 caches a lock table and a
+duplicate as attributes of every communicator such an exchange ran on, and frees them in
+``MPI_Comm_free``'s delete callback; the communicator of a dolfinx mesh is freed by the C++
+destructor of the mesh, so when the last reference to a mesh goes while an exception propagates
+(``ds.solve_path([make(d) for d in loads])`` with the goal forgotten), mpi4py 4.0.3's callback
+runs with that exception set, fails ("SystemError ... commlock_free_cb"), keeps its lock and the
+next free waits for it for ever.
 """
 
 from __future__ import annotations
@@ -46,12 +55,49 @@ from typing import Any, TypeVar
 
 from mpi4py import MPI
 
-__all__ = ["CollectiveError", "agree", "call_collectively", "collective", "on_root"]
+__all__ = ["CollectiveError", "agree", "call_collectively", "collective", "on_root", "shadow"]
 
 T = TypeVar("T")
 
 #: How many guards the running code is inside of: only the outermost one communicates.
 _depth = 0
+
+#: One duplicate per group of processes (their ranks in COMM_WORLD), for the life of the process.
+_shadows: dict[tuple[int, ...], MPI.Intracomm] = {}
+
+
+def shadow(comm: MPI.Intracomm) -> MPI.Intracomm:
+    """A duplicate of ``comm`` that lives as long as the process, for exchanges of objects.
+
+    Lower-case collectives (``allgather``, ``allreduce``, ``bcast``) of mpi4py 4.0 leave
+    attributes on the communicator they run on, and a mesh's communicator must not carry any:
+    dolfinx frees it whenever the mesh goes, possibly while an exception propagates, and then
+    mpi4py's delete callback hangs (module docstring). Communicators of the same processes share
+    one duplicate; it is never freed before the end of the process. COMM_WORLD and COMM_SELF
+    are returned as they are (they are never freed), and so is a communicator with processes
+    outside COMM_WORLD (spawned ones).
+
+    Collective on ``comm`` the first time for its processes (``Dup``), local afterwards.
+
+    Args:
+        comm: An intracommunicator, e.g. ``mesh.comm``.
+
+    Returns:
+        The communicator to run object collectives on, congruent with ``comm``.
+    """
+    if comm == MPI.COMM_WORLD or comm == MPI.COMM_SELF:
+        return comm
+    group, world = comm.Get_group(), MPI.COMM_WORLD.Get_group()
+    try:
+        key = tuple(int(r) for r in MPI.Group.Translate_ranks(group, None, world))
+    finally:
+        group.Free()
+        world.Free()
+    if MPI.UNDEFINED in key:  # processes outside COMM_WORLD (spawned): nothing to key on
+        return comm
+    if key not in _shadows:
+        _shadows[key] = comm.Dup()
+    return _shadows[key]
 
 
 class CollectiveError(Exception):
@@ -118,7 +164,7 @@ def agree(comm: MPI.Comm, where: str, error: Exception | None) -> None:
         error: This rank's exception, or ``None``.
     """
     local = None if error is None else _describe(error)
-    gathered = [local] if comm.size == 1 else comm.allgather(local)
+    gathered = [local] if comm.size == 1 else shadow(comm).allgather(local)
     if isinstance(error, CollectiveError) and all(g == local for g in gathered):
         raise error
     failures = [(r, *g) for r, g in enumerate(gathered) if g is not None]

@@ -15,11 +15,12 @@ from typing import Any
 
 from mpi4py import MPI
 
+import numpy as np
 import ufl
 from dolfinx import fem
 from ufl.algorithms import expand_derivatives
 
-from .collective import call_collectively
+from .collective import call_collectively, shadow
 from .laws import tangent_basis
 from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
@@ -126,6 +127,9 @@ class GoalForms:
                     "goal uses a measure of another mesh: build it from the measures in `m` "
                     "(m.dx, m.ds_contact, m.ds(tag)) of the current mesh"
                 )
+            _check_measure(itg)
+            _check_domains(itg, disc, multipliers)
+            _check_tags_exist(itg, disc)
             used = ufl.algorithms.extract_coefficients(itg.integrand())
             for name, f in zip(("lam", "lam_t", "lam_t"), multipliers, strict=False):
                 if f in used:
@@ -194,3 +198,73 @@ def _requires_four(goal: Goal) -> bool:
         if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.default is p.empty
     ]
     return len(required) >= 4
+
+
+#: The measures of ``m`` that replace a bare UFL measure, by integral type.
+_REPLACEMENTS = {
+    "cell": "m.dx (or m.dx(tag) with cell tags)",
+    "exterior_facet": "m.ds_contact or m.ds(tag)",
+    "interior_facet": "m.dS",
+}
+
+
+def _check_measure(itg: ufl.Integral) -> None:
+    """A subdomain id needs the tags of the current mesh: a bare ``ufl.ds(3)`` has none.
+
+    The form is the same on every rank, so the decision is too (no reduction needed).
+    """
+    ids = itg.subdomain_id()
+    ids = ids if isinstance(ids, tuple) else (ids,)
+    tagged = [i for i in ids if i not in ("everywhere", "otherwise")]
+    if tagged and itg.subdomain_data() is None:
+        kind = itg.integral_type()
+        short = {"cell": "dx", "exterior_facet": "ds", "interior_facet": "dS"}.get(kind, kind)
+        raise ValueError(
+            f"goal integrates over ufl.{short}({', '.join(map(str, tagged))}), a measure "
+            "without the facet or cell tags of the current mesh: use "
+            f"{_REPLACEMENTS.get(kind, 'the measures of m')} from the measures `m` passed to "
+            "the goal"
+        )
+
+
+def _check_domains(
+    itg: ufl.Integral, disc: Discretization, multipliers: tuple[fem.Function, ...]
+) -> None:
+    """Every coefficient and coordinate of the integrand lives on T_h or Gamma_C's submesh.
+
+    A ``ufl.SpatialCoordinate`` of the user's macro mesh T_H in a goal on T_h cannot be
+    compiled. The form is the same on every rank, so the decision is too.
+    """
+    allowed = [disc.mesh.ufl_domain()]
+    allowed += [f.function_space.mesh.ufl_domain() for f in multipliers]
+    for domain in ufl.domain.extract_domains(itg.integrand()):
+        if domain not in allowed:
+            what = "the macro mesh T_H (problem.mesh)" if domain == disc.problem.mesh.ufl_domain() \
+                else "another mesh"
+            raise ValueError(
+                f"goal uses a coordinate or function of {what}, but the goal is integrated on "
+                "the fine mesh T_h of the solution: use m.x (the spatial coordinate of the "
+                "current mesh) and functions on the spaces of u and lam"
+            )
+
+
+def _check_tags_exist(itg: ufl.Integral, disc: Discretization) -> None:
+    """A tag of ``m.ds(tag)`` marks facets of the mesh on some rank (else J is silently 0).
+
+    Collective (one ``allgather`` on the mesh's processes, for every integral with a tag).
+    """
+    data = itg.subdomain_data()
+    ids = itg.subdomain_id()
+    ids = ids if isinstance(ids, tuple) else (ids,)
+    tagged = [i for i in ids if i not in ("everywhere", "otherwise")]
+    if not tagged or not hasattr(data, "values") or itg.integral_type() != "exterior_facet":
+        return
+    present = {int(v) for v in np.unique(data.values)}
+    present = set().union(*shadow(disc.comm).allgather(present))
+    missing = sorted(int(i) for i in tagged if i not in present)
+    if missing:
+        raise ValueError(
+            f"goal integrates over m.ds({', '.join(map(str, missing))}), but no facet carries "
+            f"that tag (facet tags present: {sorted(present)}): J would be 0; pass a tag of "
+            "facet_tags, or m.ds_contact for Gamma_C"
+        )

@@ -118,6 +118,10 @@ class SignoriniProblem(ProblemDataChecks):
             plane strain in 2D and ``"3d"`` in 3D.
         body_force: Volume load f: ``None``, a constant sequence, or a callable ``x -> UFL vector``.
         traction: Surface loads b on Gamma_N: ``{tag: sequence | callable x -> UFL vector}``.
+            A dirichlet face may carry a traction on the components it leaves free
+            (``dirichlet={4: (d, None)}, traction={4: (0.0, -p)}``: shear it with a
+            displacement, press it with a force), given as numbers, 0.0 on the prescribed
+            components; contact faces carry none.
         gap: The gap g of the linearised contact condition u_n <= g on Gamma_C (eq. 2): a finite
             float, a callable ``x -> UFL scalar``, an obstacle of :mod:`dwr_signorini.obstacles`
             (the distance along the outward normal), or ``{contact tag: any of these}``.
@@ -246,14 +250,18 @@ class SignoriniProblem(ProblemDataChecks):
         for tag in traction:
             if not _is_tag(tag):
                 raise TypeError(f"traction keys must be integer facet tags, got {tag!r}")
-            if tag in contact_tags or tag in self.dirichlet:
+            if tag in contact_tags:
                 raise ValueError(
-                    f"traction tag {tag} is also a contact/dirichlet tag; tractions act on Gamma_N"
+                    f"traction tag {tag} is also a contact tag; tractions act on Gamma_N (and on "
+                    "the free components of a dirichlet face), the contact force is the unknown "
+                    "lambda"
                 )
         self.body_force = self._check_vector(body_force, "body_force")
         self.traction = {
             int(k): self._check_vector(v, f"traction[{k}]") for k, v in traction.items()
         }
+        for tag, load in self.traction.items():
+            self._check_traction_on_dirichlet(tag, load)
         self.gap = self._check_gap(gap)
         self.boundary_projection = self._check_projection(boundary_projection)
         self._check_tags()
@@ -262,6 +270,37 @@ class SignoriniProblem(ProblemDataChecks):
         self.miss_gap  # noqa: B018  (collective: computed once, here)
 
     # -- validation ---------------------------------------------------------------------------
+    def _check_traction_on_dirichlet(self, tag: int, load: Any) -> None:
+        """A traction on a dirichlet face acts on its free components only.
+
+        ``dirichlet={4: (d, None)}, traction={4: (0.0, -p)}`` shears the face with a
+        displacement and presses it with a force; a nonzero traction on a prescribed
+        component would be lost silently (its equations are replaced by the prescribed value).
+        """
+        if tag not in self.dirichlet_values:
+            return
+        value = self.dirichlet_values[tag]
+        if callable(value):
+            raise ValueError(
+                f"traction tag {tag} is a dirichlet tag with a callable value, which prescribes "
+                f"every component: drop traction[{tag}], or prescribe dirichlet[{tag}] as a "
+                "tuple with None on the components the traction acts on"
+            )
+        if callable(load):
+            raise ValueError(
+                f"traction[{tag}] is a callable on dirichlet face {tag}: on a face with "
+                "prescribed components give the traction as a tuple of numbers (0.0 on the "
+                "prescribed ones)"
+            )
+        clash = [i for i, (c, t) in enumerate(zip(value, load, strict=True))
+                 if c is not None and t != 0.0]
+        if clash:
+            raise ValueError(
+                f"traction[{tag}] has nonzero component(s) {clash} that dirichlet[{tag}] "
+                f"prescribes ({value!r}): a traction acts on the free (None) components of a "
+                "dirichlet face only; set those traction components to 0.0"
+            )
+
     def _data(self, domain_mesh: Any) -> _MeshData:
         """The registered data of a mesh (by its C++ object or Python mesh), or ``{}``."""
         cpp = getattr(domain_mesh, "_cpp_object", domain_mesh)

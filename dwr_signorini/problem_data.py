@@ -21,8 +21,8 @@ from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
 from . import compat
-from .collective import call_collectively
-from .obstacles import Graph, Obstacle
+from .collective import call_collectively, shadow
+from .obstacles import Graph, Obstacle, Plane
 
 __all__ = ["DirichletData", "DirichletValue", "GapData", "MaterialData", "ProblemDataChecks",
            "VectorData"]
@@ -211,9 +211,10 @@ class ProblemDataChecks:
         covered = np.zeros(num, dtype=bool)
         keep = np.isin(tags.values, list(values)) & (tags.indices < num)
         covered[tags.indices[keep]] = True
-        missing = self.mesh.comm.allreduce(int((~covered).sum()), op=MPI.SUM)
+        comm = shadow(self.mesh.comm)
+        missing = comm.allreduce(int((~covered).sum()), op=MPI.SUM)
         if missing:
-            present = sorted(set(self.mesh.comm.allreduce(list(map(int, np.unique(tags.values))))))
+            present = sorted(set(comm.allreduce(list(map(int, np.unique(tags.values))))))
             raise ValueError(
                 f"{name} is given for cell tags {sorted(values)}, but {missing} cells carry none "
                 f"of them (cell tags present: {present})"
@@ -231,7 +232,7 @@ class ProblemDataChecks:
             f = fem.Function(space)
             f.interpolate(fem.Expression(expr, compat.interpolation_points(space.element)))
             vals = f.x.array
-        comm = self.mesh.comm
+        comm = shadow(self.mesh.comm)
         lo = comm.allreduce(float(np.min(vals, initial=np.inf)), op=MPI.MIN)
         hi = comm.allreduce(float(np.max(vals, initial=-np.inf)), op=MPI.MAX)
         if not (np.isfinite(lo) and np.isfinite(hi)) or lo <= low or hi >= high:
@@ -267,6 +268,8 @@ class ProblemDataChecks:
                     f"{name}: a {dim}D obstacle ({gap!r}) on a {gdim}D mesh: give it "
                     f"{gdim} coordinates"
                 )
+            if isinstance(gap, Plane):
+                self._check_plane_faces_body(gap, name)
             if isinstance(gap, Graph):
                 if not -gdim <= gap.axis < gdim:
                     raise ValueError(f"{name}: Graph axis {gap.axis} out of range for {gdim}D")
@@ -283,6 +286,54 @@ class ProblemDataChecks:
             f"{name} must be a float, a callable x -> UFL scalar or an obstacle "
             f"(ds.obstacles.Plane, Sphere, Cylinder, Graph), got {gap!r}"
         )
+
+    def _check_plane_faces_body(self, plane: Plane, name: str) -> None:
+        """Some contact facet faces ``plane`` (its outward normal . the plane's normal > 0).
+
+        A plane whose normal points into the body lies behind every contact facet: no facet can
+        touch it and J would come out in [0, 0] without a word. Collective.
+        """
+        tag = name[len("gap["):-1] if name.startswith("gap[") else None
+        tags = self.contact_tags if tag is None else (int(tag),)
+        normals = self._outward_facet_normals(tags)
+        facing = int(np.sum(normals @ plane.normal > 1e-12))
+        comm = shadow(self.mesh.comm)
+        facing, count = comm.allreduce(np.array([facing, len(normals)]), op=MPI.SUM)
+        if count and not facing:  # (no contact facet at all: _check_tags names the tag)
+            found = comm.allgather(np.unique(np.round(normals, 6), axis=0).tolist())
+            seen = sorted({tuple(v) for part in found for v in part})
+            raise ValueError(
+                f"{name}: {plane!r} lies behind the body: no contact facet faces it (the "
+                f"outward normals of contact tag(s) {list(tags)} are {seen[:4]}, and the "
+                "normal of a Plane points into the obstacle, away from the body); flip the "
+                "normal, e.g. Plane(point, normal="
+                f"{tuple(float(-c) + 0.0 for c in plane.normal)})"
+            )
+
+    def _outward_facet_normals(self, tags: Sequence[int]) -> np.ndarray:
+        """Outward unit normals (rows) of the owned facets of T_H with the facet tags ``tags``."""
+        msh = self.mesh
+        tdim, gdim = msh.topology.dim, msh.geometry.dim
+        fdim = tdim - 1
+        msh.topology.create_connectivity(fdim, tdim)
+        num = msh.topology.index_map(fdim).size_local
+        facets = np.unique(np.concatenate([self.facet_tags.find(t) for t in tags]))
+        facets = facets[facets < num].astype(np.int32)
+        if facets.size == 0:
+            return np.zeros((0, gdim))
+        x = msh.geometry.x[:, :gdim]
+        fx = x[dmesh.entities_to_geometry(msh, fdim, facets)]
+        if tdim == 2:
+            t = fx[:, 1] - fx[:, 0]
+            n = np.stack([t[:, 1], -t[:, 0]], axis=1)
+        else:
+            n = np.cross(fx[:, 1] - fx[:, 0], fx[:, 2] - fx[:, 0])
+        f_to_c = msh.topology.connectivity(fdim, tdim)
+        cells = np.array([f_to_c.links(f)[0] for f in facets], dtype=np.int32)
+        centroids = x[dmesh.entities_to_geometry(msh, tdim, cells)].mean(axis=1)
+        sign = np.sign(np.sum(n * (fx.mean(axis=1) - centroids), axis=1))
+        n *= sign[:, None]
+        return n / np.linalg.norm(n, axis=1)[:, None]
 
     def _check_projection(self, projection: Any) -> dict[int, Callable[..., Any]]:
         if projection is None:
@@ -347,7 +398,7 @@ class ProblemDataChecks:
         fdim = msh.topology.dim - 1
         msh.topology.create_connectivity(fdim, fdim + 1)
         boundary = dmesh.exterior_facet_indices(msh.topology)
-        comm = msh.comm
+        comm = shadow(msh.comm)
         for name, tag in (
             [("contact", t) for t in self.contact_tags]
             + [("dirichlet", t) for t in self.dirichlet]

@@ -27,6 +27,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from . import compat
+from .collective import shadow
 from .problem import SignoriniProblem
 from .problem_data import _nonzero_literal
 from .quadrature import expand_integer_powers, is_polynomial
@@ -126,7 +127,9 @@ class Discretization:
         tdim = macro.topology.dim
         fdim = tdim - 1
         self.macro_mesh = macro
-        self.comm: MPI.Comm = macro.comm
+        #: The processes of T_H, as a duplicate that outlives the mesh (collective.shadow): the
+        #: object collectives of the solve must leave no mpi4py state on the mesh's communicator.
+        self.comm: MPI.Comm = shadow(macro.comm)
         macro.topology.create_entities(fdim)
         macro.topology.create_connectivity(fdim, tdim)
 

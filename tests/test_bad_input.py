@@ -8,7 +8,7 @@ Every case calls one public function (``SignoriniProblem``, ``solve``, ``estimat
 * PETSc's options database is as before the call;
 * a good solve follows and gives the same displacement as the good solve before the sweep.
 
-Load paths do not exist yet; their arguments join the sweep when they land.
+Load paths (``solve_path``) are in the sweep since issue 48.
 """
 
 import math
@@ -170,7 +170,21 @@ CASES = [
     ("traction-unknown-tag", lambda d: P(d, traction={99: (0.0, 1.0)}), ValueError,
      r"traction tag 99 marks no boundary facet"),
     ("traction-on-contact", lambda d: P(d, traction={CONTACT: (0.0, 1.0)}), ValueError,
-     r"traction tag 3 is also a contact/dirichlet tag"),
+     r"traction tag 3 is also a contact tag"),
+    ("traction-on-prescribed-component",
+     lambda d: P(d, dirichlet={DIRICHLET: (0.0, None)}, traction={DIRICHLET: (1.0, -1.0)}),
+     ValueError, r"traction\[1\] has nonzero component\(s\) \[0\] that dirichlet\[1\] "
+     r"prescribes.*set those traction components to 0.0"),
+    ("traction-on-clamped-face", lambda d: P(d, traction={DIRICHLET: (0.0, -1.0)}), ValueError,
+     r"traction\[1\] has nonzero component\(s\) \[1\]"),
+    ("traction-on-callable-dirichlet",
+     lambda d: P(d, dirichlet={DIRICHLET: lambda x: ufl.as_vector((0 * x[0], 0 * x[0]))},
+                 traction={DIRICHLET: (0.0, -1.0)}),
+     ValueError, r"traction tag 1 is a dirichlet tag with a callable value"),
+    ("traction-callable-on-dirichlet",
+     lambda d: P(d, dirichlet={DIRICHLET: (0.0, None)},
+                 traction={DIRICHLET: lambda x: ufl.as_vector((0 * x[0], -1 + 0 * x[0]))}),
+     ValueError, r"traction\[1\] is a callable on dirichlet face 1"),
     ("traction-inf", lambda d: P(d, traction={NEUMANN: (math.inf, 0.0)}), ValueError,
      r"traction\[2\] must be finite"),
     # -- gap and obstacles -------------------------------------------------------------------
@@ -185,6 +199,11 @@ CASES = [
      r"gap: a 3D obstacle .* on a 2D mesh"),
     ("gap-graph-raises", lambda d: P(d, gap=Graph(psi_raises)), TypeError,
      r"gap \(Graph psi\) must be a callable.*psi cannot be evaluated"),
+    ("gap-Plane-behind-the-body", lambda d: P(d, gap=Plane((0.0, -0.01), (0.0, 1.0))),
+     ValueError, r"gap: Plane.* lies behind the body.*\(0.0, -1.0\).*flip the normal"),
+    ("gap-per-tag-Plane-behind-the-body",
+     lambda d: P(d, gap={CONTACT: Plane((0.0, -0.01), (0.0, 1.0))}), ValueError,
+     r"gap\[3\]: Plane.* lies behind the body.*normal=\(0.0, -1.0\)"),
     ("Graph-axis", lambda d: P(d, gap=Graph(lambda x: 0 * x[0] - 1.0, axis=5)), ValueError,
      r"gap: Graph axis 5 out of range for 2D"),
     ("Plane-zero-normal", lambda d: Plane((0.0, 0.0), (0.0, 0.0)), ValueError,
@@ -276,6 +295,22 @@ CASES = [
     ("estimate-goal-other-mesh",
      lambda d: ds.estimate(d.sol, lambda u, lam, m: u[0] * ufl.dx(d.other.mesh)), ValueError,
      r"goal uses a measure of another mesh"),
+    ("estimate-goal-bare-ds", lambda d: ds.estimate(d.sol, lambda u, lam, m: u[1] * ufl.ds(3)),
+     ValueError, r"goal integrates over ufl.ds\(3\).*use m.ds_contact or m.ds\(tag\)"),
+    ("estimate-goal-bare-dx-tag", lambda d: ds.estimate(d.sol, lambda u, lam, m: u[1] * ufl.dx(7)),
+     ValueError, r"goal integrates over ufl.dx\(7\).*use m.dx"),
+    ("estimate-goal-macro-coordinate",
+     lambda d: ds.estimate(d.sol, lambda u, lam, m: ufl.SpatialCoordinate(d.msh)[0] * u[1] * m.dx),
+     ValueError, r"goal uses a coordinate or function of the macro mesh T_H.*use m.x"),
+    ("estimate-goal-other-mesh-coordinate",
+     lambda d: ds.estimate(d.sol, lambda u, lam, m: ufl.SpatialCoordinate(d.other.mesh)[0]
+                           * u[1] * m.dx),
+     ValueError, r"goal uses a coordinate or function of another mesh.*use m.x"),
+    ("estimate-goal-unknown-ds-tag",
+     lambda d: ds.estimate(d.sol, lambda u, lam, m: u[1] * m.ds(99)), ValueError,
+     r"goal integrates over m.ds\(99\), but no facet carries that tag.*facet tags present"),
+    ("estimate-goal-None", lambda d: ds.estimate(d.sol, None), TypeError,
+     r"goal must be a callable goal\(u, lam, m\)"),
     ("estimate-goal-lam-in-dx", lambda d: ds.estimate(d.sol, lambda u, lam, m: lam * m.dx),
      ValueError, r"goal integrates lam outside Gamma_C"),
     ("estimate-goal-raises", lambda d: ds.estimate(d.sol, lambda u, lam, m: 1 / 0),
@@ -321,6 +356,31 @@ CASES = [
      r"output_dir must be a path"),
     ("adaptive-petsc_options", lambda d: _adaptive(d, petsc_options={"pc_type": "lux"}),
      ValueError, r"petsc_options .*PETSc rejected"),
+    # -- solve_path --------------------------------------------------------------------------
+    ("path-empty", lambda d: ds.solve_path([], good_goal), ValueError,
+     r"problems is empty: a load path needs at least one step"),
+    ("path-one-problem-not-a-list", lambda d: ds.solve_path(d.problem, good_goal), TypeError,
+     r"problems must be a sequence \(list or tuple\) of SignoriniProblem"),
+    ("path-string-step", lambda d: ds.solve_path(["step"], good_goal), TypeError,
+     r"problems\[0\] must be a SignoriniProblem, got str"),
+    ("path-two-meshes", lambda d: ds.solve_path([d.problem, d.other], good_goal), ValueError,
+     r"problems\[1\] lives on another mesh than problems\[0\].*same mesh object"),
+    ("path-goals-too-few", lambda d: ds.solve_path([d.problem] * 2, [good_goal]), TypeError,
+     r"goal must be a callable .* or a sequence of 2 of them \(one per load step\)"),
+    ("path-adaptive-string", lambda d: ds.solve_path([d.problem], good_goal, adaptive="yes"),
+     TypeError, r"adaptive must be True or False"),
+    ("path-callback", lambda d: ds.solve_path([d.problem], good_goal, callback=3), TypeError,
+     r"callback must be callable or None"),
+    # -- more data mistakes --------------------------------------------------------------------
+    ("dirichlet-float-key", lambda d: P(d, dirichlet={1.0: 0.0}), TypeError,
+     r"dirichlet keys must be integer facet tags, got 1.0"),
+    ("E-bool", lambda d: P(d, E=True), TypeError, r"E must be a real number"),
+    ("gap-per-tag-nan", lambda d: P(d, gap={CONTACT: math.nan}), ValueError,
+     r"gap\[3\] must be finite"),
+    ("body_force-callable-scalar", lambda d: P(d, body_force=lambda x: x[0]), ValueError,
+     r"body_force must return a UFL vector with 2 components"),
+    ("Plane-point-normal-dimensions", lambda d: Plane((0.0, 0.0), (0.0, 1.0, 0.0)), ValueError,
+     r"Plane point and normal must have the same number of components"),
     # -- read_mesh ---------------------------------------------------------------------------
     ("read_mesh-missing", lambda d: ds.read_mesh(d.tmp / "missing.msh", d.comm),
      FileNotFoundError, r"read_mesh: no mesh file"),
