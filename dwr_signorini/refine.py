@@ -67,7 +67,7 @@ def refine_uniform(
     """
     tdim = macro.topology.dim
     if macro.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
-        fine, parent_cell, _ = compat.refine(macro, edges)
+        fine, parent_cell = _refine_without_ties(macro, edges)
     else:
         if edges is not None:
             raise ValueError(
@@ -79,6 +79,50 @@ def refine_uniform(
         fine, parent_cell, _ = refine_uniform_tensor(macro)
     fine.topology.create_entities(tdim - 1)
     return fine, np.asarray(parent_cell, dtype=np.int32)
+
+
+#: The size of the linear map under which :func:`_refine_without_ties` refines: large against
+#: the round-off of edge lengths, small against the differences of lengths that are not equal.
+TIE_BREAK = 1e-7
+
+
+def _tie_breaking_map(gdim: int) -> np.ndarray:
+    """A fixed linear map I + TIE_BREAK M under which equally long edges of a face are not.
+
+    M is symmetric with irrational entries, so two non-parallel edges (as the edges of one
+    triangle are) of equal length differ by about TIE_BREAK times their length after the map.
+    """
+    m = np.array([[np.sqrt(2.0), np.sqrt(3.0), np.sqrt(5.0)],
+                  [np.sqrt(3.0), np.sqrt(7.0), np.sqrt(11.0)],
+                  [np.sqrt(5.0), np.sqrt(11.0), np.sqrt(13.0)]]) / 4.0
+    return np.eye(gdim) + TIE_BREAK * m[:gdim, :gdim]
+
+
+def _refine_without_ties(
+    macro: dmesh.Mesh, edges: npt.NDArray[np.int32] | None
+) -> tuple[dmesh.Mesh, npt.NDArray[np.int32]]:
+    """The refinement of dolfinx with the ties between equally long edges broken by geometry.
+
+    Plaza's refinement bisects each face at its longest edge; between edges of equal length
+    dolfinx picks by vertex numbers (global indices in 3D, the local order in 2D), which depend
+    on the partition: the same marked edges gave 260 of 5376 cells different on 2 ranks and
+    serially (example 5.3 on 2 x 6 x 6 boxes, its second level). The mesh is refined under the
+    map of :func:`_tie_breaking_map` instead, which makes the longest edge of every face unique
+    and the same on any number of ranks; midpoints commute with the linear map, so mapping the
+    refined mesh back gives the midpoints of the original edges (to round-off).
+    """
+    gdim = macro.geometry.dim
+    A = _tie_breaking_map(gdim)
+    x = macro.geometry.x
+    original = x[:, :gdim].copy()
+    x[:, :gdim] = original @ A.T
+    try:
+        fine, parent_cell, _ = compat.refine(macro, edges)
+    finally:
+        x[:, :gdim] = original
+    y = fine.geometry.x
+    y[:, :gdim] = np.linalg.solve(A, y[:, :gdim].T).T
+    return fine, parent_cell
 
 
 def fine_to_macro_facets(
