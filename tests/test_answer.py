@@ -91,12 +91,32 @@ def test_a_level_without_contact_says_so(mpi_tmp_path, capsys):
 
 
 @pytest.mark.mpi
+def test_J_best_of_a_load_path_is_its_interval_centre():
+    """A load path adds the history's interval to each step's: J_best moves with it."""
+    first = pressed_block(ds.Tresca(0.2), nx=6, ny=3, press=0.01)
+    second = ds.SignoriniProblem(
+        first.mesh, first.facet_tags, contact=ex.CONTACT,
+        dirichlet={ex.DIRICHLET: (0.002, -0.02)}, E=10.0, nu=0.3, gap=first.gap,
+        friction=first.law,
+    )
+    with ds.solve_path([first, second], ex.goal_friction_force(), verbose=False) as res:
+        for step in res.steps:
+            assert step.J_best == pytest.approx(0.5 * (step.J_low + step.J_high), rel=1e-12)
+        assert res.steps[-1].eta_history is not None
+
+
+@pytest.mark.mpi
 @pytest.mark.parametrize(("budget", "weights"), [(10**4, "patch"), (10**12, "hierarchical")])
-def test_auto_weights_fall_back_to_patch_where_P2_does_not_fit(monkeypatch, budget, weights):
+def test_auto_weights_fall_back_to_patch_where_P2_does_not_fit(
+    monkeypatch, caplog, budget, weights
+):
     """A nearly incompressible block takes P2 weights on every level, if they fit."""
     monkeypatch.setattr(memory, "MEMORY_BUDGET", budget)
     problem = pressed_block(ds.Tresca(0.2), nx=6, ny=3, nu=0.49)
     with ds.solve(problem) as sol, ds.estimate(sol, ex.goal_friction_force()) as est:
+        if COMM.rank == 0:  # one log line, on rank 0
+            logged = [r.getMessage() for r in caplog.records if r.name.endswith("estimator")]
+            assert logged == ([est.weights_fallback] if weights == "patch" else [])
         assert est.weights == weights
         assert (est.weights_fallback is not None) == (weights == "patch")
         if est.weights_fallback:

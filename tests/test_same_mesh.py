@@ -8,11 +8,14 @@ refinement breaks the ties between equally long edges by geometry, not by vertex
 
 from mpi4py import MPI
 
+import numpy as np
 import pytest
+from dolfinx import mesh as dmesh
 from dolfinx.mesh import CellType
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+from dwr_signorini.refine import refine_uniform
 
 pytestmark = pytest.mark.mpi
 
@@ -35,4 +38,20 @@ def test_serial_and_parallel_runs_give_the_same_levels(dim, max_levels):
     for (cells_s, J_s), (cells_p, J_p) in zip(serial, parallel, strict=True):
         assert cells_s == cells_p
         assert J_p == pytest.approx(J_s, rel=1e-10, abs=1e-14)
-    assert serial[-1][0] > 4 * serial[0][0]  # the runs did refine
+    assert serial[-1][0] > 2 * serial[0][0]  # the runs did refine
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_refinement_puts_new_vertices_at_the_midpoints(dim):
+    """Refined under the tie-breaking map, the vertices go back to the old vertices and the
+    midpoints of the edges: on a unit square (cube) of 4^d boxes, multiples of 1/8."""
+    if dim == 2:
+        msh = dmesh.create_unit_square(MPI.COMM_WORLD, 4, 4, ghost_mode=dmesh.GhostMode.none)
+    else:
+        msh = dmesh.create_unit_cube(MPI.COMM_WORLD, 4, 4, 4, ghost_mode=dmesh.GhostMode.none)
+    msh.topology.create_entities(1)
+    fine, _ = refine_uniform(msh)
+    x = fine.geometry.x[:, :dim] * 8
+    assert np.abs(x - np.round(x)).max() < 1e-12
+    cells = fine.topology.index_map(dim).size_global
+    assert cells == msh.topology.index_map(dim).size_global * 2**dim
