@@ -53,7 +53,8 @@ class LevelRecord:
         num_macro_cells: Cells of T_H.
         num_contact_elements: M_C, macro contact facets (multipliers).
         num_dofs: Displacement DoFs.
-        num_active: Active multipliers at convergence.
+        num_active: Active multipliers at convergence (0: no facet is in contact, see
+            ``no_contact``).
         J_h: J(w_h).
         eta_p: The primal estimator.
         eta: The primal-dual estimator, or ``None`` when only eta_p was asked for.
@@ -69,6 +70,11 @@ class LevelRecord:
         J_low: The lower end of the interval for J(w) (:attr:`Estimate.interval`, under the
             assumptions of :mod:`~dwr_signorini.interval`).
         J_high: Its upper end.
+        J_best: The best estimate of J(w), the centre of [J_low, J_high]: J_h corrected by the
+            estimate (:attr:`Estimate.J_best`). J_h itself is often outside the interval.
+        no_contact: Whether no facet is in contact on this level (``num_active == 0``).
+        weights_fallback: Why ``weights="auto"`` kept the patch weights where P2 ones did not
+            fit in memory (:attr:`Estimate.weights_fallback`), else ``None``.
         weights: The weights the level's estimate used ("patch", "hierarchical", ...).
         resolved: Whether the level's contact set counted as resolved.
         num_stick: With friction, macro contact facets in contact that stick, else None.
@@ -97,6 +103,9 @@ class LevelRecord:
     ieff: float | None = None
     J_low: float | None = None
     J_high: float | None = None
+    J_best: float | None = None
+    no_contact: bool = False
+    weights_fallback: str | None = None
     weights: str = ""
     resolved: bool = True
     num_stick: int | None = None
@@ -264,11 +273,14 @@ def _progress(comm: MPI.Comm, record: LevelRecord, label: str | None = None) -> 
             "" if record.num_stick is None
             else f"stick/slip {record.num_stick:d}/{record.num_slip:d}  "
         )
+        contact = "no contact  " if record.no_contact else ""
+        fallback = ", memory" if record.weights_fallback else ""
         label = f"level {record.level:2d}" if label is None else label
         print(
             f"{label}  cells {record.num_cells:8d}  dofs {record.num_dofs:8d}  "
-            f"J_h {record.J_h: .6e}  J in [{record.J_low: .6e}, {record.J_high: .6e}]  "
-            f"estimate {record.estimate: .3e} ({record.weights})  {friction}"
+            f"J_best {record.J_best: .6e}  J in [{record.J_low: .6e}, {record.J_high: .6e}]  "
+            f"J_h {record.J_h: .6e}  "
+            f"estimate {record.estimate: .3e} ({record.weights}{fallback})  {contact}{friction}"
             f"newton {record.newton_iterations:2d} ({record.method})  "
             f"{record.time['total']:7.2f} s",
             flush=True,
@@ -487,8 +499,8 @@ def _record(
 ) -> LevelRecord:
     """The table row of a finished level (``times``: setup, solve, refine)."""
     sizes = ("num_cells", "num_macro_cells", "num_contact_elements", "num_dofs")
-    values = ("J_h", "eta_p", "eta", "contact_term", "active_set_remainder", "weights",
-              "resolved")
+    values = ("J_h", "J_best", "eta_p", "eta", "contact_term", "active_set_remainder",
+              "weights", "weights_fallback", "resolved")
     J_low, J_high = est.interval
     record = LevelRecord(
         level=level,
@@ -498,6 +510,7 @@ def _record(
         J_low=J_low,
         J_high=J_high,
         num_active=sol.num_active,
+        no_contact=sol.num_active == 0,
         num_stick=sol.num_stick,
         num_slip=sol.num_slip,
         method=sol.method,

@@ -13,6 +13,7 @@ cell indicators (facet terms go to the adjacent cell), whose signed sum is the e
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -29,8 +30,9 @@ from dolfinx.fem import petsc as fem_petsc
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
-from .interval import contact_set_resolved, error_interval
+from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
 from .lifetime import Releasable
+from .linalg import memory
 from .newton import Solution
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
@@ -50,8 +52,13 @@ __all__ = [
     "contact_violation",
     "dual_residual",
     "estimate",
+    "goal_magnitude",
+    "p2_weights_fit",
+    "p2_weights_memory",
     "primal_residual",
 ]
+
+logger = logging.getLogger(__name__)
 
 #: The ``estimator`` choices of :func:`estimate` and ``solve_adaptive``: ``"eta"`` (primal and
 #: dual residual, eq. 15) and ``"eta_p"`` (primal residual, eq. 13).
@@ -86,6 +93,87 @@ def nearly_incompressible(problem: Any) -> bool:
     return isinstance(nu, (int, float)) and nu >= NEARLY_INCOMPRESSIBLE_NU
 
 
+#: Bytes per nonzero of an assembled sparse matrix: the value, the column index and the
+#: sparsity pattern dolfinx builds before the matrix.
+BYTES_PER_NONZERO = 24
+
+#: Nonzeros per row of the vector P2 stiffness matrix on simplices, averaged over the vertex
+#: and the edge rows (2D: 38 and 18, one vertex to three edges; 3D: about 195 and 70, one
+#: vertex to six or seven edges).
+P2_NONZEROS_PER_ROW = {2: 24, 3: 90}
+
+#: Vectors of the P2 system's length that its solution holds: FGMRES(30) of
+#: ``weights="hierarchical"`` keeps 60, the rest are right-hand sides, solutions and weights.
+P2_VECTORS = 70
+
+
+def goal_magnitude(goal_forms: GoalForms, degree: int | None) -> float:
+    """``int |j|``: the integral of the magnitude of J's integrands at w_h (collective).
+
+    The scale of J_h's round-off (:func:`~dwr_signorini.interval.roundoff_bound`).
+
+    Args:
+        goal_forms: J's forms at w_h.
+        degree: The quadrature degree of non-polynomial integrands.
+
+    Returns:
+        The sum over J's integrals of the integral of the absolute value of the integrand.
+    """
+    J = goal_forms.J
+    form = ufl.Form([itg.reconstruct(integrand=abs(itg.integrand())) for itg in J.integrals()])
+    disc = goal_forms.disc
+    local = fem.assemble_scalar(disc.form(with_quadrature_degrees(form, degree)))
+    return disc.comm.allreduce(float(local), op=MPI.SUM)
+
+
+def p2_weights_memory(V2: fem.FunctionSpace, kind: str) -> int:
+    """The bytes the P2 weights would take on the rank that holds most of V2 (collective).
+
+    A rough prediction from the sizes alone, the same on every rank: the P2 stiffness matrix
+    (:data:`P2_NONZEROS_PER_ROW` x :data:`BYTES_PER_NONZERO` a row) and :data:`P2_VECTORS`
+    vectors of its length; for ``"higher_order"`` also the factors of the P2 system, estimated as
+    the solver's probe does (:data:`~dwr_signorini.linalg.memory.ROUGH_BYTES` N^(4/3) in 3D,
+    ROUGH_BYTES N log2 N in 2D, half as much again on the rank that needs most).
+
+    Args:
+        V2: The vector P2 space on T_h.
+        kind: ``"hierarchical"`` or ``"higher_order"``.
+
+    Returns:
+        Bytes.
+    """
+    imap, bs = V2.dofmap.index_map, V2.dofmap.index_map_bs
+    comm = V2.mesh.comm
+    rows = comm.allreduce((imap.size_local + imap.num_ghosts) * bs, op=MPI.MAX)
+    tdim = V2.mesh.topology.dim
+    need = rows * (P2_NONZEROS_PER_ROW[tdim] * BYTES_PER_NONZERO + 8 * P2_VECTORS)
+    if kind == "higher_order":
+        n = max(imap.size_global * bs, 2)
+        fill = n ** (4 / 3) if tdim == 3 else n * np.log2(n)
+        need += 1.5 * memory.ROUGH_BYTES * fill / comm.size
+    return int(need)
+
+
+def p2_weights_fit(V2: fem.FunctionSpace, kind: str) -> tuple[bool, int, int]:
+    """Whether the P2 weights fit in memory, as the solver's factorisations must (collective).
+
+    They fit when :func:`p2_weights_memory` is at most
+    :data:`~dwr_signorini.linalg.memory.FACTOR_FRACTION` of
+    :func:`~dwr_signorini.linalg.memory.available_memory` (the budget
+    ``DWR_SIGNORINI_MEMORY_BUDGET`` where set). Both are the same on every rank, so is the answer.
+
+    Args:
+        V2: The vector P2 space on T_h.
+        kind: ``"hierarchical"`` or ``"higher_order"``.
+
+    Returns:
+        ``(fits, predicted bytes, available bytes per rank)``.
+    """
+    need = p2_weights_memory(V2, kind)
+    available = memory.available_memory(V2.mesh.comm)
+    return need <= memory.FACTOR_FRACTION * available, need, available
+
+
 @dataclass
 class Estimate(Releasable):
     """The estimated error in J and its parts.
@@ -114,6 +202,11 @@ class Estimate(Releasable):
         resolved: Whether the contact set counts as resolved (``|R_A| + |C| <= |estimate| / 4``
             with the weights first computed,
             :func:`~dwr_signorini.interval.contact_set_resolved`).
+        roundoff: The round-off q that J_h and the estimate may carry
+            (:func:`~dwr_signorini.interval.roundoff_bound`); it widens the interval.
+        weights_fallback: Why ``weights="auto"`` kept the patch weights where it would have
+            taken P2 ones (the P2 problem's predicted memory does not fit, :func:`p2_weights_fit`),
+            else ``None``.
     """
 
     J_h: float
@@ -131,6 +224,8 @@ class Estimate(Releasable):
     timings: dict[str, float] = field(default_factory=dict)
     reconstructor: Reconstructor | None = field(default=None, repr=False)
     resolved: bool = True
+    roundoff: float = 0.0
+    weights_fallback: str | None = None
 
     def destroy(self) -> None:
         """Release the PETSc objects of the reconstruction (collective; idempotent)."""
@@ -152,8 +247,17 @@ class Estimate(Releasable):
         """
         eta = self.eta if self.estimator == "eta" else None
         return error_interval(
-            self.J_h, eta, self.eta_p, self.active_set_remainder, self.resolved
+            self.J_h, eta, self.eta_p, self.active_set_remainder, self.resolved, self.roundoff
         )
+
+    @property
+    def J_best(self) -> float:
+        """The best estimate of J(w): the interval's centre, J_h corrected by the estimate.
+
+        ``J_h + estimate / (1 - b^2)`` (:func:`~dwr_signorini.interval.best_estimate`); J_h
+        itself is often outside :attr:`interval`, which lies on the side the estimate points to.
+        """
+        return best_estimate(self.J_h, self.value, self.resolved)
 
 
 def ncp_scale_function(sol: Solution) -> fem.Function:
@@ -323,6 +427,77 @@ def _terms(
     )
 
 
+def _p2_kind(sol: Solution) -> str:
+    """The P2 weights of ``"auto"``: hierarchical for a symmetric law, else factored."""
+    disc = sol.disc
+    return "hierarchical" if disc.problem.law.symmetric(disc.mesh.topology.dim) else "higher_order"
+
+
+def _second_weights(
+    terms: _Terms, estimator: str, resolved: bool, J_h: float, roundoff: float, p2: str
+) -> str | None:
+    """The P2 weights with which ``"auto"`` computes the patch estimate again, or None.
+
+    ``p2`` where the contact set is not resolved (the patch recovery of z_h misses the
+    contact). The factored ``"higher_order"`` ones where J_h vanishes to round-off but the
+    patch estimate does not: J vanishes by symmetry, the estimate is then the patch weights'
+    own error (:mod:`~dwr_signorini.interval`), and the iterated P2 weights would leave an
+    error of their relative residual in it (measured on 2 ranks: -2.2e-8 where the error is 0).
+    """
+    if abs(J_h) <= roundoff < abs(terms.value(estimator)):
+        return "higher_order"
+    return None if resolved else p2
+
+
+def _fallback(sol: Solution, rec: Reconstructor, kind: str) -> str | None:
+    """None where the P2 weights ``kind`` fit in memory, else the sentence that says why not."""
+    fits, need, available = p2_weights_fit(rec.V2h, kind)
+    if fits:
+        return None
+    gib = 2.0**30
+    note = (
+        f"weights='auto': patch weights instead of {kind!r} P2 weights, which would need "
+        f"about {need / gib:.2f} GiB a rank where {available / gib:.2f} GiB are available "
+        f"(at most {memory.FACTOR_FRACTION:.0%} of it is used)"
+    )
+    if sol.disc.comm.rank == 0:
+        logger.warning(note)
+    return note
+
+
+def _auto_terms(
+    inp: _Inputs,
+    estimator: str,
+    weights: str,
+    quadrature_degree: int | None,
+    DG0: fem.FunctionSpace,
+    J_h: float,
+    roundoff: float,
+) -> tuple[_Terms, bool, str | None]:
+    """The terms with the weights asked for; ``"auto"`` picks them (see :func:`estimate`).
+
+    Returns:
+        The terms, whether the contact set counts as resolved, and why ``"auto"`` kept the
+        patch weights where P2 ones did not fit in memory (else ``None``).
+    """
+    p2 = _p2_kind(inp.sol)
+    first, fallback = weights, None
+    if weights == "auto":
+        first = p2 if nearly_incompressible(inp.sol.disc.problem) else "patch"
+        if first != "patch":
+            fallback = _fallback(inp.sol, inp.rec, p2)
+            first = "patch" if fallback else first
+    terms = _terms(inp, first, quadrature_degree, DG0)
+    value = terms.value(estimator)
+    resolved = contact_set_resolved(value, terms.remainder, terms.contact, roundoff)
+    second = _second_weights(terms, estimator, resolved, J_h, roundoff, p2)
+    if weights == "auto" and first == "patch" and fallback is None and second is not None:
+        fallback = _fallback(inp.sol, inp.rec, second)
+        if fallback is None:
+            terms = _terms(inp, second, quadrature_degree, DG0)
+    return terms, resolved, fallback
+
+
 def estimate(
     sol: Solution,
     goal: Goal,
@@ -339,10 +514,13 @@ def estimate(
         estimator: ``"eta"`` (primal and dual residual, (15)) or ``"eta_p"`` (primal residual,
             (13)). eta_p is reported in both cases.
         weights: ``"auto"`` (the default: the patch weights, and the hierarchical P2 weights
-            instead on a level whose contact set is not resolved, see
+            instead on a level whose contact set is not resolved or whose J_h vanishes to
+            round-off while the patch estimate does not, see
             :mod:`~dwr_signorini.interval`, and on every level of a nearly incompressible
             material, :func:`nearly_incompressible`; the factored P2 ones, ``"higher_order"``,
-            for a law with coupled rows: Tresca friction in 3D, Coulomb friction),
+            for a law with coupled rows: Tresca friction in 3D, Coulomb friction; but the
+            patch weights where the P2 ones' predicted memory does not fit,
+            :func:`p2_weights_fit`, said by a log line and ``Estimate.weights_fallback``),
             ``"patch"`` (the paper's patch-wise reconstructions), ``"higher_order"`` (dual,
             and for eta the primal, solved in P2 with Lambda_H and the final active set, by a
             factorisation) or ``"hierarchical"`` (the same P2 solutions by a two-level
@@ -411,23 +589,22 @@ def estimate(
     try:  # on a failure the reconstruction's PETSc objects are released
         DG0 = fem.functionspace(disc.mesh, ("DG", 0))
         inp = _Inputs(sol, goal_forms, z, rec, want_eta, petsc_options)
-        symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
-        p2 = "hierarchical" if symmetric else "higher_order"
-        first = weights
-        if weights == "auto":
-            first = p2 if nearly_incompressible(disc.problem) else "patch"
-        terms = _terms(inp, first, quadrature_degree, DG0)
-        resolved = contact_set_resolved(terms.value(estimator), terms.remainder, terms.contact)
-        if weights == "auto" and not resolved and first == "patch":
-            terms = _terms(inp, p2, quadrature_degree, DG0)
-
+        J_h = goal_forms.value()
+        q = roundoff_bound(
+            goal_magnitude(goal_forms, sol.disc.problem.quadrature_degree),
+            disc.num_dofs,
+            disc.mesh.topology.dim,
+        )
+        terms, resolved, fallback = _auto_terms(
+            inp, estimator, weights, quadrature_degree, DG0, J_h, q
+        )
         t_estimate = time.perf_counter() - tic - t_dual
         indicators = fem.Function(DG0, name="indicators")
         n_local = DG0.dofmap.index_map.size_local
         indicators.x.array[:n_local] = terms.indicators[:n_local]
         indicators.x.scatter_forward()
         return Estimate(
-            J_h=goal_forms.value(),
+            J_h=J_h,
             eta_p=terms.eta_p,
             eta=terms.eta,
             contact_term=terms.contact,
@@ -442,6 +619,8 @@ def estimate(
             timings={"dual": t_dual, "estimate": t_estimate},
             reconstructor=rec,
             resolved=resolved,
+            roundoff=q,
+            weights_fallback=fallback,
         )
     except BaseException:
         rec.destroy()

@@ -138,8 +138,10 @@ def patch_indicators(disc: Discretization, indicators: npt.NDArray[np.floating])
 def _global_threshold(comm: MPI.Comm, values: np.ndarray, strategy: str, fraction: float) -> float:
     """The smallest |eta_K| that is marked, identical on every rank."""
     all_values = np.concatenate(comm.allgather(np.abs(values)))
-    if all_values.size == 0 or not np.any(all_values > 0):
+    if all_values.size == 0:
         return np.inf
+    if not np.any(all_values > 0):  # all tied at zero (round-off): all are marked
+        return 0.0
     order = np.sort(all_values)[::-1]
     if strategy == "fixed_fraction":
         k = max(1, int(np.ceil(fraction * order.size)))
@@ -154,8 +156,15 @@ def mark(
     indicators: npt.NDArray[np.floating],
     strategy: str = "fixed_fraction",
     fraction: float = 0.2,
+    floor: float = 0.0,
 ) -> npt.NDArray[np.int32]:
     """Mark macro cells for refinement.
+
+    Cells whose indicators are equal up to a relative :data:`TIE_TOLERANCE` are marked
+    alike, and indicators of at most ``floor`` in magnitude count as zero: where J vanishes by
+    symmetry every indicator is round-off, and marking by it would refine one side of a
+    symmetric mesh and not the other (and differently on different partitions). Where all of
+    them count as zero, every cell is marked.
 
     Args:
         disc: The discretisation.
@@ -163,6 +172,7 @@ def mark(
         strategy: ``"fixed_fraction"`` (the fraction of macro cells with the largest |eta_K|)
             or ``"doerfler"`` (the fewest cells holding ``fraction`` of sum |eta_K|).
         fraction: In (0, 1].
+        floor: The round-off of the estimate (:attr:`Estimate.roundoff`), or 0.
 
     Returns:
         Local indices of the marked (owned) macro cells.
@@ -172,6 +182,7 @@ def mark(
     if not 0.0 < fraction <= 1.0:
         raise ValueError(f"fraction must lie in (0, 1], got {fraction!r}")
     eta_K = patch_indicators(disc, indicators)
+    eta_K[np.abs(eta_K) <= floor] = 0.0
     threshold = _global_threshold(disc.comm, eta_K, strategy, fraction)
     # Cells tied with the threshold up to round-off are all marked: symmetric problems have
     # many equal indicators, and summation order (serial or parallel) must not pick among them.
@@ -237,6 +248,7 @@ def mark_for_growth(
     growth: float,
     rule: str = "edges",
     trials: int = 8,
+    floor: float = 0.0,
 ) -> tuple[npt.NDArray[np.int32], SignoriniProblem, npt.NDArray[np.int32], float]:
     """Mark so that the refined macro mesh has about ``growth`` times the cells of this one.
 
@@ -254,6 +266,7 @@ def mark_for_growth(
         growth: The wanted ratio of macro cells, next level / this level, > 1.
         rule: The refinement rule (:func:`~dwr_signorini.refine.marked_edges`).
         trials: Most refinements tried.
+        floor: Indicators counted as zero (:func:`mark`).
 
     Returns:
         The marked cells, the refined problem, the parent map and the fraction used.
@@ -264,7 +277,7 @@ def mark_for_growth(
     cells_now = problem.mesh.topology.index_map(tdim).size_global
 
     def trial(fraction: float) -> tuple[float, tuple]:
-        marked = mark(disc, indicators, strategy, fraction)
+        marked = mark(disc, indicators, strategy, fraction, floor)
         refined, parent = refine_marked(problem, marked, rule)
         ratio = refined.mesh.topology.index_map(tdim).size_global / cells_now
         return ratio, (marked, refined, parent)
@@ -283,6 +296,7 @@ def mark_at_most(
     fraction: float,
     max_growth: float,
     rule: str = "edges",
+    floor: float = 0.0,
 ) -> tuple[npt.NDArray[np.int32], SignoriniProblem, npt.NDArray[np.int32], float]:
     """Mark by ``fraction``, or for ``max_growth`` where that fraction would refine more.
 
@@ -298,6 +312,7 @@ def mark_at_most(
         fraction: In (0, 1].
         max_growth: The most cells of the next level as a multiple of this level's, > 1.
         rule: The refinement rule (:func:`~dwr_signorini.refine.marked_edges`).
+        floor: Indicators counted as zero (:func:`mark`).
 
     Returns:
         The marked cells, the refined problem, the parent map and the fraction used.
@@ -308,13 +323,15 @@ def mark_at_most(
     if not max_growth > 1.0:
         raise ValueError(f"max_growth must be a number > 1, got {max_growth!r}")
     tdim = problem.mesh.topology.dim
-    marked = mark(disc, indicators, strategy, fraction)
+    marked = mark(disc, indicators, strategy, fraction, floor)
     refined, parent = refine_marked(problem, marked, rule)
     cells = (problem.mesh.topology.index_map(tdim).size_global,
              refined.mesh.topology.index_map(tdim).size_global)
     if cells[1] <= max_growth * cells[0]:
         return marked, refined, parent, fraction
-    return mark_for_growth(disc, problem, indicators, strategy, max_growth, rule)
+    return mark_for_growth(
+        disc, problem, indicators, strategy, max_growth, rule, floor=floor
+    )
 
 
 def search_fraction(
@@ -388,7 +405,8 @@ def refine_level(
     if refinement == "adaptive":
         with timed("mark"):
             marked, next_problem, macro_parent = _mark_and_refine(
-                disc, current, est.indicators.x.array, marking, refinement_rule
+                disc, current, est.indicators.x.array, marking, refinement_rule,
+                getattr(est, "roundoff", 0.0),
             )
         with timed("refine"):
             next_problem, macro_parent = rebalance_level(next_problem, macro_parent)
@@ -408,18 +426,19 @@ def _mark_and_refine(
     indicators: npt.NDArray[np.floating],
     marking: MarkingRule,
     rule: str,
+    floor: float = 0.0,
 ) -> tuple[npt.NDArray[np.int32], SignoriniProblem, Any]:
     """The marked cells, the refined problem and its parent map, as ``marking`` says."""
     if marking.growth is not None:
         marked, refined, parent, _ = mark_for_growth(
-            disc, current, indicators, marking.strategy, marking.growth, rule
+            disc, current, indicators, marking.strategy, marking.growth, rule, floor=floor
         )
     elif marking.max_growth is not None:
         marked, refined, parent, _ = mark_at_most(
             disc, current, indicators, marking.strategy, marking.fraction, marking.max_growth,
-            rule,
+            rule, floor,
         )
     else:
-        marked = mark(disc, indicators, marking.strategy, marking.fraction)
+        marked = mark(disc, indicators, marking.strategy, marking.fraction, floor)
         refined, parent = refine_marked(current, marked, rule)
     return marked, refined, parent

@@ -441,6 +441,7 @@ def _add_history(step: StepRecord, history: list[tuple[float, float, float]]) ->
     step.estimate += step.eta_history
     step.J_low += sum(h[1] for h in history)
     step.J_high += sum(h[2] for h in history)
+    step.J_best += sum(0.5 * (h[1] + h[2]) for h in history)
 
 
 def _on_mesh(problem: SignoriniProblem, current: SignoriniProblem) -> SignoriniProblem:

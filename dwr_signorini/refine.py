@@ -67,7 +67,7 @@ def refine_uniform(
     """
     tdim = macro.topology.dim
     if macro.topology.cell_type in (dmesh.CellType.triangle, dmesh.CellType.tetrahedron):
-        fine, parent_cell, _ = compat.refine(macro, edges)
+        fine, parent_cell = _refine_without_ties(macro, edges)
     else:
         if edges is not None:
             raise ValueError(
@@ -79,6 +79,95 @@ def refine_uniform(
         fine, parent_cell, _ = refine_uniform_tensor(macro)
     fine.topology.create_entities(tdim - 1)
     return fine, np.asarray(parent_cell, dtype=np.int32)
+
+
+#: The size of the map under which :func:`_refine_without_ties` refines: large against the
+#: round-off of edge lengths, small against the differences of lengths that are not equal.
+TIE_BREAK = 1e-7
+
+
+def _tie_breaking_map(x: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
+    """The points x moved by ``x_i -> c_i + (x_i - c_i) (1 + TIE_BREAK (s_i + r_i^2 w_i))``.
+
+    c is the centre of the mesh's bounding box, r = (x - c) / radius, and s, w have irrational
+    entries: equally long edges of a face that point in different directions, or lie at
+    different places, differ by about TIE_BREAK times their length after the map. It commutes
+    with the mirrors in the planes through c normal to the axes, so a mesh symmetric about
+    its centre line is refined symmetrically.
+    """
+    gdim = x.shape[1]
+    s = np.sqrt([2.0, 3.0, 5.0][:gdim])
+    w = np.sqrt([7.0, 11.0, 13.0][:gdim])
+    r = (x - centre) / radius
+    return centre + (x - centre) * (1.0 + TIE_BREAK * (s + (r * r) @ np.outer(w, w[::-1])))
+
+
+def _bounding_box(msh: dmesh.Mesh) -> tuple[np.ndarray, float]:
+    """The centre of the mesh's bounding box and its half-diagonal (collective)."""
+    gdim = msh.geometry.dim
+    x = msh.geometry.x[:, :gdim]
+    lo = x.min(axis=0) if len(x) else np.full(gdim, np.inf)
+    hi = x.max(axis=0) if len(x) else np.full(gdim, -np.inf)
+    msh.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    msh.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+    return 0.5 * (lo + hi), max(0.5 * float(np.linalg.norm(hi - lo)), 1e-300)
+
+
+def _restore_geometry(
+    fine: dmesh.Mesh, parent_cell: np.ndarray, macro: dmesh.Mesh, moved: np.ndarray,
+    original: np.ndarray,
+) -> None:
+    """Each fine vertex put back where it belongs: a vertex of its parent, or an edge midpoint.
+
+    Every fine vertex is, in the moved coordinates, a vertex or an edge midpoint of the parent
+    of each of its cells; it takes that point's original coordinates (exactly the old vertex,
+    the midpoint to round-off).
+    """
+    gdim = macro.geometry.dim
+    macro_dofs = macro.geometry.dofmap[parent_cell]
+    nv = macro_dofs.shape[1]
+    pairs = [(a, b) for a in range(nv) for b in range(a, nv)]  # a == b: the vertex itself
+    first, second = (np.array(p) for p in zip(*pairs, strict=True))
+
+    def candidates(x: np.ndarray) -> np.ndarray:
+        return 0.5 * (x[macro_dofs[:, first]] + x[macro_dofs[:, second]])
+
+    cand_moved, cand_original = candidates(moved), candidates(original)
+    fine_dofs = fine.geometry.dofmap[: len(parent_cell)]
+    y = fine.geometry.x
+    points = y[fine_dofs][:, :, :gdim]
+    distance = np.linalg.norm(points[:, :, None, :] - cand_moved[:, None, :, :], axis=3)
+    nearest = distance.argmin(axis=2)
+    rows = np.arange(len(parent_cell))[:, None]
+    y[fine_dofs, :gdim] = cand_original[rows, nearest]
+
+
+def _refine_without_ties(
+    macro: dmesh.Mesh, edges: npt.NDArray[np.int32] | None
+) -> tuple[dmesh.Mesh, npt.NDArray[np.int32]]:
+    """The refinement of dolfinx with the ties between equally long edges broken by geometry.
+
+    Plaza's refinement bisects each face at its longest edge; between edges of equal length
+    dolfinx picks by vertex numbers (global indices in 3D, the local order in 2D), which depend
+    on the partition: the same marked edges gave 260 of 5376 cells different on 2 ranks and
+    serially (example 5.3 on 2 x 6 x 6 boxes, its second level). The mesh is refined under the
+    map of :func:`_tie_breaking_map` instead, which makes the longest edge of a face unique
+    and the same on any number of ranks (but on faces symmetric about a plane through the
+    centre), and the refined mesh's vertices are then put back (:func:`_restore_geometry`).
+    """
+    gdim = macro.geometry.dim
+    x = macro.geometry.x
+    original = x[:, :gdim].copy()
+    centre, radius = _bounding_box(macro)
+    moved = _tie_breaking_map(original, centre, radius)
+    x[:, :gdim] = moved
+    try:
+        fine, parent_cell, _ = compat.refine(macro, edges)
+    finally:
+        x[:, :gdim] = original
+    parent_cell = np.asarray(parent_cell, dtype=np.int32)
+    _restore_geometry(fine, parent_cell, macro, moved, original)
+    return fine, parent_cell
 
 
 def fine_to_macro_facets(

@@ -67,7 +67,8 @@ def test_estimate_interval_matches_the_record_and_weights_auto_decides():
                     assert auto.eta == pytest.approx(p2.eta, rel=1e-12)
             lo, hi = auto.interval
             assert (lo, hi) == error_interval(
-                auto.J_h, auto.eta, auto.eta_p, auto.active_set_remainder, auto.resolved
+                auto.J_h, auto.eta, auto.eta_p, auto.active_set_remainder, auto.resolved,
+                auto.roundoff,
             )
             with ds.estimate(sol, goal, estimator="eta_p", weights="patch") as primal:
                 lo_p, hi_p = primal.interval

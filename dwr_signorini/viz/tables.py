@@ -280,8 +280,12 @@ def plot_interval(
 ) -> Path | None:
     """J_h per level with its interval [J_low, J_high] as error bar, against cells (log x).
 
+    Where the rows have ``J_best`` (the interval's centre, J_h corrected by the estimate: the
+    number to use) it is drawn as a cross; J_h is often outside its own interval.
+
     Args:
-        runs: Label -> table rows with ``J_h``, ``J_low``, ``J_high`` and ``num_cells``.
+        runs: Label -> table rows with ``J_h``, ``J_low``, ``J_high`` and ``num_cells``
+            (``J_best`` optional).
         path: The PNG to write.
         reference: A reference or exact value of J, drawn as a grey line.
         title: Figure title.
@@ -309,6 +313,10 @@ def plot_interval(
             fmt=_MARKERS[i % len(_MARKERS)] + "-", color=f"C{i}", markersize=4, capsize=3,
             label=rf"{label}: $J(w_h)$ and $[J_{{low}}, J_{{high}}]$",
         )
+        best = _column(rows, "J_best")  # the interval's centre, the number to use
+        if np.isfinite(best[ok]).any():
+            ax.plot(xs[ok] * shift, best[ok], "x", color=f"C{i}", markersize=6,
+                    label=rf"{label}: $J_{{best}}$")
     if reference is not None:
         ax.axhline(reference, color="0.4", linewidth=1.0, linestyle="--", label="reference J")
     if ylim is not None:
