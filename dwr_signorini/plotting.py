@@ -7,6 +7,7 @@ keeps working; see :mod:`dwr_signorini.viz` for the documentation and the module
 
 from .viz import QUANTITY_LABELS as QUANTITY_LABELS
 from .viz import MeshSnapshot as MeshSnapshot
+from .viz import __all__ as _names
 from .viz import cumulative_time as cumulative_time
 from .viz import plot_contact_force as plot_contact_force
 from .viz import plot_convergence as plot_convergence
@@ -22,21 +23,4 @@ from .viz import snapshot_mesh as snapshot_mesh
 from .viz import virtual_display as virtual_display
 from .viz import von_mises_2d as von_mises_2d
 
-__all__ = [
-    "QUANTITY_LABELS",
-    "MeshSnapshot",
-    "cumulative_time",
-    "plot_contact_force",
-    "plot_convergence",
-    "plot_effectivity",
-    "plot_friction",
-    "plot_interval",
-    "plot_mesh",
-    "plot_solution_2d",
-    "plot_solution_3d",
-    "plot_sweep",
-    "read_rows",
-    "snapshot_mesh",
-    "virtual_display",
-    "von_mises_2d",
-]
+__all__ = list(_names)
