@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,7 +31,6 @@ from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
 from .lifetime import Releasable
-from .linalg import memory
 from .newton import Solution
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
@@ -44,6 +42,12 @@ from .residuals import (
     primal_residual,
 )
 from .timing import timed
+from .weights import (
+    memory_fallback,
+    nearly_incompressible,
+    p2_kind,
+    second_weights,
+)
 
 __all__ = [
     "ESTIMATORS",
@@ -53,8 +57,6 @@ __all__ = [
     "dual_residual",
     "estimate",
     "goal_magnitude",
-    "p2_weights_fit",
-    "p2_weights_memory",
     "primal_residual",
 ]
 
@@ -68,44 +70,6 @@ ESTIMATORS = ("eta", "eta_p")
 #: paper's patch-wise reconstructions, P2 solutions by a factorisation, or the same P2 solutions
 #: by FGMRES with the Newton factorisation as coarse level.
 WEIGHTS = ("auto", "patch", "higher_order", "hierarchical")
-
-#: Poisson's ratio from which ``weights="auto"`` takes P2 weights on every level: the P1 dual
-#: solution locks like the primal one (lambda / mu >= 9), and its patch-wise recovery misses
-#: the error. Measured on the Cattaneo-Mindlin path (nu = 0.49, ``benchmarks/README.md``): the
-#: patch weights gave Ieff up to 3.1 and intervals that missed J on 7 of 10 judged steps, the P2
-#: weights Ieff 0.99-1.08 and all 10 covered.
-NEARLY_INCOMPRESSIBLE_NU = 0.45
-
-
-def nearly_incompressible(problem: Any) -> bool:
-    """Whether Poisson's ratio is at least :data:`NEARLY_INCOMPRESSIBLE_NU`.
-
-    Args:
-        problem: The problem; its nu a number, or one per cell tag (the largest counts).
-
-    Returns:
-        True for a nearly incompressible material; False for nu given as a callable of x.
-    """
-    nu = problem.nu
-    if isinstance(nu, Mapping):
-        values = [v for v in nu.values() if isinstance(v, (int, float))]
-        return bool(values) and max(values) >= NEARLY_INCOMPRESSIBLE_NU
-    return isinstance(nu, (int, float)) and nu >= NEARLY_INCOMPRESSIBLE_NU
-
-
-#: Bytes per nonzero of an assembled sparse matrix: the value, the column index and the
-#: sparsity pattern dolfinx builds before the matrix.
-BYTES_PER_NONZERO = 24
-
-#: Nonzeros per row of the vector P2 stiffness matrix on simplices, averaged over the vertex
-#: and the edge rows (2D: 38 and 18, one vertex to three edges; 3D: about 195 and 70, one
-#: vertex to six or seven edges).
-P2_NONZEROS_PER_ROW = {2: 24, 3: 90}
-
-#: Vectors of the P2 system's length that its solution holds: FGMRES(30) of
-#: ``weights="hierarchical"`` keeps 60, the rest are right-hand sides, solutions and weights.
-P2_VECTORS = 70
-
 
 def goal_magnitude(goal_forms: GoalForms, degree: int | None) -> float:
     """``int |j|``: the integral of the magnitude of J's integrands at w_h (collective).
@@ -124,54 +88,6 @@ def goal_magnitude(goal_forms: GoalForms, degree: int | None) -> float:
     disc = goal_forms.disc
     local = fem.assemble_scalar(disc.form(with_quadrature_degrees(form, degree)))
     return disc.comm.allreduce(float(local), op=MPI.SUM)
-
-
-def p2_weights_memory(V2: fem.FunctionSpace, kind: str) -> int:
-    """The bytes the P2 weights would take on the rank that holds most of V2 (collective).
-
-    A rough prediction from the sizes alone, the same on every rank: the P2 stiffness matrix
-    (:data:`P2_NONZEROS_PER_ROW` x :data:`BYTES_PER_NONZERO` a row) and :data:`P2_VECTORS`
-    vectors of its length; for ``"higher_order"`` also the factors of the P2 system, estimated as
-    the solver's probe does (:data:`~dwr_signorini.linalg.memory.ROUGH_BYTES` N^(4/3) in 3D,
-    ROUGH_BYTES N log2 N in 2D, half as much again on the rank that needs most).
-
-    Args:
-        V2: The vector P2 space on T_h.
-        kind: ``"hierarchical"`` or ``"higher_order"``.
-
-    Returns:
-        Bytes.
-    """
-    imap, bs = V2.dofmap.index_map, V2.dofmap.index_map_bs
-    comm = V2.mesh.comm
-    rows = comm.allreduce((imap.size_local + imap.num_ghosts) * bs, op=MPI.MAX)
-    tdim = V2.mesh.topology.dim
-    need = rows * (P2_NONZEROS_PER_ROW[tdim] * BYTES_PER_NONZERO + 8 * P2_VECTORS)
-    if kind == "higher_order":
-        n = max(imap.size_global * bs, 2)
-        fill = n ** (4 / 3) if tdim == 3 else n * np.log2(n)
-        need += 1.5 * memory.ROUGH_BYTES * fill / comm.size
-    return int(need)
-
-
-def p2_weights_fit(V2: fem.FunctionSpace, kind: str) -> tuple[bool, int, int]:
-    """Whether the P2 weights fit in memory, as the solver's factorisations must (collective).
-
-    They fit when :func:`p2_weights_memory` is at most
-    :data:`~dwr_signorini.linalg.memory.FACTOR_FRACTION` of
-    :func:`~dwr_signorini.linalg.memory.available_memory` (the budget
-    ``DWR_SIGNORINI_MEMORY_BUDGET`` where set). Both are the same on every rank, so is the answer.
-
-    Args:
-        V2: The vector P2 space on T_h.
-        kind: ``"hierarchical"`` or ``"higher_order"``.
-
-    Returns:
-        ``(fits, predicted bytes, available bytes per rank)``.
-    """
-    need = p2_weights_memory(V2, kind)
-    available = memory.available_memory(V2.mesh.comm)
-    return need <= memory.FACTOR_FRACTION * available, need, available
 
 
 @dataclass
@@ -205,8 +121,8 @@ class Estimate(Releasable):
         roundoff: The round-off q that J_h and the estimate may carry
             (:func:`~dwr_signorini.interval.roundoff_bound`); it widens the interval.
         weights_fallback: Why ``weights="auto"`` kept the patch weights where it would have
-            taken P2 ones (the P2 problem's predicted memory does not fit, :func:`p2_weights_fit`),
-            else ``None``.
+            taken P2 ones (the P2 problem's predicted memory does not fit,
+            :func:`~dwr_signorini.weights.p2_weights_fit`), else ``None``.
     """
 
     J_h: float
@@ -427,44 +343,6 @@ def _terms(
     )
 
 
-def _p2_kind(sol: Solution) -> str:
-    """The P2 weights of ``"auto"``: hierarchical for a symmetric law, else factored."""
-    disc = sol.disc
-    return "hierarchical" if disc.problem.law.symmetric(disc.mesh.topology.dim) else "higher_order"
-
-
-def _second_weights(
-    terms: _Terms, estimator: str, resolved: bool, J_h: float, roundoff: float, p2: str
-) -> str | None:
-    """The P2 weights with which ``"auto"`` computes the patch estimate again, or None.
-
-    ``p2`` where the contact set is not resolved (the patch recovery of z_h misses the
-    contact). The factored ``"higher_order"`` ones where J_h vanishes to round-off but the
-    patch estimate does not: J vanishes by symmetry, the estimate is then the patch weights'
-    own error (:mod:`~dwr_signorini.interval`), and the iterated P2 weights would leave an
-    error of their relative residual in it (measured on 2 ranks: -2.2e-8 where the error is 0).
-    """
-    if abs(J_h) <= roundoff < abs(terms.value(estimator)):
-        return "higher_order"
-    return None if resolved else p2
-
-
-def _fallback(sol: Solution, rec: Reconstructor, kind: str) -> str | None:
-    """None where the P2 weights ``kind`` fit in memory, else the sentence that says why not."""
-    fits, need, available = p2_weights_fit(rec.V2h, kind)
-    if fits:
-        return None
-    gib = 2.0**30
-    note = (
-        f"weights='auto': patch weights instead of {kind!r} P2 weights, which would need "
-        f"about {need / gib:.2f} GiB a rank where {available / gib:.2f} GiB are available "
-        f"(at most {memory.FACTOR_FRACTION:.0%} of it is used)"
-    )
-    if sol.disc.comm.rank == 0:
-        logger.warning(note)
-    return note
-
-
 def _auto_terms(
     inp: _Inputs,
     estimator: str,
@@ -480,19 +358,19 @@ def _auto_terms(
         The terms, whether the contact set counts as resolved, and why ``"auto"`` kept the
         patch weights where P2 ones did not fit in memory (else ``None``).
     """
-    p2 = _p2_kind(inp.sol)
+    p2 = p2_kind(inp.sol)
     first, fallback = weights, None
     if weights == "auto":
         first = p2 if nearly_incompressible(inp.sol.disc.problem) else "patch"
         if first != "patch":
-            fallback = _fallback(inp.sol, inp.rec, p2)
+            fallback = memory_fallback(inp.sol, inp.rec, p2)
             first = "patch" if fallback else first
     terms = _terms(inp, first, quadrature_degree, DG0)
     value = terms.value(estimator)
     resolved = contact_set_resolved(value, terms.remainder, terms.contact, roundoff)
-    second = _second_weights(terms, estimator, resolved, J_h, roundoff, p2)
+    second = second_weights(terms, estimator, resolved, J_h, roundoff, p2)
     if weights == "auto" and first == "patch" and fallback is None and second is not None:
-        fallback = _fallback(inp.sol, inp.rec, second)
+        fallback = memory_fallback(inp.sol, inp.rec, second)
         if fallback is None:
             terms = _terms(inp, second, quadrature_degree, DG0)
     return terms, resolved, fallback
@@ -520,7 +398,8 @@ def estimate(
             material, :func:`nearly_incompressible`; the factored P2 ones, ``"higher_order"``,
             for a law with coupled rows: Tresca friction in 3D, Coulomb friction; but the
             patch weights where the P2 ones' predicted memory does not fit,
-            :func:`p2_weights_fit`, said by a log line and ``Estimate.weights_fallback``),
+            :func:`~dwr_signorini.weights.p2_weights_fit`, said by a log line and
+            ``Estimate.weights_fallback``),
             ``"patch"`` (the paper's patch-wise reconstructions), ``"higher_order"`` (dual,
             and for eta the primal, solved in P2 with Lambda_H and the final active set, by a
             factorisation) or ``"hierarchical"`` (the same P2 solutions by a two-level

@@ -18,8 +18,8 @@ import pytest
 from dolfinx import mesh as dmesh
 
 import dwr_signorini as ds
-from dwr_signorini import estimator
 from dwr_signorini import examples as ex
+from dwr_signorini import weights as auto_weights
 from dwr_signorini.linalg import memory
 from dwr_signorini.viz.tables import read_rows
 
@@ -122,6 +122,6 @@ def test_auto_weights_fall_back_to_patch_where_P2_does_not_fit(
         if est.weights_fallback:
             assert "GiB" in est.weights_fallback and "'hierarchical'" in est.weights_fallback
         V2 = est.reconstructor.V2h
-        need = estimator.p2_weights_memory(V2, "hierarchical")
+        need = auto_weights.p2_weights_memory(V2, "hierarchical")
         assert len(set(COMM.allgather(need))) == 1  # the same decision on every rank
-        assert estimator.p2_weights_memory(V2, "higher_order") > need > 0
+        assert auto_weights.p2_weights_memory(V2, "higher_order") > need > 0

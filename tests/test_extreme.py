@@ -239,7 +239,7 @@ def test_auto_weights_are_p2_for_a_nearly_incompressible_material():
     assert weights[0.3] == ("patch", True)
     from types import SimpleNamespace
 
-    from dwr_signorini.estimator import nearly_incompressible
+    from dwr_signorini.weights import nearly_incompressible
 
     assert nearly_incompressible(SimpleNamespace(nu={1: 0.3, 2: 0.49}))
     assert not nearly_incompressible(SimpleNamespace(nu={1: 0.3, 2: 0.4}))
