@@ -154,7 +154,9 @@ def test_the_problem_degree_reaches_the_solver_and_the_estimate():
         assert abs(assemble(DATA_QUADRATURE_DEGREE)) > 1e-7 * scale
         eta = {q: ds.estimate(sol, _goal, quadrature_degree=q) for q in ("problem", 3, 8)}
         try:
-            assert eta["problem"].eta == eta[3].eta
+            # the same degree: the same estimate up to the round-off of the dual solve (its
+            # first call may factor the last Newton matrix where the step reused old factors)
+            assert eta["problem"].eta == pytest.approx(eta[3].eta, rel=1e-12, abs=0.0)
             assert abs(eta[8].eta - eta[3].eta) > 1e-9 * abs(eta[3].eta)
         finally:
             for est in eta.values():
