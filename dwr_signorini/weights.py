@@ -20,6 +20,13 @@ from dolfinx import fem
 
 from .linalg import memory
 
+__all__ = [
+    "NEARLY_INCOMPRESSIBLE_NU",
+    "nearly_incompressible",
+    "p2_weights_fit",
+    "p2_weights_memory",
+]
+
 logger = logging.getLogger("dwr_signorini.estimator")
 
 #: Poisson's ratio from which ``weights="auto"`` takes P2 weights on every level: the P1 dual
@@ -63,18 +70,18 @@ P2_VECTORS = 70
 def p2_weights_memory(V2: fem.FunctionSpace, kind: str) -> int:
     """The bytes the P2 weights would take on the rank that holds most of V2 (collective).
 
-    A rough prediction from the sizes alone, the same on every rank: the P2 stiffness matrix
-    (:data:`P2_NONZEROS_PER_ROW` x :data:`BYTES_PER_NONZERO` a row) and :data:`P2_VECTORS`
-    vectors of its length; for ``"higher_order"`` also the factors of the P2 system, estimated as
-    the solver's probe does (:data:`~dwr_signorini.linalg.memory.ROUGH_BYTES` N^(4/3) in 3D,
-    ROUGH_BYTES N log2 N in 2D, half as much again on the rank that needs most).
-
     Args:
         V2: The vector P2 space on T_h.
         kind: ``"hierarchical"`` or ``"higher_order"``.
 
     Returns:
         Bytes.
+
+    A rough prediction from the sizes alone, the same on every rank: the P2 stiffness matrix
+    (:data:`P2_NONZEROS_PER_ROW` x :data:`BYTES_PER_NONZERO` a row) and :data:`P2_VECTORS`
+    vectors of its length; for ``"higher_order"`` also the factors of the P2 system, estimated as
+    the solver's probe does (:data:`~dwr_signorini.linalg.memory.ROUGH_BYTES` N^(4/3) in 3D,
+    ROUGH_BYTES N log2 N in 2D, half as much again on the rank that needs most).
     """
     imap, bs = V2.dofmap.index_map, V2.dofmap.index_map_bs
     comm = V2.mesh.comm
@@ -91,17 +98,17 @@ def p2_weights_memory(V2: fem.FunctionSpace, kind: str) -> int:
 def p2_weights_fit(V2: fem.FunctionSpace, kind: str) -> tuple[bool, int, int]:
     """Whether the P2 weights fit in memory, as the solver's factorisations must (collective).
 
-    They fit when :func:`p2_weights_memory` is at most
-    :data:`~dwr_signorini.linalg.memory.FACTOR_FRACTION` of
-    :func:`~dwr_signorini.linalg.memory.available_memory` (the budget
-    ``DWR_SIGNORINI_MEMORY_BUDGET`` where set). Both are the same on every rank, so is the answer.
-
     Args:
         V2: The vector P2 space on T_h.
         kind: ``"hierarchical"`` or ``"higher_order"``.
 
     Returns:
         ``(fits, predicted bytes, available bytes per rank)``.
+
+    They fit when :func:`p2_weights_memory` is at most
+    :data:`~dwr_signorini.linalg.memory.FACTOR_FRACTION` of
+    :func:`~dwr_signorini.linalg.memory.available_memory` (the budget
+    ``DWR_SIGNORINI_MEMORY_BUDGET`` where set). Both are the same on every rank, so is the answer.
     """
     need = p2_weights_memory(V2, kind)
     available = memory.available_memory(V2.mesh.comm)

@@ -63,7 +63,8 @@ SCRIPT = textwrap.dedent("""
     try:
         main()
     except TypeError as err:
-        print("raised:", err, flush=True)
+        sys.stdout.write(f"raised: {err}\\n")  # one write: the ranks' lines do not interleave
+        sys.stdout.flush()
     else:
         print("no error", flush=True)
     main()
