@@ -1,64 +1,12 @@
-"""Contact laws: the NCP functions of the contact conditions and their generalised derivatives.
+"""The interface of a contact law: its components, their conditions and the coupled rows.
 
-A law is a list of *components*, one per multiplier on the macro contact facets: the normal
-contact force lambda_n for every law, and the tangential traction lambda_t of a frictional law
-(a scalar in 2D, along the tangent t = (-n_2, n_1); in 3D its two coordinates in the tangent
-basis (t_1, t_2) of :func:`tangent_basis`). Component k has a direction e_k (n or t),
-an offset g_k (the gap g for the normal, 0 for the tangential) and a projection P_k onto the
-set of admissible forces, and its condition is the NCP (paper eq. 8, with the scale c of
-:mod:`~dwr_signorini.residuals`)
-
-    C_k(w)(mu) = (mu, lambda_k - P_k(lambda_k + c (u . e_k - g_k)))_GC = 0,
-
-    normal (Signorini):   P_n(x) = max(0, x),         P_n'(x) = [x > 0]       (active / inactive)
-    tangential (Tresca):  P_t(x) = max(-s, min(s, x)), P_t'(x) = [abs(x) < s]  (stick / slip)
-
-Both projections are piecewise linear with slopes 0 and 1, so each component splits its facets
-into *constrained* ones (slope 1: the contact condition fixes the displacement, (u . e_k)_i = g_k,i;
-active, stick) and *free* ones (slope 0: it fixes the force, lambda_k,i = P_k(x_i), which is 0 on
-inactive facets and s sign(x_i) on slipping ones). The semi-smooth Newton step, the dual problem
-(the transposed Newton matrix), the residuals and the estimator only see that split and the
-value on the free facets (:meth:`Component.newton_set`), and the UFL forms of P_k and P_k'
-(:meth:`Component.projection`, :meth:`Component.derivative`): they do not branch on the law.
-
-Tresca's law is the classical given-threshold friction law (Duvaut and Lions): ``|lambda_t| <= s``
-on all of Gamma_C, u_t = 0 where ``|lambda_t| < s`` and ``lambda_t = s u_t / |u_t|`` where the
-body slips.
-The threshold does not depend on the normal force, so a facet that separates still carries
-lambda_t = +-s where it moves tangentially: the law is a model of friction with a known normal
-pressure, and Coulomb's law (threshold mu lambda_n) is the one for friction that follows contact.
-What makes Tresca's law the first frictional law to build on is that the discrete problem is
-convex: it minimises the energy plus ``sum_i s_i |(T u)_i|`` under (N u)_i <= g_i, with a unique
-solution, whose dual is a bound-constrained quadratic programme in (lambda_n, lambda_t) (the
-tests solve it by another method for an independent check). A threshold s chi on the contact
-set alone would couple the tangential condition to the normal one through the set, a
-quasi-variational inequality whose discrete problem need not have a unique solution (tried: the
-semi-smooth Newton method cycled on facets at the edge of the contact zone). The normal and
-tangential conditions do not couple in the Newton matrix, which stays symmetric, and every
-linear solver of the frictionless problem serves (:mod:`dwr_signorini.linalg`).
-
-**3D.** The tangential traction is a vector of the tangent plane and Tresca's law projects it
-onto the disc of radius s: P(x) = x min(1, s / |x|) acts on both tangential components at once
-(a *condition* on two components, :meth:`ContactLaw.conditions`, :class:`TangentialBall`). Its
-generalised derivative is I inside the disc (stick: both rows constrained, as in 2D) and
-alpha (I - q q^T), alpha = s / |x| < 1, q = x / |x|, outside (slip). The semi-smooth Newton method
-uses this exact derivative (not the Hueber-Stadler-Wohlmuth fixed point on the slip direction):
-the slipping facets' rows are then those of a smooth Newton method, converging quadratically
-(measured on the oblique patch test: NCP residuals 1e-2, 9e-5, 1e-8, 5e-16), and the dual
-problem is the transposed linearisation that the error identity needs. The price is that a
-slipping facet's rows, (I - J) M lambda - c J (B u), couple the two tangential rows and are not
-the transpose of the columns B^T: the Newton matrix is not symmetric and is factored by LU
-(:mod:`dwr_signorini.linalg.coupled`, :class:`Coupling`). In the facet's rotated basis (q, p) the
-step reads lambda_q = s and (B u)_p = (1 - alpha) / (alpha c) M lambda_p, a symmetric form
-with a compliant diagonal; the LU path is the one Coulomb's law needs anyway.
-
-**Coulomb's law** (:class:`Coulomb`) has the threshold mu max(0, x_n), x_n the normal NCP
-argument: one projection onto the Coulomb cone acts on all components of a facet
-(:class:`CoulombCone`), and on a facet in contact that slips the tangential rows depend on x_n
-(the derivative mu d, d = sign(x_t) or x_t / ``|x_t|``). Such a facet is a :class:`Coupling`
-whose normal row is constrained (active) and whose tangential rows couple to the normal
-column; the Newton matrix is not symmetric in 2D either. Its tangential arguments hold the slip
-increment of a load step, x_t = lambda_t + c (u - u_old) . t (:func:`~dwr_signorini.solve_path`).
+A law (:class:`ContactLaw`) is a list of components (:class:`Component`), one per multiplier,
+each with its direction, its offset, its projection P_k and generalised derivative P_k' in UFL,
+and its algebraic NCP function and set test on the rows; :meth:`ContactLaw.conditions` groups
+components whose projection acts on them together, and the rows such a projection couples are a
+:class:`Coupling`. :func:`set_test_argument` is the round-off cleaned argument of every set
+test. The laws themselves are :mod:`dwr_signorini.laws.frictionless` and
+:mod:`dwr_signorini.laws.friction`; the ideas are in :mod:`dwr_signorini.laws`.
 """
 
 from __future__ import annotations
@@ -71,18 +19,13 @@ import ufl
 from ufl.domain import extract_unique_domain
 
 __all__ = [
+    "ROUNDOFF",
     "Component",
     "ContactLaw",
-    "Coulomb",
-    "CoulombCone",
     "Coupling",
-    "Frictionless",
-    "Normal",
-    "Tangential",
-    "TangentialBall",
-    "Tresca",
+    "extract_x",
     "multiplier_names",
-    "tangent_basis",
+    "set_test_argument",
 ]
 
 #: Relative round-off level of the parts of the set test: (B u - g)_i below it times
@@ -92,7 +35,7 @@ ROUNDOFF = 1e-10
 
 
 class Component:
-    """One multiplier of a contact law and its NCP (module docstring).
+    """One multiplier of a contact law and its NCP (:mod:`dwr_signorini.laws`).
 
     Attributes:
         name: ``"normal"`` or ``"tangential"``.
@@ -143,14 +86,28 @@ class Component:
         raise NotImplementedError
 
 
-def _cleaned(
+def set_test_argument(
     Mlam: np.ndarray, residual: np.ndarray, c: np.ndarray, M: np.ndarray, g: np.ndarray,
     u_max: float, force_size: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The set test's argument x = M lam + c (B u - g), three ways.
 
+    Every component's set test (:meth:`Component.newton_set`) takes its argument from here,
+    on the rows of one component (arrays (m,)) or of a condition's k components at once
+    (``Mlam``, ``residual``, ``g`` of shape (k, m); every operation is elementwise).
+
+    Args:
+        Mlam: (M lam)_i on the owned rows.
+        residual: (B u - g)_i, the displacement part.
+        c: c_i of the NCP, (m,).
+        M: M_i (sizes of the macro contact facets), (m,).
+        g: g_i (the assembled offset).
+        u_max: ``max |u|`` over all ranks.
+        force_size: ``max_j |(M lam)_j|`` over all ranks.
+
     Returns:
-        x with each part zero below its round-off level, x as it is, and the size of its parts.
+        x with each part zero below its round-off level (:data:`ROUNDOFF`), x as it is, and
+        the size of its parts.
     """
     gap_size = M * u_max + np.abs(g)
     size = np.abs(Mlam) + c * gap_size
@@ -160,38 +117,10 @@ def _cleaned(
     return clean, Mlam + c * residual, size
 
 
-class Normal(Component):
-    """Signorini's condition: P_n(x) = max(0, x); constrained = active (eq. 21)."""
-
-    name = "normal"
-
-    def direction(self, n: Any) -> Any:
-        """See the base class."""
-        return n
-
-    def offset(self, gap: Any) -> Any:
-        """See the base class."""
-        return gap
-
-    def projection(self, x: Any, bound: Any) -> Any:
-        """See the base class."""
-        return ufl.max_value(0.0, x)
-
-    def derivative(self, x: Any, bound: Any) -> Any:
-        """See the base class."""
-        return ufl.conditional(ufl.gt(x, 0.0), 1.0, 0.0)
-
-    def ncp(self, Mlam, x, bound):  # noqa: D102  (see Component)
-        return Mlam - np.maximum(0.0, x)
-
-    def newton_set(self, Mlam, residual, c, M, g, u_max, force_size, bound):  # noqa: D102  (see Component)
-        clean, test, size = _cleaned(Mlam, residual, c, M, g, u_max, force_size)
-        return clean > 0.0, np.zeros_like(Mlam), np.abs(self.ncp(Mlam, test, bound)), size
-
 
 @dataclass
 class Coupling:
-    """Rows whose Newton step is a general linearisation of the NCP (module docstring).
+    """Rows whose Newton step is a general linearisation of the NCP (:mod:`dwr_signorini.laws`).
 
     For facet f of the group's components k (rows ``rows[f, k]``) the step solves
 
@@ -231,7 +160,7 @@ class Coupling:
 
 
 class ContactLaw:
-    """A contact law: its components and the threshold data (module docstring).
+    """A contact law: its components and the threshold data (:mod:`dwr_signorini.laws`).
 
     Attributes:
         name: A short name for tables.
@@ -332,19 +261,6 @@ class ContactLaw:
         return self
 
 
-class Frictionless(ContactLaw):
-    """Frictionless contact (Signorini): the normal contact force alone, lambda_t = 0."""
-
-    name = "frictionless"
-
-    def components(self, tdim: int) -> tuple[Component, ...]:
-        """See the base class."""
-        return (Normal(),)
-
-    def __repr__(self) -> str:
-        """The law as it is constructed."""
-        return "Frictionless()"
-
 
 def multiplier_names(components: tuple, name: str) -> list[str]:
     """The names of the functions of the law's multipliers: name, name_t or name_t1, name_t2."""
@@ -360,24 +276,3 @@ def extract_x(n: Any) -> Any:
     return ufl.SpatialCoordinate(extract_unique_domain(n))
 
 
-def check_law(law: Any, problem: Any) -> ContactLaw:
-    """``friction`` of :class:`~dwr_signorini.SignoriniProblem` validated (None: frictionless)."""
-    if law is None:
-        return Frictionless()
-    if not isinstance(law, ContactLaw):
-        raise TypeError(
-            "friction must be None, ds.Frictionless(), ds.Tresca(s) or ds.Coulomb(mu), got "
-            f"{type(law).__name__}"
-        )
-    return law.check(problem)
-
-
-# The friction laws live in dwr_signorini.friction; they are part of this module's namespace.
-from .friction import (  # noqa: E402
-    Coulomb,
-    CoulombCone,
-    Tangential,
-    TangentialBall,
-    Tresca,
-    tangent_basis,
-)

@@ -1,11 +1,13 @@
 """The friction laws: Tresca's and Coulomb's, their projections and tangent bases.
 
 The idea of a contact law, its components, NCP functions and couplings is
-:mod:`dwr_signorini.laws` (whose module docstring describes these laws); this module holds the
-laws with a tangential traction: :class:`Tangential` (a 2D tangential component, Tresca's
-interval), :class:`TangentialBall` (Tresca's disc in 3D), :class:`CoulombCone` (Coulomb's cone,
-normal and tangential rows together), the laws :class:`Tresca` and :class:`Coulomb`, and
-:func:`tangent_basis`. Everything is importable from :mod:`dwr_signorini.laws` too.
+:mod:`dwr_signorini.laws` (whose docstring describes these laws) and its interface
+:mod:`dwr_signorini.laws.base`; this module holds the laws with a tangential traction:
+:class:`Tangential` (a 2D tangential component, Tresca's interval), :class:`TangentialBall`
+(Tresca's disc in 3D), :class:`CoulombCone` (Coulomb's cone, normal and tangential rows
+together), the set rule :func:`reversing` they share, the laws :class:`Tresca` and
+:class:`Coulomb`, and :func:`tangent_basis`. The public path of each name is
+:mod:`dwr_signorini.laws`.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from typing import Any
 import numpy as np
 import ufl
 
-from .laws import ROUNDOFF, Component, ContactLaw, Normal, _cleaned
+from .base import ROUNDOFF, Component, ContactLaw, set_test_argument
+from .frictionless import Normal
 
 __all__ = [
     "Coulomb",
@@ -26,6 +29,7 @@ __all__ = [
     "TangentialBall",
     "ThresholdData",
     "Tresca",
+    "reversing",
     "tangent_basis",
 ]
 
@@ -87,7 +91,7 @@ class Tangential(Component):
         return Mlam - np.clip(x, -bound, bound)
 
     def newton_set(self, Mlam, residual, c, M, g, u_max, force_size, bound):  # noqa: D102  (see Component)
-        clean, test, size = _cleaned(Mlam, residual, c, M, g, u_max, force_size)
+        clean, test, size = set_test_argument(Mlam, residual, c, M, g, u_max, force_size)
         stick = (np.abs(clean) < bound) | reversing(Mlam[None], clean[None], force_size)
         free = np.where(stick, 0.0, np.sign(clean) * bound / M)
         return stick, free, np.abs(self.ncp(Mlam, test, bound)), size + bound
@@ -148,10 +152,7 @@ class TangentialBall:
             constrained, no row is free, and the slipping facets (mask ``slip``) carry their
             derivative blocks J (m_slip, 2, 2) and right-hand sides r (m_slip, 2).
         """
-        parts = [_cleaned(Mlam[k], residual[k], c, M, g[k], u_max, force_size) for k in range(2)]
-        clean = np.array([p[0] for p in parts])
-        test = np.array([p[1] for p in parts])
-        size = np.array([p[2] for p in parts])
+        clean, test, size = set_test_argument(Mlam, residual, c, M, g, u_max, force_size)
         norm = np.hypot(clean[0], clean[1])
         stick = (norm < bound) | reversing(Mlam, clean, force_size)
         slip = ~stick
@@ -288,10 +289,7 @@ class CoulombCone:
             r = P(x) - J x = 0 (P is positively homogeneous).
         """
         k = self.size
-        parts = [_cleaned(Mlam[i], residual[i], c, M, g[i], u_max, force_size) for i in range(k)]
-        clean = np.array([p[0] for p in parts])
-        test = np.array([p[1] for p in parts])
-        size = np.array([p[2] for p in parts])
+        clean, test, size = set_test_argument(Mlam, residual, c, M, g, u_max, force_size)
         mu = bound
         active = clean[0] > 0.0
         s = mu * np.maximum(clean[0], 0.0)
