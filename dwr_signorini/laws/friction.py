@@ -40,11 +40,6 @@ ThresholdData = float | Callable[[Any], Any] | Mapping[int, Any]
 def reversing(Mlam_t: np.ndarray, xt: np.ndarray, force_size: float) -> np.ndarray:
     """The facets whose slip reverses: the test argument x_t points against lambda_t.
 
-    A set rule of every friction law (Tresca's and Coulomb's): where x_t . lambda_t < 0 the
-    last step's friction force pushed the facet back, and the step holds it (stick) instead
-    of letting it slip the other way. At a solution lambda_t = P(x_t) points along x_t, so the
-    rule never fires there (:meth:`CoulombCone.transitions` says why it is needed).
-
     Args:
         Mlam_t: (k, m) the tangential multipliers times M.
         xt: (k, m) the tangential test argument, round-off cleaned.
@@ -52,6 +47,11 @@ def reversing(Mlam_t: np.ndarray, xt: np.ndarray, force_size: float) -> np.ndarr
 
     Returns:
         A mask of the m facets.
+
+    A set rule of every friction law (Tresca's and Coulomb's): where x_t . lambda_t < 0 the
+    last step's friction force pushed the facet back, and the step holds it (stick) instead
+    of letting it slip the other way. At a solution lambda_t = P(x_t) points along x_t, so the
+    rule never fires there (:meth:`CoulombCone.transitions` says why it is needed).
     """
     tiny = ROUNDOFF * force_size
     return np.einsum("km,km->m", xt, Mlam_t) < -tiny * np.sum(np.abs(xt), axis=0)
