@@ -52,7 +52,7 @@ from reference_3d import indentation_problem, stored_reference, total_force
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.plotting import plot_interval
+from dwr_signorini.viz import plot_interval
 from tests.problems import indented_block
 
 RESULTS = Path("benchmarks/results")

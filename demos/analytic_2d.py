@@ -67,7 +67,7 @@ from dolfinx.mesh import CellType
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini import plotting
+from dwr_signorini import viz
 from dwr_signorini.io import write_csv, write_json
 
 comm = MPI.COMM_WORLD
@@ -257,10 +257,10 @@ if comm.rank == 0:
     })
 if not args.no_plots:
     runs = {k: res.rows() for k, res in results.items()}
-    plotting.plot_convergence(runs, out / "convergence_cells.png", x="num_cells",
-                              title="Example 5.1: relative error and estimate", comm=comm)
-    plotting.plot_convergence(runs, out / "convergence_time.png", x="time",
-                              title="Example 5.1: relative error and estimate", comm=comm)
+    viz.plot_convergence(runs, out / "convergence_cells.png", x="num_cells",
+                         title="Example 5.1: relative error and estimate", comm=comm)
+    viz.plot_convergence(runs, out / "convergence_time.png", x="time",
+                         title="Example 5.1: relative error and estimate", comm=comm)
     references = {}
     if args.cell_type == "quadrilateral":
         for key in args.goals:
@@ -269,19 +269,19 @@ if not args.no_plots:
                 [r[1] for r in rows], [r[4] for r in rows])
             references[f"paper {GOALS[key][2]}: $I_{{eff}}(\\eta_p)$"] = (
                 [r[1] for r in rows], [r[3] for r in rows])
-    plotting.plot_effectivity(runs, out / "effectivity.png", references=references,
-                              title="Example 5.1: effectivity indices", comm=comm)
+    viz.plot_effectivity(runs, out / "effectivity.png", references=references,
+                         title="Example 5.1: effectivity indices", comm=comm)
     if sweep_rows:
-        plotting.plot_sweep(
+        viz.plot_sweep(
             [r["m"] for r in sweep_rows],
             {"eta": [r["ieff"] for r in sweep_rows], "eta_p": [r["ieff_p"] for r in sweep_rows]},
             out / "sweep.png", comm=comm,
             title=f"Figure 4: $I_{{eff}}$ of $J_{{a,m}}$, $M_\\Omega = {sol.disc.num_cells}$",
         )
     first = next(iter(results.values()))
-    plotting.plot_solution_2d(first.solution, out / "solution.png", color="magnitude")
-    plotting.plot_contact_force(first.solution, out / "contact_force.png",
-                                exact=lambda y: ex.exact_contact_pressure_np(y))
+    viz.plot_solution_2d(first.solution, out / "solution.png", color="magnitude")
+    viz.plot_contact_force(first.solution, out / "contact_force.png",
+                           exact=lambda y: ex.exact_contact_pressure_np(y))
 if comm.rank == 0:
     written = sorted(p.name for p in out.iterdir() if p.is_file())
     print(f"\nwritten to {out}/: {', '.join(written)}")

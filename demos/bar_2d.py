@@ -66,7 +66,7 @@ from mpi4py import MPI
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini import plotting
+from dwr_signorini import viz
 from dwr_signorini.io import write_csv, write_json
 
 comm = MPI.COMM_WORLD
@@ -140,14 +140,14 @@ ds.solve_adaptive(bar_problem(), ex.goal_bar(), refinement="uniform", max_levels
                   weights=args.weights, verbose=False)
 results: dict[str, ds.AdaptiveResult] = {}
 wall: dict[str, float] = {}
-snapshots: dict[int, plotting.MeshSnapshot | None] = {}
+snapshots: dict[int, viz.MeshSnapshot | None] = {}
 for refinement in refinements:
     print0(f"\n--- {refinement} refinement ---")
 
     def draw_mesh(record: ds.LevelRecord, sol: ds.Solution, est: ds.Estimate,
                   refinement: str = refinement) -> None:
         if refinement == "adaptive" and record.level == args.mesh_level and not args.no_plots:
-            snapshots[record.level] = plotting.snapshot_mesh(sol.disc.mesh)
+            snapshots[record.level] = viz.snapshot_mesh(sol.disc.mesh)
 
     tic = time.perf_counter()
     results[refinement] = ds.solve_adaptive(
@@ -188,7 +188,7 @@ def fmt(value: float | None, spec: str) -> str:
 
 rows_out = []
 for refinement, res in results.items():
-    cumulative = plotting.cumulative_time(res.rows())
+    cumulative = viz.cumulative_time(res.rows())
     print0(f"\n{refinement}: {len(res.levels)} levels in {wall[refinement]:.1f} s")
     head = (f"{'M_Omega':>8} {'L':>2} {'M_C':>4} {'J_h':>13} {'J in [J_low, J_high]':>29} "
             f"{'E_rel':>11} {'Ieff(eta)':>9} "
@@ -236,22 +236,22 @@ if comm.rank == 0:
 if not args.no_plots:
     runs = {k: res.rows() for k, res in results.items()}
     for x, name in (("num_cells", "convergence_cells.png"), ("time", "convergence_time.png")):
-        plotting.plot_convergence(runs, out / name, x=x, reference=args.reference, dim=2,
-                                  title="Example 5.2: error in J", comm=comm)
-    plotting.plot_effectivity(runs, out / "effectivity.png",
-                              references={"paper, Table 3": ([r[1] for r in PAPER_TABLE_3],
-                                                             [r[3] for r in PAPER_TABLE_3])},
-                              title="Example 5.2: effectivity indices", comm=comm)
+        viz.plot_convergence(runs, out / name, x=x, reference=args.reference, dim=2,
+                             title="Example 5.2: error in J", comm=comm)
+    viz.plot_effectivity(runs, out / "effectivity.png",
+                         references={"paper, Table 3": ([r[1] for r in PAPER_TABLE_3],
+                                                        [r[3] for r in PAPER_TABLE_3])},
+                         title="Example 5.2: effectivity indices", comm=comm)
     best = results.get("adaptive", next(iter(results.values())))
-    plotting.plot_solution_2d(best.solution, out / "solution.png", scale=1.0, color="von_mises",
-                              title="Example 5.2: deformed bar (true scale), von Mises stress")
-    plotting.plot_contact_force(best.solution, out / "contact_force.png")
+    viz.plot_solution_2d(best.solution, out / "solution.png", scale=1.0, color="von_mises",
+                         title="Example 5.2: deformed bar (true scale), von Mises stress")
+    viz.plot_contact_force(best.solution, out / "contact_force.png")
     for level, snap in snapshots.items():
-        plotting.plot_mesh(snap, out / f"mesh_level{level:02d}.png",
-                           title=f"adaptive mesh, level {level}: "
-                                 f"{0 if snap is None else snap.num_cells} cells")
+        viz.plot_mesh(snap, out / f"mesh_level{level:02d}.png",
+                      title=f"adaptive mesh, level {level}: "
+                            f"{0 if snap is None else snap.num_cells} cells")
     if not snapshots:
-        plotting.plot_mesh(best.solution.disc.mesh, out / "mesh_final.png")
+        viz.plot_mesh(best.solution.disc.mesh, out / "mesh_final.png")
 if comm.rank == 0:
     written = sorted(p.name for p in out.iterdir() if p.is_file())
     print(f"\nwritten to {out}/: {', '.join(written)}")

@@ -62,7 +62,7 @@ from mpi4py import MPI
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini import plotting
+from dwr_signorini import viz
 from dwr_signorini.io import write_csv, write_json
 
 comm = MPI.COMM_WORLD
@@ -151,14 +151,14 @@ goal = ex.goal_friction_force()
 ds.solve_adaptive(problem(), goal, refinement="uniform", max_levels=1, verbose=False)  # JIT
 results: dict[str, ds.AdaptiveResult] = {}
 wall: dict[str, float] = {}
-snapshots: dict[int, plotting.MeshSnapshot | None] = {}
+snapshots: dict[int, viz.MeshSnapshot | None] = {}
 for refinement in refinements:
     print0(f"\n--- {refinement} refinement ---")
 
     def keep_mesh(record: ds.LevelRecord, sol: ds.Solution, est: ds.Estimate,
                   refinement: str = refinement) -> None:
         if refinement == "adaptive" and record.level == args.mesh_level and not args.no_plots:
-            snapshots[record.level] = plotting.snapshot_mesh(sol.disc.mesh)
+            snapshots[record.level] = viz.snapshot_mesh(sol.disc.mesh)
 
     tic = time.perf_counter()
     results[refinement] = ds.solve_adaptive(
@@ -181,7 +181,7 @@ reference = args.reference if args.reference is not None else finest[-1].J_h
 uncertainty = 0.0 if args.reference is not None else abs(finest[-1].J_h - finest[-2].J_h)
 rows_out = []
 for refinement, res in results.items():
-    cumulative = plotting.cumulative_time(res.rows())
+    cumulative = viz.cumulative_time(res.rows())
     print0(f"\n{refinement}: {len(res.levels)} levels in {wall[refinement]:.1f} s; "
            f"reference J = {reference:.8e} +- {uncertainty:.1e}")
     print0(f"{'cells':>8} {'L':>2} {'M_C':>5} {'stick':>5} {'slip':>5} {'J_h':>13} "
@@ -221,25 +221,25 @@ if comm.rank == 0:
 if not args.no_plots:
     runs = {k: [row for row in rows_out if row["refinement"] == k] for k in results}
     best = results.get("adaptive", next(iter(results.values())))
-    plotting.plot_friction(best.solution, out / "tractions.png", threshold=args.s,
-                           title="tractions on the finest adaptive mesh")
-    plotting.plot_interval(runs, out / "interval.png", reference=reference,
-                           title="the friction force J and its interval", comm=comm)
+    viz.plot_friction(best.solution, out / "tractions.png", threshold=args.s,
+                      title="tractions on the finest adaptive mesh")
+    viz.plot_interval(runs, out / "interval.png", reference=reference,
+                      title="the friction force J and its interval", comm=comm)
     for x, name in (("num_cells", "convergence_cells.png"), ("time", "convergence_time.png")):
-        plotting.plot_convergence(runs, out / name, x=x, reference=reference, dim=args.dim,
-                                  title="error in the friction force", comm=comm)
-    plotting.plot_effectivity(runs, out / "effectivity.png",
-                              title="effectivity of eta (judged levels)", comm=comm)
+        viz.plot_convergence(runs, out / name, x=x, reference=reference, dim=args.dim,
+                             title="error in the friction force", comm=comm)
+    viz.plot_effectivity(runs, out / "effectivity.png",
+                         title="effectivity of eta (judged levels)", comm=comm)
     if args.dim == 2:
-        plotting.plot_solution_2d(best.solution, out / "solution.png", scale=5.0,
-                                  color="von_mises", title="deformed block (x5), von Mises stress")
+        viz.plot_solution_2d(best.solution, out / "solution.png", scale=5.0,
+                             color="von_mises", title="deformed block (x5), von Mises stress")
     else:
-        plotting.plot_solution_3d(best.solution, out / "solution.png", scale=5.0,
-                                  title="deformed block (x5)")
+        viz.plot_solution_3d(best.solution, out / "solution.png", scale=5.0,
+                             title="deformed block (x5)")
     for level, snap in snapshots.items():
-        plotting.plot_mesh(snap, out / f"mesh_level{level:02d}.png",
-                           title=f"adaptive mesh, level {level}: "
-                                 f"{0 if snap is None else snap.num_cells} cells")
+        viz.plot_mesh(snap, out / f"mesh_level{level:02d}.png",
+                      title=f"adaptive mesh, level {level}: "
+                            f"{0 if snap is None else snap.num_cells} cells")
 if comm.rank == 0:
     written = sorted(p.name for p in out.iterdir() if p.is_file())
     print(f"\nwritten to {out}/: {', '.join(written)}")

@@ -71,7 +71,7 @@ from dolfinx import fem
 
 import dwr_signorini as ds
 from dwr_signorini import obstacles as ob
-from dwr_signorini import plotting
+from dwr_signorini import viz
 from dwr_signorini.io import write_csv, write_json
 from dwr_signorini.viz.canvas import new_figure, save_figure
 from dwr_signorini.viz.gather import gather_contact_force
@@ -288,8 +288,8 @@ if comm.rank == 0:
 # +
 if not args.no_plots:
     runs = {name: res.rows() for name, res in results.items()}
-    plotting.plot_convergence(runs, out / "estimate_time.png", x="time", quantities=("estimate",),
-                              dim=dim, title=f"Hertz {dim}D: estimate of J", comm=comm)
+    viz.plot_convergence(runs, out / "estimate_time.png", x="time", quantities=("estimate",),
+                         dim=dim, title=f"Hertz {dim}D: estimate of J", comm=comm)
     if comm.rank == 0:
         for x, label, fname in (("num_dofs", "DoFs", "errors_dofs.png"),
                                 ("time_cumulative", "cumulative wall-clock time [s]",

@@ -53,7 +53,7 @@ from mpi4py import MPI
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini import plotting
+from dwr_signorini import viz
 from dwr_signorini.io import write_csv, write_json
 from dwr_signorini.newton import iterative_petsc_options
 
@@ -144,7 +144,7 @@ for refinement in refinements:
 # +
 table = []
 for refinement, res in results.items():
-    cumulative = plotting.cumulative_time(res.rows())
+    cumulative = viz.cumulative_time(res.rows())
     print0(f"\n{refinement}")
     print0(f"{'M_Omega':>8} {'L':>2} {'M_C':>5} {'|A|':>5} {'J_h':>14} {'eta_p':>11} "
            f"{'eta':>11} {'C(w_h)(xi)':>11} {'|C|/|eta|':>9} {'time [s]':>8}")
@@ -182,22 +182,22 @@ if not args.no_plots:
     runs = {k: res.rows() for k, res in results.items()}
     quantities = ("rel_error", "estimate") if args.reference else ("estimate",)
     for x, name in (("num_cells", "convergence_cells.png"), ("time", "convergence_time.png")):
-        plotting.plot_convergence(runs, out / name, x=x, quantities=quantities,
-                                  reference=args.reference, dim=3, comm=comm,
-                                  title="Example 5.3: estimated error in J")
-    plotting.plot_convergence(runs, out / "contact_term.png", x="num_cells",
-                              quantities=("eta_p", "eta", "contact_term"), dim=3,
-                              slopes=(-2.0 / 3.0,), comm=comm,
-                              title=r"Example 5.3: estimators and the contact term $C(w_h)(\xi_h)$")
+        viz.plot_convergence(runs, out / name, x=x, quantities=quantities,
+                             reference=args.reference, dim=3, comm=comm,
+                             title="Example 5.3: estimated error in J")
+    viz.plot_convergence(runs, out / "contact_term.png", x="num_cells",
+                         quantities=("eta_p", "eta", "contact_term"), dim=3,
+                         slopes=(-2.0 / 3.0,), comm=comm,
+                         title=r"Example 5.3: estimators and the contact term $C(w_h)(\xi_h)$")
     if args.reference:
-        plotting.plot_effectivity(runs, out / "effectivity.png", comm=comm)
+        viz.plot_effectivity(runs, out / "effectivity.png", comm=comm)
     best = results.get("adaptive", next(iter(results.values())))
     sol = best.solution
-    plotting.plot_mesh(sol.disc.mesh, out / "mesh.png", backend=args.plot_backend,
-                       title=f"{next(k for k, v in results.items() if v is best)} mesh, "
-                             f"{sol.disc.num_cells} cells")
-    plotting.plot_solution_3d(sol, out / "solution.png", backend=args.plot_backend)
-    plotting.plot_contact_force(sol, out / "contact_force.png")
+    viz.plot_mesh(sol.disc.mesh, out / "mesh.png", backend=args.plot_backend,
+                  title=f"{next(k for k, v in results.items() if v is best)} mesh, "
+                        f"{sol.disc.num_cells} cells")
+    viz.plot_solution_3d(sol, out / "solution.png", backend=args.plot_backend)
+    viz.plot_contact_force(sol, out / "contact_force.png")
 if comm.rank == 0:
     written = sorted(p.name for p in out.iterdir() if p.is_file())
     print(f"\nwritten to {out}/: {', '.join(written)}")

@@ -6,7 +6,7 @@ this session, so the PYTHONPATH of ``scripts/fenicsx`` carries over), once seria
 ``mpirun -n 2``. The checks:
 
 * the CSV, JSON, PNG and XDMF files exist and are not empty (PNGs start with the PNG signature);
-* the CSV and JSON tables of a run agree (read back with ``plotting.read_rows``);
+* the CSV and JSON tables of a run agree (read back with ``viz.read_rows``);
 * the serial tables equal a run of the library in this process (J_h, eta_p, eta, sizes, to
   1e-10 relative): the demo reports what the library computes;
 * the 2-process tables equal the serial ones (J_h and estimates to 1e-9 relative, same sizes).
@@ -32,7 +32,7 @@ import pytest
 import dwr_signorini as ds
 from dwr_signorini import __main__ as cli
 from dwr_signorini import examples as ex
-from dwr_signorini import plotting
+from dwr_signorini import viz
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMOS = ROOT / "demos"
@@ -95,7 +95,7 @@ def runs(tmp_path_factory):
 
 def _csv(path: Path) -> list[dict]:
     assert path.is_file() and path.stat().st_size > 0, f"missing or empty: {path}"
-    return plotting.read_rows(path)
+    return viz.read_rows(path)
 
 
 def _close(a: float | None, b: float | None, rtol: float) -> bool:
@@ -435,10 +435,10 @@ def test_read_rows_csv_and_json(tmp_path):
     write_csv(tmp_path / "t.csv", rows)
     write_json(tmp_path / "t.json", {"levels": rows})
     for name in ("t.csv", "t.json"):
-        back = plotting.read_rows(tmp_path / name)
+        back = viz.read_rows(tmp_path / name)
         assert [r["J_h"] for r in back] == [0.1, 1 / 3]
         assert back[0]["eta"] is None and back[1]["num_cells"] == 32
-        assert list(plotting.cumulative_time(back)) == [1.5, 3.5]
+        assert list(viz.cumulative_time(back)) == [1.5, 3.5]
     with open(tmp_path / "t.csv", newline="") as fh:
         assert "time_total" in next(csv.reader(fh))
 

@@ -126,10 +126,10 @@ def test_site(tmp_path):
     for name in dwr_signorini.obstacles.__all__:
         assert f'id="dwr_signorini.obstacles.{name}"' in api, name
     # the public modules beside ds: their pages' names and what they export
-    for module in ("obstacles", "interval", "examples", "plotting", "io", "meshes"):
+    for module in ("obstacles", "interval", "examples", "viz", "io", "meshes"):
         assert f'id="module-dwr_signorini.{module}"' in api, module
     for name in ("plot_convergence", "plot_interval", "plot_friction"):
-        assert f'id="dwr_signorini.plotting.{name}"' in api, name
+        assert f'id="dwr_signorini.viz.{name}"' in api, name
     for name in ("bar_problem", "friction_problem", "cattaneo_mindlin_path", "goal_bar"):
         assert f'id="dwr_signorini.examples.{name}"' in api, name
     assert 'id="dwr_signorini.io.write_csv"' in api
