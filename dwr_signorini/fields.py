@@ -147,6 +147,9 @@ class MeshFields:
         Args:
             x: The spatial coordinate of this mesh.
 
+        Returns:
+            E and nu: floats, UFL expressions of ``x``, or DG0 functions (given per cell tag).
+
         Raises:
             ValueError: A material given per cell tag, and this mesh has no cell tags.
         """
@@ -191,6 +194,12 @@ class MeshFields:
 
         Args:
             u: A displacement on this mesh (UFL vector).
+
+        Returns:
+            The stress tensor (UFL).
+
+        Raises:
+            ValueError: A material given per cell tag, and this mesh has no cell tags.
         """
         problem = self.problem
         if problem.homogeneous_material:
@@ -218,6 +227,9 @@ class MeshFields:
 
         Returns:
             The gap, a UFL scalar expression.
+
+        Raises:
+            ValueError: A gap that differs between contact tags, and no contact indicators.
         """
         miss = self.problem.miss_gap
         return self.contact_expr(
@@ -238,6 +250,9 @@ class MeshFields:
             x: The spatial coordinate of this mesh.
             name: The argument's name, for errors.
             value: One value's expression (default: a callable is called with ``x``).
+
+        Returns:
+            The data as a UFL scalar expression.
 
         Raises:
             ValueError: Per-tag data (differing between tags) and no contact indicators.
