@@ -181,6 +181,12 @@ def test_two_materials_in_series():
             problem.E = E1
     E_H, _ = problem.material(ufl.SpatialCoordinate(msh))  # on T_H: its own cell tags
     assert E_H.function_space.mesh is msh
+    # Uniform refinement: the next level's T_H is T_h, with the discretisation's cell tags.
+    with ds.solve_adaptive(problem, force_goal, refinement="uniform", max_levels=2,
+                           verbose=False) as res:
+        assert len(res.levels) == 2
+        lo, hi = lam_range(res.solution)
+        assert lo == pytest.approx(p, rel=1e-12) and hi == pytest.approx(p, rel=1e-12)
 
 
 def test_quarter_model_equals_full_model():
