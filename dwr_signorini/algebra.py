@@ -126,7 +126,8 @@ class ContactAlgebra:
         # Non-polynomial loads and gaps at the problem's quadrature degree, as in the residuals
         # (and the stiffness, if E or nu is a function of x).
         degree = problem.quadrature_degree
-        a = problem.elastic_form(u, v, m.dx)
+        fields = disc.fields
+        a = fields.elastic_form(u, v, m.dx)
         if callable(problem.E) or callable(problem.nu):
             a = with_quadrature_degrees(a, degree)
         couplings = [
@@ -140,7 +141,7 @@ class ContactAlgebra:
             "NT": [form(ufl.adjoint(c)) for c in couplings],
             "M": form(mu * m.ds_contact),
             "g": form(
-                with_quadrature_degrees(problem.gap_expr(m.x, m.n) * mu * m.ds_contact, degree)
+                with_quadrature_degrees(fields.gap(m.x, m.n) * mu * m.ds_contact, degree)
             ),
         }
         if disc.u_old is not None:  # the slip increment of a load step: g_k = B_k u_old
@@ -148,7 +149,7 @@ class ContactAlgebra:
                 form(ufl.dot(disc.u_old, comp.direction(m.n)) * mu * m.ds_contact)
                 for comp in self.components[1:]
             ]
-        bound = problem.law.bound_expr(problem, m.x)
+        bound = problem.law.bound_expr(fields, m.x)
         if bound is not None:
             forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact, degree))
         if V is disc.V:
@@ -280,7 +281,7 @@ class ContactAlgebra:
         problem, m = self.disc.problem, self.disc.m
         if isinstance(problem.E, float):
             return problem.E
-        E, _ = problem.material(m.x)
+        E, _ = self.disc.fields.material(m.x)
         vec = self._vector(
             form(with_quadrature_degrees(E * mu * m.ds_contact, problem.quadrature_degree))
         )

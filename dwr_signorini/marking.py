@@ -415,7 +415,7 @@ def refine_level(
         if current.boundary_projection:  # refine again, projecting the new vertices
             next_problem, macro_parent = refine_marked(current, None)
         else:  # T_h, the uniform refinement of T_H, is the next macro mesh
-            next_problem = current.with_mesh(disc.mesh, disc.facet_tags)
+            next_problem = current.with_mesh(disc.mesh, disc.facet_tags, disc.cell_tags)
             macro_parent = disc.parent_cell
     return np.zeros(0, dtype=np.int32), next_problem, macro_parent
 

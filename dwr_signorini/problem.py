@@ -1,15 +1,16 @@
 """Signorini's problem: data of the contact problem (1)-(3) of the paper, validated once.
 
 A :class:`SignoriniProblem` holds the *macro* mesh T_H the user passes, its facet tags and the
-material, loads and gap. Nothing is discretised here: :mod:`dwr_signorini.spaces` builds the fine
-mesh T_h and the spaces, and the UFL expressions of this module are evaluated on it. The checks
-of the data (each error naming its argument) are in :mod:`dwr_signorini.problem_data`.
+material, loads and gap, and nothing else: it is frozen after its constructor has checked the
+data (:mod:`dwr_signorini.validation`, :mod:`dwr_signorini.mesh_validation`). Nothing is
+discretised here: :mod:`dwr_signorini.spaces` builds the fine mesh T_h and the spaces, and the
+data on a mesh as UFL are the :class:`~dwr_signorini.fields.MeshFields` the discretisation owns.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from typing import Any
+from typing import Any, NoReturn
 
 from mpi4py import MPI
 
@@ -19,82 +20,33 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
-from . import compat
+from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
+from .mesh_validation import check_cell_tags, check_mesh, check_tags
 from .obstacles import Obstacle
-from .problem_data import (
+from .quadrature import DATA_QUADRATURE_DEGREE
+from .validation import (
+    MODELS,
     DirichletData,
     GapData,
     MaterialData,
-    ProblemDataChecks,
     VectorData,
-    _is_real,
-    _is_tag,
-    _nonzero_literal,
-    _tags,
+    call_user,
+    check_contact,
+    check_dirichlet,
+    check_gap,
+    check_loads,
+    check_material,
+    check_model,
+    check_projection,
+    check_quadrature_degree,
+    nonzero_literal,
 )
-from .quadrature import DATA_QUADRATURE_DEGREE
 
 __all__ = ["MODELS", "SignoriniProblem", "lame_parameters", "stress"]
 
-MODELS = ("plane_strain", "plane_stress", "3d")
 
-
-
-def lame_parameters(E: float, nu: float, model: str = "plane_strain") -> tuple[float, float]:
-    """Lame parameters ``(mu, lambda)`` of Hooke's law (Section 2).
-
-    Args:
-        E: Young's modulus.
-        nu: Poisson's ratio.
-        model: ``"plane_stress"`` gives the reduced ``lambda* = 2 mu lambda / (lambda + 2 mu)
-            = E nu / (1 - nu^2)``; ``"plane_strain"`` and ``"3d"`` give
-            ``lambda = E nu / ((1 + nu)(1 - 2 nu))``.
-
-    Returns:
-        The shear modulus ``mu = E / (2 (1 + nu))`` and the first Lame parameter.
-    """
-    mu = E / (2.0 * (1.0 + nu))
-    lmbda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
-    if model == "plane_stress":
-        lmbda = 2.0 * mu * lmbda / (lmbda + 2.0 * mu)
-    return mu, lmbda
-
-
-def stress(
-    u: ufl.core.expr.Expr,
-    E: float,
-    nu: float,
-    model: str = "plane_strain",
-    constants: bool = False,
-) -> ufl.core.expr.Expr:
-    """Hooke's law ``sigma(u) = 2 mu eps(u) + lambda tr(eps(u)) I`` (Section 2).
-
-    Args:
-        u: Displacement, a UFL vector expression.
-        E: Young's modulus.
-        nu: Poisson's ratio.
-        model: The model of :func:`lame_parameters`.
-        constants: Let ``mu`` and ``lambda`` enter as dolfinx Constants on the mesh of ``u`` (if
-            it has one), so that forms for different materials share their compiled code;
-            otherwise they enter as float literals.
-
-    Returns:
-        The symmetric stress tensor as a UFL expression.
-    """
-    mu, lmbda = lame_parameters(E, nu, model)
-    domain = extract_unique_domain(u) if constants else None
-    if domain is not None:
-        mu, lmbda = fem.Constant(domain, mu), fem.Constant(domain, lmbda)
-    eps = ufl.sym(ufl.grad(u))
-    return 2.0 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(len(u))
-
-
-#: Per-mesh data of a problem: cell tags of a refined mesh and indicators of contact tags.
-_MeshData = dict[str, Any]
-
-
-class SignoriniProblem(ProblemDataChecks):
+class SignoriniProblem:
     """Signorini's problem (eq. 1-3): an elastic body on a rigid obstacle, with or without friction.
 
     The contact is frictionless (the paper's problem) or follows Tresca's or Coulomb's law
@@ -143,6 +95,11 @@ class SignoriniProblem(ProblemDataChecks):
             integrates smooth data far below the discretisation error of P1; lower degrees
             cost fewer evaluations of the data.
 
+    The problem is data: validated once (:mod:`dwr_signorini.validation`), then frozen (setting
+    an attribute raises; :meth:`with_mesh` makes the same problem on another mesh). Its data on
+    a mesh as UFL are the :class:`~dwr_signorini.fields.MeshFields` of a discretisation
+    (``disc.fields``).
+
     Raises:
         ValueError: For any inconsistent or non-physical input, naming the argument.
         TypeError: For arguments of the wrong type.
@@ -165,223 +122,54 @@ class SignoriniProblem(ProblemDataChecks):
         friction: ContactLaw | None = None,
         quadrature_degree: int = DATA_QUADRATURE_DEGREE,
     ) -> None:
-        if not isinstance(mesh, dmesh.Mesh):
-            raise TypeError(f"mesh must be a dolfinx.mesh.Mesh, got {type(mesh).__name__}")
-        if not isinstance(facet_tags, dmesh.MeshTags):
-            raise TypeError(
-                f"facet_tags must be dolfinx.mesh.MeshTags, got {type(facet_tags).__name__}"
-            )
-        tdim = mesh.topology.dim
-        cpp_topology = getattr(mesh.topology, "_cpp_object", None)
-        if cpp_topology is not None and facet_tags.topology is not cpp_topology:
-            raise ValueError(
-                "facet_tags belong to another mesh: create them on `mesh` "
-                "(dolfinx.mesh.meshtags(mesh, ...)) or read them together with it (gmshio)"
-            )
-        if facet_tags.dim != tdim - 1:
-            raise ValueError(
-                f"facet_tags has dimension {facet_tags.dim}, but the facets of this mesh have "
-                f"dimension {tdim - 1}: pass the facet tags, not cell tags"
-            )
-        mesh.topology.create_entities(tdim - 1)
-        num_facets = mesh.topology.index_map(tdim - 1)
-        if (
-            num_facets is not None
-            and len(facet_tags.indices)
-            and int(facet_tags.indices.max()) >= (num_facets.size_local + num_facets.num_ghosts)
-        ):
-            raise ValueError(
-                "facet_tags index facets that `mesh` does not have: another mesh's tags?"
-            )
-        if mesh.topology.index_map(tdim).size_global == 0:
-            raise ValueError("mesh has no cells: pass the macro mesh T_H of the body")
-        if tdim not in (2, 3) or mesh.geometry.dim != tdim:
-            raise ValueError("mesh must be a 2D mesh in the plane or a 3D volume mesh")
-        if compat.geometry_cmap(mesh).degree != 1:
-            raise ValueError(
-                "only meshes with affine/multilinear geometry (degree 1) are supported"
-            )
-
-        if model is None:
-            model = "plane_strain" if tdim == 2 else "3d"
-        if model not in MODELS:
-            raise ValueError(f"model must be one of {MODELS}, got {model!r}")
-        if (model == "3d") != (tdim == 3):
-            raise ValueError(
-                f"model={model!r} does not fit a {tdim}D mesh: use "
-                + ("'plane_strain' or 'plane_stress'" if tdim == 2 else "'3d'")
-            )
-        if isinstance(quadrature_degree, bool) or not isinstance(quadrature_degree, int):
-            raise TypeError(
-                f"quadrature_degree must be an integer, got {type(quadrature_degree).__name__}"
-            )
-        if not 0 <= quadrature_degree <= 30:
-            raise ValueError(
-                f"quadrature_degree must be in [0, 30], got {quadrature_degree}"
-            )
-        self.quadrature_degree = int(quadrature_degree)
+        check_mesh(mesh, facet_tags)
         self.mesh = mesh
         self.facet_tags = facet_tags
-        self.model = model
-        self._mesh_data: dict[int, _MeshData] = {}
-        #: Registrations of each fine mesh not yet unregistered (see unregister_mesh).
-        self._mesh_users: dict[int, int] = {}
-        self.cell_tags = self._check_cell_tags(cell_tags, E, nu)
-        self.E = self._check_material(E, "E")
-        self.nu = self._check_material(nu, "nu")
-
-        contact_tags = _tags(contact, "contact")
-        if not contact_tags:
-            raise ValueError("contact must name at least one facet tag")
-        if len(set(contact_tags)) != len(contact_tags):
-            raise ValueError(f"contact names a tag twice: {contact_tags}")
-        self.contact_tags = contact_tags
+        self.model = check_model(model, mesh.topology.dim)
+        self.quadrature_degree = check_quadrature_degree(quadrature_degree)
+        self.cell_tags = check_cell_tags(cell_tags, mesh, E, nu)
+        self.E = check_material(E, "E", mesh, self.cell_tags)
+        self.nu = check_material(nu, "nu", mesh, self.cell_tags)
+        self.contact_tags = check_contact(contact)
         self.contact: int | tuple[int, ...] = (
-            contact_tags[0] if len(contact_tags) == 1 else contact_tags
+            self.contact_tags[0] if len(self.contact_tags) == 1 else self.contact_tags
         )
-        self.dirichlet_values = self._check_dirichlet(dirichlet)
+        self.dirichlet_values = check_dirichlet(dirichlet, mesh, self.contact_tags)
         self.dirichlet = tuple(self.dirichlet_values)
-        if traction is not None and not isinstance(traction, Mapping):
-            raise TypeError(
-                "traction must be a dict {facet tag: load}, e.g. {2: (0.0, -1.0)}, got "
-                f"{type(traction).__name__}"
-            )
-        traction = dict(traction or {})
-        for tag in traction:
-            if not _is_tag(tag):
-                raise TypeError(f"traction keys must be integer facet tags, got {tag!r}")
-            if tag in contact_tags:
-                raise ValueError(
-                    f"traction tag {tag} is also a contact tag; tractions act on Gamma_N (and on "
-                    "the free components of a dirichlet face), the contact force is the unknown "
-                    "lambda"
-                )
-        self.body_force = self._check_vector(body_force, "body_force")
-        self.traction = {
-            int(k): self._check_vector(v, f"traction[{k}]") for k, v in traction.items()
-        }
-        for tag, load in self.traction.items():
-            self._check_traction_on_dirichlet(tag, load)
-        self.gap = self._check_gap(gap)
-        self.boundary_projection = self._check_projection(boundary_projection)
-        self._check_tags()
+        self.body_force, self.traction = check_loads(
+            body_force, traction, mesh, self.contact_tags, self.dirichlet_values
+        )
+        self.gap = check_gap(gap, mesh, facet_tags, self.contact_tags)
+        self.boundary_projection = check_projection(boundary_projection)
+        used = (
+            [("contact", t) for t in self.contact_tags]
+            + [("dirichlet", t) for t in self.dirichlet]
+            + [("traction", t) for t in self.traction]
+            + [("boundary_projection", t) for t in self.boundary_projection]
+        )
+        check_tags(mesh, facet_tags, used, self.contact_tags)
         self.law = check_law(friction, self)
         self.friction = self.law if self.law.frictional else None
-        self.miss_gap  # noqa: B018  (collective: computed once, here)
+        self._miss = _miss_gap(mesh, self.gap)  # collective: computed once, here
+        self._frozen = True
 
-    # -- validation ---------------------------------------------------------------------------
-    def _check_traction_on_dirichlet(self, tag: int, load: Any) -> None:
-        """A traction on a dirichlet face acts on its free components only.
+    def __setattr__(self, name: str, value: Any) -> None:
+        """Set an attribute in the constructor; afterwards the problem is frozen."""
+        if getattr(self, "_frozen", False):
+            _frozen_error(name)
+        object.__setattr__(self, name, value)
 
-        ``dirichlet={4: (d, None)}, traction={4: (0.0, -p)}`` shears the face with a
-        displacement and presses it with a force; a nonzero traction on a prescribed
-        component would be lost silently (its equations are replaced by the prescribed value).
-        """
-        if tag not in self.dirichlet_values:
-            return
-        value = self.dirichlet_values[tag]
-        if callable(value):
-            raise ValueError(
-                f"traction tag {tag} is a dirichlet tag with a callable value, which prescribes "
-                f"every component: drop traction[{tag}], or prescribe dirichlet[{tag}] as a "
-                "tuple with None on the components the traction acts on"
-            )
-        if callable(load):
-            raise ValueError(
-                f"traction[{tag}] is a callable on dirichlet face {tag}: on a face with "
-                "prescribed components give the traction as a tuple of numbers (0.0 on the "
-                "prescribed ones)"
-            )
-        clash = [i for i, (c, t) in enumerate(zip(value, load, strict=True))
-                 if c is not None and t != 0.0]
-        if clash:
-            raise ValueError(
-                f"traction[{tag}] has nonzero component(s) {clash} that dirichlet[{tag}] "
-                f"prescribes ({value!r}): a traction acts on the free (None) components of a "
-                "dirichlet face only; set those traction components to 0.0"
-            )
+    def __delattr__(self, name: str) -> NoReturn:
+        """The problem is frozen: no attribute can be deleted."""
+        _frozen_error(name)
 
-    def _data(self, domain_mesh: Any) -> _MeshData:
-        """The registered data of a mesh (by its C++ object or Python mesh), or ``{}``."""
-        cpp = getattr(domain_mesh, "_cpp_object", domain_mesh)
-        if cpp is getattr(self.mesh, "_cpp_object", self.mesh) and not self._mesh_data.get(
-            id(cpp)
-        ):
-            self.register_mesh(self.mesh, cell_tags=self.cell_tags)
-        return self._mesh_data.get(id(cpp), {})
-
-    def register_mesh(
-        self,
-        msh: dmesh.Mesh,
-        cell_tags: dmesh.MeshTags | None = None,
-        contact_indicators: Mapping[int, Any] | None = None,
-    ) -> None:
-        """Let the data of this problem be evaluated on ``msh`` (a refinement of T_H).
-
-        :class:`~dwr_signorini.spaces.Discretization` registers T_h with its cell tags (carried
-        from T_H through the parent cells) and, for a gap per contact tag, the indicator of each
-        contact tag (functions of Lambda_H, 1 on that tag's macro facets).
-        """
-        key = id(msh._cpp_object)
-        data = self._mesh_data.setdefault(key, {"mesh": msh})
-        if cell_tags is not None:
-            data["cell_tags"] = cell_tags
-        if contact_indicators is not None:
-            data["contact_indicators"] = dict(contact_indicators)
-        if msh is not self.mesh:
-            self._mesh_users[key] = self._mesh_users.get(key, 0) + 1
-
-    def unregister_mesh(self, msh: dmesh.Mesh) -> None:
-        """One registration of ``msh`` (not T_H) fewer; its data go with the last one.
-
-        Each discretisation registers its T_h once and unregisters it when it is gone (two may
-        share T_h: :meth:`~dwr_signorini.spaces.Discretization.for_problem`). A problem solved
-        many times would otherwise hold every fine mesh it was discretised on.
-        """
-        key = id(msh._cpp_object)
-        if msh is self.mesh or key not in self._mesh_users:
-            return
-        self._mesh_users[key] -= 1
-        if self._mesh_users[key] == 0:
-            del self._mesh_users[key]
-            self._mesh_data.pop(key, None)
-
-    def registered_cell_tags(self, msh: dmesh.Mesh) -> dmesh.MeshTags | None:
-        """The cell tags of ``msh`` if registered (``self.cell_tags`` on T_H), else ``None``."""
-        return self._data(msh).get("cell_tags", self.cell_tags if msh is self.mesh else None)
-
-    def _domain_data(self, x: Any) -> _MeshData:
-        return self._data(extract_unique_domain(x).ufl_cargo())
-
-    def material(self, x: Any) -> tuple[Any, Any]:
-        """``(E, nu)`` as UFL scalars on the mesh of ``x`` (numbers stay floats)."""
-        return self._material(self.E, "E", x), self._material(self.nu, "nu", x)
-
-    def _material(self, value: MaterialData, name: str, x: Any) -> Any:
-        if callable(value):
-            return self.call_user(name, value, x)
-        if not isinstance(value, Mapping):
-            return value
-        data = self._domain_data(x)
-        key = f"field_{name}"
-        if key not in data:
-            tags = data.get("cell_tags")
-            if tags is None:
-                raise ValueError(
-                    f"{name} is given per cell tag, but this mesh has no registered cell tags "
-                    "(build forms on the meshes of ds.discretize / ds.solve)"
-                )
-            msh = data["mesh"]
-            space = fem.functionspace(msh, ("DG", 0))
-            field = fem.Function(space, name=name)
-            num = msh.topology.index_map(msh.topology.dim).size_local
-            lookup = dict(value)
-            keep = (tags.indices < num) & np.isin(tags.values, list(lookup))
-            cells = tags.indices[keep]
-            field.x.array[space.dofmap.list[cells, 0]] = [lookup[int(t)] for t in tags.values[keep]]
-            field.x.scatter_forward()
-            data[key] = field
-        return data[key]
+    @property
+    def homogeneous_dirichlet(self) -> bool:
+        """Whether every Dirichlet condition prescribes zero (no lifting needed)."""
+        return all(
+            not callable(v) and all(c in (None, 0.0) for c in v)
+            for v in self.dirichlet_values.values()
+        )
 
     @property
     def homogeneous_material(self) -> bool:
@@ -400,17 +188,35 @@ class SignoriniProblem(ProblemDataChecks):
         """Linearised strain eps(u) = sym(grad u)."""
         return ufl.sym(ufl.grad(u))
 
+    def _fields(self, expr: Any) -> MeshFields:
+        """The data on the mesh of ``expr``: with T_H's cell tags on T_H, without elsewhere.
+
+        The fields of a discretisation's meshes (with the cell tags of T_h and the contact-tag
+        indicators) are its own, ``disc.fields`` and ``disc.macro_fields``.
+        """
+        cargo = extract_unique_domain(expr).ufl_cargo()
+        if getattr(cargo, "_cpp_object", cargo) is getattr(self.mesh, "_cpp_object", self.mesh):
+            return MeshFields(self, self.mesh, self.cell_tags)
+        return MeshFields(self, cargo)
+
+    def material(self, x: Any) -> tuple[Any, Any]:
+        """``(E, nu)`` as UFL scalars on the mesh of ``x`` (numbers stay floats).
+
+        Per-cell-tag data on a mesh other than T_H raise a ValueError: use ``m.sigma(u)`` (the
+        goal measures) or the fields of a discretisation (``disc.fields.material(x)``).
+        """
+        return self._fields(x).material(x)
+
     def sigma(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """Stress sigma(u) = 2 mu eps(u) + lambda tr(eps(u)) I (Hooke's law).
 
-        For numbers E, nu the Lame parameters enter as dolfinx Constants on the mesh of ``u``,
-        so forms for different materials share their compiled code (no new JIT compilation per
-        E, nu); callables enter as UFL expressions of x, per-cell-tag values as DG0 functions.
+        As :meth:`~dwr_signorini.fields.MeshFields.sigma` on the mesh of ``u``; per-cell-tag
+        data on a mesh other than T_H raise a ValueError (use ``m.sigma(u)`` or
+        ``disc.fields.sigma(u)``).
         """
         if self.homogeneous_material:
             return stress(u, self.E, self.nu, self.model, constants=True)
-        E, nu = self.material(ufl.SpatialCoordinate(extract_unique_domain(u)))
-        return stress(u, E, nu, self.model)
+        return self._fields(u).sigma(u)
 
     def elastic_form(self, u: Any, v: Any, dx: ufl.Measure) -> ufl.Form:
         """a(u, v) = (sigma(u), eps(v)) (Section 2)."""
@@ -446,7 +252,7 @@ class SignoriniProblem(ProblemDataChecks):
         ``inner(0, v) * dx`` would lose its test function and could not be assembled.
         """
         if callable(value):
-            return _nonzero_literal(ufl.as_vector(self.call_user(where, value, x)), x)
+            return nonzero_literal(ufl.as_vector(call_user(self.mesh, where, value, x)), x)
         data = np.zeros(self.mesh.geometry.dim) if value is None else np.asarray(value, float)
         return fem.Constant(extract_unique_domain(x), data)
 
@@ -458,39 +264,14 @@ class SignoriniProblem(ProblemDataChecks):
         largest distance from the box's center to an obstacle's reference point: larger than
         any gap a point of the body can close. Computed (collectively) in the constructor.
         """
-        if not hasattr(self, "_miss"):
-            x = self.mesh.geometry.x
-            comm = self.mesh.comm
-            lo, hi = np.min(x, axis=0, initial=np.inf), np.max(x, axis=0, initial=-np.inf)
-            comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
-            comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
-            diameter = float(np.linalg.norm(hi - lo))
-            extra = 0.0
-            gaps = self.gap.values() if isinstance(self.gap, Mapping) else [self.gap]
-            gdim = self.mesh.geometry.dim
-            for g in gaps:
-                if isinstance(g, Obstacle):
-                    p = np.zeros(3)
-                    p[:gdim] = g.reference_point[:gdim]
-                    extra = max(extra, g.size + float(np.linalg.norm(p - 0.5 * (lo + hi))))
-            self._miss = 2.0 * (diameter + extra) + 1.0e-300
         return self._miss
-
-    def _gap_value(self, gap: Any, x: Any, n: Any) -> Any:
-        """One gap's value at ``x`` (local: calls the user's callable or a Graph's psi)."""
-        if isinstance(gap, Obstacle):
-            n = ufl.FacetNormal(extract_unique_domain(x)) if n is None else n
-            return gap.gap(x, n, self.miss_gap)
-        if callable(gap):
-            return ufl.as_ufl(gap(x))
-        return gap
 
     def gap_expr(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
         """The gap g as UFL on the mesh of ``x`` (constants as a dolfinx Constant, see vector).
 
-        A gap per contact tag is the sum of each tag's gap times the indicator of its macro
-        facets (a function of Lambda_H, registered by the discretisation), so it needs the
-        entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
+        As :meth:`~dwr_signorini.fields.MeshFields.gap`. A gap that differs between contact
+        tags needs the indicators of the tags' macro facets, which a discretisation holds: use
+        its fields, ``disc.fields.gap(m.x)``.
 
         Args:
             x: The spatial coordinate of the mesh of the form.
@@ -502,51 +283,9 @@ class SignoriniProblem(ProblemDataChecks):
             The gap, a UFL scalar expression.
 
         Raises:
-            ValueError: If the gap is given per contact tag and ``x`` is not the coordinate of a
-                discretisation's mesh (no contact-tag indicators registered for it).
+            ValueError: If the gap differs between contact tags (use ``disc.fields.gap``).
         """
-        return self.contact_expr(self.gap, x, "gap", lambda g: self._gap_value(g, x, n))
-
-    def contact_expr(
-        self, data: Any, x: Any, name: str, value: Callable[[Any], Any] | None = None
-    ) -> ufl.core.expr.Expr:
-        """Data on Gamma_C (the gap, a friction threshold) as UFL on the mesh of ``x``.
-
-        Data per contact tag is the sum of each tag's value times the indicator of its macro
-        facets (a function of Lambda_H, registered by the discretisation), so it needs the
-        entity maps of :meth:`~dwr_signorini.spaces.Discretization.form`.
-
-        Args:
-            data: A number, a callable x -> UFL scalar, or ``{contact tag: ...}``.
-            x: The spatial coordinate of the mesh of the form.
-            name: The argument's name, for errors.
-            value: One value's expression (default: a callable is called with ``x``).
-
-        Raises:
-            ValueError: Per-tag data and ``x`` not the coordinate of a discretisation's mesh.
-        """
-        if value is None:
-            value = lambda d: d(x) if callable(d) else d  # noqa: E731
-        if isinstance(data, Mapping):
-            values = {t: self.call_user(f"{name}[{t}]", value, d) for t, d in data.items()}
-            distinct = {id(d) for d in data.values()}
-            if len(distinct) == 1:
-                return self._as_expr(next(iter(values.values())), x)
-            indicators = self._domain_data(x).get("contact_indicators")
-            if indicators is None:
-                raise ValueError(
-                    f"{name} is given per contact tag: its expression needs the contact-tag "
-                    "indicators of a discretisation (use the measures of ds.discretize)"
-                )
-            total = sum(indicators[t] * ufl.as_ufl(values[t]) for t in self.contact_tags)
-            return total
-        return self._as_expr(self.call_user(name, value, data), x)
-
-    @staticmethod
-    def _as_expr(value: Any, x: Any) -> Any:
-        if _is_real(value):
-            return fem.Constant(extract_unique_domain(x), float(value))
-        return _nonzero_literal(ufl.as_ufl(value), x)
+        return self._fields(x).gap(x, n)
 
     def with_mesh(
         self,
@@ -559,8 +298,8 @@ class SignoriniProblem(ProblemDataChecks):
         Args:
             mesh: The new macro mesh.
             facet_tags: Its facet tags.
-            cell_tags: Its cell tags; by default those registered for ``mesh`` (T_h of a
-                discretisation of this problem, see :meth:`register_mesh`).
+            cell_tags: Its cell tags, needed when E or nu is given per cell tag (those of a
+                discretisation's T_h are ``disc.cell_tags``).
 
         Returns:
             A new :class:`SignoriniProblem` with this problem's data on ``mesh``.
@@ -568,8 +307,6 @@ class SignoriniProblem(ProblemDataChecks):
         Raises:
             ValueError: As the constructor, if the tags do not fit the new mesh.
         """
-        if cell_tags is None:
-            cell_tags = self._data(mesh).get("cell_tags")
         return SignoriniProblem(
             mesh,
             facet_tags,
@@ -586,3 +323,29 @@ class SignoriniProblem(ProblemDataChecks):
             friction=self.law,
             quadrature_degree=self.quadrature_degree,
         )
+
+
+def _frozen_error(name: str) -> NoReturn:
+    raise AttributeError(
+        f"SignoriniProblem is frozen after validation: {name!r} cannot be changed; build a new "
+        "problem (ds.SignoriniProblem(...), or problem.with_mesh(...) on another mesh)"
+    )
+
+
+def _miss_gap(mesh: dmesh.Mesh, gap: Any) -> float:
+    """The problem's ``miss_gap`` for the macro mesh ``mesh`` and the checked ``gap``."""
+    x = mesh.geometry.x
+    comm = mesh.comm
+    lo, hi = np.min(x, axis=0, initial=np.inf), np.max(x, axis=0, initial=-np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+    diameter = float(np.linalg.norm(hi - lo))
+    extra = 0.0
+    gaps = gap.values() if isinstance(gap, Mapping) else [gap]
+    gdim = mesh.geometry.dim
+    for g in gaps:
+        if isinstance(g, Obstacle):
+            p = np.zeros(3)
+            p[:gdim] = g.reference_point[:gdim]
+            extra = max(extra, g.size + float(np.linalg.norm(p - 0.5 * (lo + hi))))
+    return 2.0 * (diameter + extra) + 1.0e-300

@@ -135,9 +135,10 @@ def _tuple(mu: Any) -> tuple:
 
 def ncp_terms(sol: Any, u: Any, lams: Any, c: Any) -> list:
     """Each component's (x_k, P_k(x_k), P_k'(x_k)) at (u, lams) (:mod:`~dwr_signorini.laws`)."""
-    problem, m = sol.disc.problem, sol.disc.m
-    return problem.law.ncp_arguments(
-        u, _tuple(lams), problem.gap_expr(m.x), m.n, c, problem, sol.disc.u_old
+    disc = sol.disc
+    m, fields = disc.m, disc.fields
+    return disc.problem.law.ncp_arguments(
+        u, _tuple(lams), fields.gap(m.x), m.n, c, fields, disc.u_old
     )
 
 
@@ -167,9 +168,10 @@ def primal_residual(sol: Any, v: Any, mu: Any, c: Any) -> ufl.Form:
         mu: The multiplier weight, or a tuple of them (one per component of the law).
         c: The scale of the NCP (a function on the multiplier space, or a number).
     """
-    problem, m = sol.disc.problem, sol.disc.m
-    components = problem.law.components(m.mesh.topology.dim)
-    form = sol.disc.load_form(v) - problem.elastic_form(sol.u, v, m.dx)
+    disc = sol.disc
+    m = disc.m
+    components = disc.problem.law.components(m.mesh.topology.dim)
+    form = disc.load_form(v) - disc.fields.elastic_form(sol.u, v, m.dx)
     for comp, lam in zip(components, sol.multipliers, strict=True):
         form -= lam * ufl.dot(v, comp.direction(m.n)) * m.ds_contact
     return form - contact_term(sol, mu, c)
@@ -187,12 +189,13 @@ def dual_residual(
     ball in 3D) its derivative J is a matrix, chi_k = J_kk, and b_k, c_k gain
     ``int c xi_k J_kj v . e_j`` and ``-int xi_k J_kj mu_j`` for j != k.
     """
-    problem, m = sol.disc.problem, sol.disc.m
-    components = problem.law.components(m.mesh.topology.dim)
+    disc = sol.disc
+    m = disc.m
+    components = disc.problem.law.components(m.mesh.topology.dim)
     terms = ncp_terms(sol, sol.u, sol.multipliers, c)
     mus = _tuple(mu)
     directions = [comp.direction(m.n) for comp in components]
-    form = -problem.elastic_form(v, z.y, m.dx)
+    form = -disc.fields.elastic_form(v, z.y, m.dx)
     for k, ((_, _, J_k), xi, mu_k) in enumerate(zip(terms, z.multipliers, mus, strict=True)):
         # b_k(xi, v) = (c xi_k, sum_l J_kl v . e_l), c_k(xi, mu) = (xi_k, mu_k - sum_l J_kl mu_l)
         chi = J_k[k]
@@ -223,8 +226,8 @@ def active_set_remainder(
         xi_plus: The reconstructed dual multiplier, or one per component (a tuple).
         c: The scale of the NCP.
     """
-    problem, m = sol.disc.problem, sol.disc.m
-    gap = problem.gap_expr(m.x)
+    m = sol.disc.m
+    gap = sol.disc.fields.gap(m.x)
     arg_h = ncp_argument(sol.u, sol.lam, gap, m.n, c)
     chi_h = active_indicator(sol.u, sol.lam, gap, m.n, c)
     lam_plus, xi_plus = _tuple(lam_plus), _tuple(xi_plus)

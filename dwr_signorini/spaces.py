@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,8 +27,8 @@ from dolfinx import mesh as dmesh
 
 from . import compat
 from .collective import shadow
+from .fields import MeshFields
 from .problem import SignoriniProblem
-from .problem_data import _nonzero_literal
 from .quadrature import expand_integer_powers, is_polynomial
 from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
     cell_tags_on_fine,
@@ -40,6 +39,7 @@ from .refine import (  # noqa: F401  (re-exported: the refinement used to live h
     refine_with_tags,
 )
 from .timing import timed
+from .validation import call_user, nonzero_literal
 
 __all__ = ["Discretization", "Measures", "discretize"]
 
@@ -56,6 +56,8 @@ class Measures:
         n: Outer unit normal.
         mesh: The fine mesh.
         problem: The problem (for material data).
+        fields: The problem's data on the fine mesh (the discretisation's
+            :class:`~dwr_signorini.fields.MeshFields`).
     """
 
     x: Any
@@ -65,6 +67,7 @@ class Measures:
     n: Any
     mesh: dmesh.Mesh
     problem: SignoriniProblem
+    fields: MeshFields
 
     def sigma(self, u: Any) -> Any:
         """Stress sigma(u) of the problem's material law.
@@ -75,7 +78,7 @@ class Measures:
         Returns:
             The stress tensor (UFL), with the problem's E, nu and model.
         """
-        return self.problem.sigma(u)
+        return self.fields.sigma(u)
 
     def epsilon(self, u: Any) -> Any:
         """Strain eps(u) = sym(grad u).
@@ -115,6 +118,9 @@ class Discretization:
         bcs: Homogeneous Dirichlet conditions on V (the dual problem, corrections).
         prescribed_bcs: The Dirichlet conditions with their prescribed values on V.
         cell_tags: Cell tags of T_h (those of the parent macro cells), or None.
+        fields: The problem's data on T_h (:class:`~dwr_signorini.fields.MeshFields`: the
+            cell tags, the DG0 materials, the contact-tag indicators).
+        macro_fields: The problem's data on T_H (the same contact-tag indicators).
         m: The :class:`Measures` on T_h.
         u_old: The displacement at the end of the previous load step (a function on V), whose
             tangential part a frictional law's slip is measured from (u_t - u_t^old); None
@@ -166,7 +172,7 @@ class Discretization:
         self.u_old: fem.Function | None = None
         self.bcs = self.dirichlet_bcs(self.V)
         self.prescribed_bcs = self.dirichlet_bcs(self.V, homogeneous=False)
-        self._register_data()
+        self._make_fields()
 
         dx = ufl.Measure("dx", domain=fine)
         ds = ufl.Measure("ds", domain=fine, subdomain_data=self.facet_tags)
@@ -179,6 +185,7 @@ class Discretization:
             n=ufl.FacetNormal(fine),
             mesh=fine,
             problem=problem,
+            fields=self.fields,
         )
 
     def for_problem(self, problem: SignoriniProblem) -> Discretization:
@@ -186,7 +193,7 @@ class Discretization:
 
         The meshes, spaces and maps are shared (no refinement, the same dof layout: functions
         of one are functions of the other); the Dirichlet conditions, the measures and the
-        registered data are the new problem's. A load path's steps use it
+        fields are the new problem's. A load path's steps use it
         (:func:`~dwr_signorini.solve_path`).
 
         Args:
@@ -214,9 +221,9 @@ class Discretization:
         }
         out.bcs = out.dirichlet_bcs(out.V)
         out.prescribed_bcs = out.dirichlet_bcs(out.V, homogeneous=False)
-        out._register_data()
+        out._make_fields()
         out._body_force = None
-        out.m = dataclasses.replace(self.m, problem=problem)
+        out.m = dataclasses.replace(self.m, problem=problem, fields=out.fields)
         return out
 
     def set_u_old(self, u_old: fem.Function | None) -> None:
@@ -248,8 +255,8 @@ class Discretization:
             out.x.scatter_forward()
         self.u_old = out
 
-    def _register_data(self) -> None:
-        """Cell tags of T_h (from the parents) and contact-tag indicators for the problem."""
+    def _make_fields(self) -> None:
+        """The problem's fields on T_h and T_H: cell tags of T_h (from the parents), indicators."""
         problem = self.problem
         tdim = self.mesh.topology.dim
         fine_tags = cell_tags_on_fine(
@@ -269,10 +276,8 @@ class Discretization:
                 chi.x.array[cell_dof] = (sub_tag == t).astype(float)
                 chi.x.scatter_forward()
                 indicators[t] = chi
-        problem.register_mesh(self.mesh, cell_tags=fine_tags, contact_indicators=indicators)
-        problem.register_mesh(self.macro_mesh, problem.cell_tags, contact_indicators=indicators)
-        # The problem keeps T_h's data only while this discretisation lives.
-        weakref.finalize(self, problem.unregister_mesh, self.mesh)
+        self.fields = MeshFields(problem, self.mesh, fine_tags, indicators)
+        self.macro_fields = MeshFields(problem, self.macro_mesh, problem.cell_tags, indicators)
 
     def load_form(self, v: Any) -> ufl.Form:
         """<l, v> on T_h (Section 2), for test functions or weights ``v`` of any degree.
@@ -333,8 +338,9 @@ class Discretization:
                 else:
                     u_D = fem.Function(V, name=f"u_D_{tag}")
                     x = ufl.SpatialCoordinate(self.mesh)
-                    expr = ufl.as_vector(self.problem.call_user(f"dirichlet[{tag}]", value, x))
-                    expr = _nonzero_literal(expr, x)  # constant values: a Constant on the mesh
+                    where = f"dirichlet[{tag}]"
+                    expr = ufl.as_vector(call_user(self.problem.mesh, where, value, x))
+                    expr = nonzero_literal(expr, x)  # constant values: a Constant on the mesh
                     points = compat.interpolation_points(V.element)
                     u_D.interpolate(fem.Expression(expand_integer_powers(expr), points))
                     bcs.append(fem.dirichletbc(u_D, dofs))

@@ -131,11 +131,14 @@ def test_solution_and_result_release_their_objects():
 
 @pytest.mark.mpi
 def test_a_problem_solved_again_does_not_keep_the_fine_meshes():
-    """Each solve refines T_H anew and registers T_h's data with the problem; the problem lets
-    go of a fine mesh when its discretisation is gone, so solving one problem many times holds
-    one fine mesh at most, not one per solve."""
+    """Each solve refines T_H anew; the data on T_h (its cell tags, the DG0 materials, the
+    contact-tag indicators) are the fields of its discretisation, not the problem's, so solving
+    one problem many times holds no fine mesh once the solutions are gone. The problem itself
+    is frozen data: it holds T_H and nothing per mesh."""
     import gc
     import weakref
+
+    from dwr_signorini.fields import MeshFields
 
     strip = strip_problem(MPI.COMM_WORLD, 8, 2)
     num_cells = strip.mesh.topology.index_map(2).size_local
@@ -146,17 +149,22 @@ def test_a_problem_solved_again_does_not_keep_the_fine_meshes():
     for _ in range(3):
         with ds.solve(problem) as sol:
             fine_meshes.append(weakref.ref(sol.disc.mesh))
-            assert problem.registered_cell_tags(sol.disc.mesh) is not None
+            fine_meshes.append(weakref.ref(sol.disc.fields))
+            assert sol.disc.fields.cell_tags is not None
         del sol
         gc.collect()
     assert all(ref() is None for ref in fine_meshes)
-    assert problem.registered_cell_tags(problem.mesh) is cells
-    # Two discretisations share T_h (for_problem): its data stay while one of them lives.
+    held = [v for v in vars(problem).values() if isinstance(v, (mesh.Mesh, MeshFields))]
+    assert held == [problem.mesh] and problem.cell_tags is cells
+    with pytest.raises(AttributeError, match="frozen"):
+        problem.cell_tags = None
+    # Two discretisations share T_h (for_problem), each with its own fields: T_h stays while
+    # one of them lives.
     disc = ds.discretize(problem)
     same = disc.for_problem(problem)
     del disc
     gc.collect()
-    assert problem.registered_cell_tags(same.mesh) is not None
+    assert same.fields.mesh is same.mesh and same.fields.cell_tags is not None
     fine = weakref.ref(same.mesh)
     del same
     gc.collect()

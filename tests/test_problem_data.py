@@ -172,8 +172,21 @@ def test_two_materials_in_series():
         H = 0.25
         assert np.allclose(sol.system.c_n, E1 / H, rtol=1e-13)
         # The fine mesh carries the parents' tags: E on T_h integrates to E1 + E2 (per unit).
-        E_h, _ = problem.material(sol.disc.m.x)
+        E_h, _ = sol.disc.fields.material(sol.disc.m.x)
         assert total(sol, lambda s, m: E_h * m.dx) == pytest.approx(E1 + E2, rel=1e-13)
+        # The problem holds no data per fine mesh: there, per-tag data are the fields'.
+        with pytest.raises(ValueError, match=r"use m\.sigma\(u\)"):
+            problem.sigma(sol.u)
+        with pytest.raises(AttributeError, match="frozen"):
+            problem.E = E1
+    E_H, _ = problem.material(ufl.SpatialCoordinate(msh))  # on T_H: its own cell tags
+    assert E_H.function_space.mesh is msh
+    # Uniform refinement: the next level's T_H is T_h, with the discretisation's cell tags.
+    with ds.solve_adaptive(problem, force_goal, refinement="uniform", max_levels=2,
+                           verbose=False) as res:
+        assert len(res.levels) == 2
+        lo, hi = lam_range(res.solution)
+        assert lo == pytest.approx(p, rel=1e-12) and hi == pytest.approx(p, rel=1e-12)
 
 
 def test_quarter_model_equals_full_model():
@@ -224,6 +237,9 @@ def test_two_contact_tags_equal_union():
         with ds.solve(problem) as sol, ds.estimate(sol, energy_goal) as est:
             out.append((contact_force(sol), est.J_h, est.eta, sol.num_active,
                         sol.u.x.array.copy()))
+            if problem is split:  # the gap per tag needs the discretisation's indicators
+                with pytest.raises(ValueError, match=r"disc\.fields"):
+                    split.gap_expr(sol.disc.m.x)
     assert 0 < out[0][3] < 8 and out[0][3] == out[1][3]
     for a, b in zip(out[0][:3], out[1][:3], strict=True):
         assert a == pytest.approx(b, rel=1e-10, abs=1e-15)

@@ -174,8 +174,8 @@ class ContactLaw:
         """The law's multipliers on a mesh of dimension ``tdim`` (normal first)."""
         raise NotImplementedError
 
-    def bound_expr(self, problem: Any, x: Any) -> Any:
-        """The threshold data as a UFL expression on the mesh of ``x`` (None without one)."""
+    def bound_expr(self, fields: Any, x: Any) -> Any:
+        """The threshold data as UFL on the mesh of ``x`` and its ``fields`` (None without one)."""
         return None
 
     def bound(self, data: Any, x_normal: Any) -> Any:
@@ -210,7 +210,7 @@ class ContactLaw:
         return all(len(idx) == 1 for idx, _ in self.conditions(tdim))
 
     def ncp_arguments(
-        self, u: Any, lams: Any, gap: Any, n: Any, c: Any, problem: Any, u_old: Any = None
+        self, u: Any, lams: Any, gap: Any, n: Any, c: Any, fields: Any, u_old: Any = None
     ) -> list:
         """Each component's UFL (x_k, P_k(x), J_k), x_k = lambda_k + c (u . e_k - g_k).
 
@@ -225,7 +225,7 @@ class ContactLaw:
             gap: The gap g (UFL).
             n: The outward unit normal.
             c: The scale of the NCP.
-            problem: The problem (for the threshold data).
+            fields: The :class:`~dwr_signorini.fields.MeshFields` of the mesh (the threshold).
             u_old: The displacement of the previous load step, or None (zero).
 
         Returns:
@@ -233,7 +233,7 @@ class ContactLaw:
         """
         tdim = len(n)
         comps = self.components(tdim)
-        data = self.bound_expr(problem, extract_x(n)) if len(comps) > 1 else None
+        data = self.bound_expr(fields, extract_x(n)) if len(comps) > 1 else None
         xs = [
             lam + c * (ufl.dot(u, comp.direction(n)) - comp.offset(gap))
             - (0.0 if u_old is None or k == 0 else c * ufl.dot(u_old, comp.direction(n)))

@@ -21,6 +21,7 @@ import ufl
 
 from .base import ROUNDOFF, Component, ContactLaw, set_test_argument
 from .frictionless import Normal
+from ..validation import check_callable
 
 __all__ = [
     "Coulomb",
@@ -353,7 +354,7 @@ class _Friction(ContactLaw):
         for tag, value in values:
             if callable(value):
                 name = label if tag is None else f"{label}[{tag}]"
-                problem._check_callable(value, name, ())
+                check_callable(value, name, (), problem.mesh)
         return self
 
     @property
@@ -361,9 +362,9 @@ class _Friction(ContactLaw):
         """The data's symbol (``s``, ``mu``)."""
         return self.label[self.label.index("(") + 1 : -1]
 
-    def bound_expr(self, problem: Any, x: Any) -> Any:
-        """The data as UFL on the mesh of ``x`` (per tag by contact-tag indicators)."""
-        return problem.contact_expr(self.data, x, self.label)
+    def bound_expr(self, fields: Any, x: Any) -> Any:
+        """The data as UFL on the mesh of ``x`` (per tag by the indicators of its ``fields``)."""
+        return fields.contact_expr(self.data, x, self.label)
 
     def bound(self, data: Any, x_normal: Any) -> Any:
         """The data as the tangential condition takes it (s; mu for Coulomb's cone)."""

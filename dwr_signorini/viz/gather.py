@@ -29,6 +29,7 @@ from dolfinx.cpp import mesh as _cpp_mesh
 
 from .. import compat
 from ..collective import collective
+from ..fields import gap_value
 
 __all__ = [
     "MeshSnapshot",
@@ -111,7 +112,7 @@ def _gap_at(
         normal = ufl.as_vector([float(c) for c in n[f, :gdim]])
         for k in range(x.shape[1]):
             point = ufl.as_vector([float(c) for c in x[f, k, :gdim]])
-            out[f, k] = float(problem._gap_value(spec, point, normal))
+            out[f, k] = float(gap_value(spec, point, normal, problem.miss_gap))
     return out
 
 
@@ -237,7 +238,7 @@ def gather_solution(
     msh = disc.mesh
     coords, values = _p1_cells(sol.u)
     cellvalue = (
-        _cellwise(msh, von_mises_2d(disc.problem.sigma(sol.u)))
+        _cellwise(msh, von_mises_2d(disc.fields.sigma(sol.u)))
         if von_mises
         else np.zeros(len(coords))
     )
