@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 import ufl
 
+from ..validation import check_callable
 from .base import ROUNDOFF, Component, ContactLaw, set_test_argument
 from .frictionless import Normal
-from ..validation import check_callable
 
 __all__ = [
     "Coulomb",
