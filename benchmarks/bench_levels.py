@@ -47,8 +47,8 @@ from reference_3d import indentation_problem, total_force
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+from dwr_signorini.linalg import default_petsc_options, iterative_petsc_options
 from dwr_signorini.linalg.nullspace import rigid_body_modes
-from dwr_signorini.newton import default_petsc_options, iterative_petsc_options
 from dwr_signorini.timing import PHASES, snapshot
 
 COLUMNS = ("assemble", "factorize", "newton solve", "dual solve", "goal", "higher-order solve",

@@ -36,7 +36,7 @@ from reference_3d import indentation_problem, total_force
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.newton import iterative_petsc_options
+from dwr_signorini.linalg import iterative_petsc_options
 from dwr_signorini.timing import PHASES, snapshot
 
 METHODS = {

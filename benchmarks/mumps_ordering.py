@@ -3,9 +3,9 @@
 For the stiffness matrix K of example 5.1 (2D, triangles) and example 5.3 (3D, tetrahedra), one
 MUMPS LDL^T factorisation + solve with its default ordering (ICNTL(7)=7, automatic: METIS here),
 METIS (5), AMD (0) and AMF (2), and its LU with the ordering that
-:func:`dwr_signorini.newton.default_petsc_options` chooses; then, for the symmetric form of the
+:func:`dwr_signorini.linalg.default_petsc_options` chooses; then, for the symmetric form of the
 block Newton matrix of the last Newton step (method "block", see
-:meth:`dwr_signorini.newton.NewtonSystem.newton_matrix`), LDL^T against LU with that ordering,
+:meth:`dwr_signorini.linalg.NewtonSystem.newton_matrix`), LDL^T against LU with that ordering,
 and LDL^T with each ordering.
 The best of ``--repeat`` runs, the ratio to the first row of the matrix, and MUMPS's factor
 entries. It justifies the defaults of ``default_petsc_options``::

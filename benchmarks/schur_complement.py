@@ -1,7 +1,7 @@
 """Time the dense Schur complement S = N K^-1 N^T of ``method="schur"`` two ways, on one mesh.
 
 * entries of the inverse: S = N_C (K^-1)_CC N_C^T with (K^-1)_CC from MUMPS (ICNTL(30)), the
-  default with MUMPS (:func:`dwr_signorini.newton.mumps_inverse_entries`);
+  default with MUMPS (:func:`dwr_signorini.linalg.mumps.mumps_inverse_entries`);
 * solves: K X = N^T by multi-right-hand-side solves with the factors of K (the path for other
   direct solvers).
 
@@ -24,7 +24,7 @@ import numpy as np
 from bench_levels import problem_2d, problem_3d
 from mumps_ordering import factor_times
 
-from dwr_signorini import newton
+from dwr_signorini import linalg
 from dwr_signorini.spaces import Discretization
 
 
@@ -41,8 +41,8 @@ def main() -> None:
         make = problem_2d if example == "2d" else problem_3d
         problem, _ = make(comm, int(n))
         disc = Discretization(problem)
-        system = newton.SchurNewtonSystem(disc)
-        options = newton.default_petsc_options(disc.mesh.topology.dim)
+        system = linalg.SchurNewtonSystem(disc)
+        options = linalg.default_petsc_options(disc.mesh.topology.dim)
         seconds = {"factor": factor_times(system.K, system.f, options, repeat=1)[0][0]}
         schur = system.schur
         results = {}

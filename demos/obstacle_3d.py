@@ -55,7 +55,7 @@ import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini import viz
 from dwr_signorini.io import write_csv, write_json
-from dwr_signorini.newton import iterative_petsc_options
+from dwr_signorini.linalg import iterative_petsc_options
 
 comm = MPI.COMM_WORLD
 

@@ -8,14 +8,17 @@ identities (13) and (15), with an interval for J; adaptive refinement in paralle
 """
 
 from . import obstacles
-from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
+from .adapt import solve_adaptive
 from .collective import CollectiveError
-from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
+from .estimator import Estimate, estimate
 from .laws import Coulomb, Frictionless, Tresca
 from .mesh_io import read_mesh
-from .newton import ConvergenceError, Solution, solve
+from .newton import Solution, solve
 from .path import PathResult, StepRecord, solve_path
 from .problem import SignoriniProblem
+from .report import AdaptiveResult, LevelRecord
+from .semismooth import ConvergenceError
+from .settings import ESTIMATORS, WEIGHTS
 from .spaces import Discretization, Measures, discretize
 
 __version__ = "0.1.0"

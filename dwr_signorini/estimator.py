@@ -34,13 +34,8 @@ from .lifetime import Releasable
 from .newton import Solution
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
-from .residuals import (
-    active_set_remainder,
-    contact_term,
-    contact_violation,
-    dual_residual,
-    primal_residual,
-)
+from .residuals import active_set_remainder, contact_term, dual_residual, primal_residual
+from .settings import EstimateOptions
 from .timing import timed
 from .weights import (
     memory_fallback,
@@ -49,27 +44,10 @@ from .weights import (
     second_weights,
 )
 
-__all__ = [
-    "ESTIMATORS",
-    "WEIGHTS",
-    "Estimate",
-    "contact_violation",
-    "dual_residual",
-    "estimate",
-    "goal_magnitude",
-    "primal_residual",
-]
+__all__ = ["Estimate", "estimate", "goal_magnitude"]
 
 logger = logging.getLogger(__name__)
 
-#: The ``estimator`` choices of :func:`estimate` and ``solve_adaptive``: ``"eta"`` (primal and
-#: dual residual, eq. 15) and ``"eta_p"`` (primal residual, eq. 13).
-ESTIMATORS = ("eta", "eta_p")
-#: The ``weights`` choices of :func:`estimate` and ``solve_adaptive``: ``"auto"`` (the patch
-#: weights, and the hierarchical P2 ones on a level whose contact set is not resolved), the
-#: paper's patch-wise reconstructions, P2 solutions by a factorisation, or the same P2 solutions
-#: by FGMRES with the Newton factorisation as coarse level.
-WEIGHTS = ("auto", "patch", "higher_order", "hierarchical")
 
 def goal_magnitude(goal_forms: GoalForms, degree: int | None) -> float:
     """``int |j|``: the integral of the magnitude of J's integrands at w_h (collective).
@@ -243,8 +221,17 @@ class _Inputs:
     goal_forms: GoalForms
     z: DualSolution
     rec: Reconstructor
-    want_eta: bool
-    petsc_options: Any
+    options: EstimateOptions
+
+    @property
+    def want_eta(self) -> bool:
+        """Whether eta (and so rho*) is estimated, not eta_p alone."""
+        return self.options.estimator == "eta"
+
+    @property
+    def petsc_options(self) -> Any:
+        """The linear solver options of the higher-order solves."""
+        return self.options.petsc_options
 
 
 def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
@@ -383,6 +370,8 @@ def estimate(
     weights: str = "auto",
     petsc_options: dict[str, Any] | None = None,
     quadrature_degree: int | str | None = "problem",
+    *,
+    options: EstimateOptions | None = None,
 ) -> Estimate:
     """Estimate J(w) - J(w_h) by eta_p or eta (Section 4), and an interval for J(w).
 
@@ -404,17 +393,13 @@ def estimate(
             and for eta the primal, solved in P2 with Lambda_H and the final active set, by a
             factorisation) or ``"hierarchical"`` (the same P2 solutions by a two-level
             iteration on the Newton factors, :mod:`~dwr_signorini.hierarchical`).
-        petsc_options: Linear solver options for the higher-order solves, which use the
-            primal's kind of Newton system (block, or Schur complement with these options for
-            K, e.g. :func:`~dwr_signorini.newton.iterative_petsc_options`), under the
-            options prefix ``<prefix of the solve>p2_``.
-        quadrature_degree: Quadrature degree of the non-polynomial residual integrals (data);
-            polynomial ones are integrated exactly (:mod:`dwr_signorini.quadrature`). The
-            default, ``"problem"``, is the degree the solver integrated the load and gap with
-            (the problem's ``quadrature_degree``, 8 unless set), so that the residual vanishes
-            on discrete test functions (Galerkin orthogonality). ``None`` lets UFL estimate
-            every degree, which is very expensive for non-polynomial data. On example 5.1
-            degrees 4, 6, 8 and UFL's estimate give the same Ieff to 6 digits.
+        petsc_options: Linear solver options for the higher-order solves (as
+            :class:`~dwr_signorini.settings.EstimateOptions`).
+        quadrature_degree: Quadrature degree of the non-polynomial residual integrals: the
+            default, ``"problem"``, the problem's ``quadrature_degree``; ``None`` lets UFL
+            estimate every degree (as :class:`~dwr_signorini.settings.EstimateOptions`).
+        options: ``estimator``, ``weights``, ``petsc_options`` and ``quadrature_degree`` as
+            one :class:`~dwr_signorini.settings.EstimateOptions`, instead of the keywords.
 
     Returns:
         The :class:`Estimate` (collective; release it with ``destroy()`` or ``with``);
@@ -428,10 +413,14 @@ def estimate(
         RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
             the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
-    if estimator not in ESTIMATORS:
-        raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
-    if weights not in WEIGHTS:
-        raise ValueError(f"weights must be one of {WEIGHTS}, got {weights!r}")
+    keywords = EstimateOptions(estimator, weights, petsc_options, quadrature_degree)
+    if options is None:
+        options = keywords
+    elif not isinstance(options, EstimateOptions) or keywords != EstimateOptions():
+        raise TypeError(
+            "options must be an EstimateOptions, given instead of the estimate's keyword "
+            "arguments"
+        )
     if not isinstance(sol, Solution):
         raise TypeError(
             f"sol must be the Solution returned by solve(), got {type(sol).__name__}"
@@ -441,66 +430,53 @@ def estimate(
             "sol has been destroyed (Solution.destroy(), or the end of its `with` block): "
             "estimate a Solution before releasing it"
         )
-    if petsc_options is not None and not isinstance(petsc_options, dict):
-        raise TypeError(
-            "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
-            f"{type(petsc_options).__name__}"
-        )
-    if isinstance(quadrature_degree, str) and quadrature_degree == "problem":
-        quadrature_degree = sol.disc.problem.quadrature_degree
-    if quadrature_degree is not None and (
-        isinstance(quadrature_degree, bool)
-        or not isinstance(quadrature_degree, int)
-        or not 0 <= quadrature_degree <= 30
-    ):
-        raise ValueError(
-            "quadrature_degree must be an integer in [0, 30] or None, or 'problem' (the "
-            f"default), got {quadrature_degree!r}"
-        )
-    disc = sol.disc
-    goal_forms = GoalForms(goal, sol.u, sol.lam, disc, sol.tangential or None)
+    goal_forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.tangential or None)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
     t_dual = time.perf_counter() - tic
-    want_eta = estimator == "eta"
     with timed("reconstruct"):
-        rec = Reconstructor(disc)
+        rec = Reconstructor(sol.disc)
     try:  # on a failure the reconstruction's PETSc objects are released
-        DG0 = fem.functionspace(disc.mesh, ("DG", 0))
-        inp = _Inputs(sol, goal_forms, z, rec, want_eta, petsc_options)
-        J_h = goal_forms.value()
-        q = roundoff_bound(
-            goal_magnitude(goal_forms, sol.disc.problem.quadrature_degree),
-            disc.num_dofs,
-            disc.mesh.topology.dim,
-        )
-        terms, resolved, fallback = _auto_terms(
-            inp, estimator, weights, quadrature_degree, DG0, J_h, q
-        )
-        t_estimate = time.perf_counter() - tic - t_dual
-        indicators = fem.Function(DG0, name="indicators")
-        n_local = DG0.dofmap.index_map.size_local
-        indicators.x.array[:n_local] = terms.indicators[:n_local]
-        indicators.x.scatter_forward()
-        return Estimate(
-            J_h=J_h,
-            eta_p=terms.eta_p,
-            eta=terms.eta,
-            contact_term=terms.contact,
-            active_set_remainder=terms.remainder,
-            rho=terms.rho,
-            rho_star=terms.rho_star,
-            estimator=estimator,
-            weights=terms.weights,
-            indicators=indicators,
-            dual=z,
-            goal_is_linear=goal_forms.is_linear,
-            timings={"dual": t_dual, "estimate": t_estimate},
-            reconstructor=rec,
-            resolved=resolved,
-            roundoff=q,
-            weights_fallback=fallback,
-        )
+        return _estimate(_Inputs(sol, goal_forms, z, rec, options), tic, t_dual)
     except BaseException:
         rec.destroy()
         raise
+
+
+def _estimate(inp: _Inputs, tic: float, t_dual: float) -> Estimate:
+    """The :class:`Estimate` from its inputs (``tic``: the start of :func:`estimate`)."""
+    sol, options, disc = inp.sol, inp.options, inp.sol.disc
+    DG0 = fem.functionspace(disc.mesh, ("DG", 0))
+    J_h = inp.goal_forms.value()
+    q = roundoff_bound(
+        goal_magnitude(inp.goal_forms, sol.disc.problem.quadrature_degree),
+        disc.num_dofs,
+        disc.mesh.topology.dim,
+    )
+    terms, resolved, fallback = _auto_terms(
+        inp, options.estimator, options.weights, options.degree(disc.problem), DG0, J_h, q
+    )
+    t_estimate = time.perf_counter() - tic - t_dual
+    indicators = fem.Function(DG0, name="indicators")
+    n_local = DG0.dofmap.index_map.size_local
+    indicators.x.array[:n_local] = terms.indicators[:n_local]
+    indicators.x.scatter_forward()
+    return Estimate(
+        J_h=J_h,
+        eta_p=terms.eta_p,
+        eta=terms.eta,
+        contact_term=terms.contact,
+        active_set_remainder=terms.remainder,
+        rho=terms.rho,
+        rho_star=terms.rho_star,
+        estimator=options.estimator,
+        weights=terms.weights,
+        indicators=indicators,
+        dual=inp.z,
+        goal_is_linear=inp.goal_forms.is_linear,
+        timings={"dual": t_dual, "estimate": t_estimate},
+        reconstructor=inp.rec,
+        resolved=resolved,
+        roundoff=q,
+        weights_fallback=fallback,
+    )

@@ -76,12 +76,37 @@ class MarkingRule:
         growth: The wanted ratio of cells per level (:func:`mark_for_growth`), or ``None``.
         max_growth: With ``fraction``: the most cells a level may have as a multiple of the
             last level's (:func:`mark_at_most`), or ``None`` (no cap).
+
+    Raises:
+        ValueError: A ``strategy``, ``fraction`` or ``growth`` of the wrong value, or both a
+            ``fraction`` and a ``growth``, naming them.
     """
 
     strategy: str
     fraction: float | None
     growth: float | None
     max_growth: float | None = None
+
+    def __post_init__(self) -> None:
+        strategy, fraction, growth = self.strategy, self.fraction, self.growth
+        if strategy not in STRATEGIES:
+            raise ValueError(f"strategy must be one of {STRATEGIES} or None, got {strategy!r}")
+        if fraction is not None and (
+            isinstance(fraction, bool)
+            or not isinstance(fraction, (int, float))
+            or not 0.0 < fraction <= 1.0
+        ):
+            raise ValueError(f"fraction must be a number in (0, 1] or None, got {fraction!r}")
+        if fraction is not None and growth is not None:
+            raise ValueError(
+                f"give fraction or growth, not both (got fraction={fraction!r}, growth={growth!r})"
+            )
+        if growth is not None and (
+            isinstance(growth, bool)
+            or not isinstance(growth, (int, float))
+            or not 1.0 < growth < 1e3
+        ):
+            raise ValueError(f"growth must be a number in (1, 1000) or None, got {growth!r}")
 
 
 def marking_defaults(

@@ -14,11 +14,58 @@ i.e. K u + N^T lam = f, (N u)_A = g_A, lam_I = 0. The contact rows are the gener
 derivative of C(w)(mu) = (mu, lam - max(0, lam + u_n - g)) of the paper, scaled so that the
 transposed system is exactly the discrete dual problem (11)-(12); see :mod:`dwr_signorini.dual`.
 
-The linear solvers of the steps live in :mod:`dwr_signorini.linalg` (``method`` of :func:`solve`:
-``"block"``, the block matrix factored by LDL^T, or ``"schur"``, elimination of u with a dense
-or Krylov S_AA); this module holds the semi-smooth loop, its safeguards and the
-:class:`Solution`. The option helpers are re-exported here from
-:mod:`dwr_signorini.linalg.options`.
+The linear solvers of the steps live in :mod:`dwr_signorini.linalg`; this module holds the
+semi-smooth loop, its safeguards and the :class:`Solution`. ``method`` of :func:`solve` picks
+one: ``"block"`` (reference, :class:`~dwr_signorini.linalg.NewtonSystem`) factors the block
+Newton matrix in every step (``petsc_options`` for the block matrix, e.g.
+:func:`~dwr_signorini.linalg.fieldsplit_petsc_options`); ``"schur"``
+(:class:`~dwr_signorini.linalg.SchurNewtonSystem`) solves S_AA lam_A = (N K^-1 f)_A - g_A,
+S = N K^-1 N^T, with ``petsc_options`` for K: a direct solver (the default, K factored once, S
+dense, at most :data:`~dwr_signorini.linalg.SCHUR_MAX_MULTIPLIERS` multipliers) or a Krylov
+solver (:func:`~dwr_signorini.linalg.iterative_petsc_options`: CG + GAMG on K, CG on S_AA, for
+large 3D meshes); ``"krylov"`` (:class:`~dwr_signorini.linalg.KrylovNewtonSystem`) solves each
+step and the dual as one saddle-point system by GMRES with one multigrid cycle of K per
+iteration (``petsc_options`` for the multigrid,
+:func:`~dwr_signorini.linalg.iterative_petsc_options` by default). All give the same iterates
+up to the solvers' tolerances, and the dual problem is solved the same way. ``None`` (the
+default): ``"block"`` when ``petsc_options`` are given, otherwise the rule of
+:func:`~dwr_signorini.linalg.choose_method`: in 3D ``"krylov"`` from 200k DoFs and where MUMPS's
+analysis predicts a factorisation that does not fit in memory
+(:mod:`~dwr_signorini.linalg.memory`), the dense Schur path for large 3D problems with few
+multipliers and for 2D solves without ``initial_guess``, else ``"block"``.
+
+**Safeguards.** The active set of step k is A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21),
+evaluated at the previous iterate, with two safeguards:
+
+* *Round-off.* In the test (M lam + c_n (N u - g))_i > 0 each part counts as zero below its
+  round-off level (``1e-10`` relative to ``M_i max|u| + |g_i|`` and to ``max_j |(M lam)_j|``).
+  Without it a bi-active index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g. grazing
+  contact) would change sides on round-off noise and the iteration could cycle; and the
+  decisions stay independent of c_n.
+* *Cycling.* If an active set repeats, the update switches to Murty's least-index rule: of the
+  indices the rule (21) would change, only the one with the smallest global number changes
+  sides. On the multipliers the contact conditions are a linear complementarity problem with the
+  matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the body, for
+  which this rule terminates finitely (K. G. Murty, Opsearch 11, 1974, 123-130). A law with
+  coupled rows (Coulomb's, Tresca's in 3D) is not such a problem, and on it the rule can cycle
+  too: there a repeat switches to damped steps instead (the rule's sets, half the Newton update,
+  while the sets change; full steps once they repeat).
+
+**Inexact steps.** With a Krylov solver of K (``method="schur"``,
+:class:`~dwr_signorini.linalg.KrylovSchurComplement`) the steps are *inexact* while the active
+set changes: their solves stop at the relative tolerances :data:`~dwr_signorini.linalg.LOOSE_RTOL`,
+which are enough to decide the next active set. When it settles, its system is solved once more
+at the tolerances of ``petsc_options`` (one more step, whose iterate the convergence test then
+checks); direct solvers are always exact. A loose solve can put a nearly degenerate row on the
+wrong side, so loose steps can cycle on the solves' error alone: a set that repeats among loose
+steps makes every following step accurate (instead of the least-index rule), and the accurate
+steps keep their own record of the sets they visit (a set a loose step visited is no cycle when
+an accurate one returns to it). Measured on an adaptive 3D level of 1.08M DoFs: 6 rows cycled
+under loose solves, and the least-index rule took 12 steps in all.
+
+After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
+lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``ncp_scale``) only weighs an
+initial guess against the gap, and the iterates from a zero initial guess do not depend on it.
 """
 
 from __future__ import annotations
@@ -33,52 +80,23 @@ import numpy as np
 import ufl
 from dolfinx import fem, la
 
-from .algebra import ContactAlgebra, check_ncp_scale
+from .algebra import ContactAlgebra
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
 from .linalg import (
-    LOOSE_RTOL,
-    METHODS,
-    SCHUR_KRYLOV_OPTIONS,
-    SCHUR_MAX_MULTIPLIERS,
-    DenseSchurComplement,
     KrylovNewtonSystem,
-    KrylovSchurComplement,
     LinearSolveError,
     NewtonLinearSystem,
-    NewtonSystem,
     SchurNewtonSystem,
     choose_method,
-    default_petsc_options,
-    fieldsplit_petsc_options,
-    iterative_petsc_options,
     memory,
-    mumps_failure,
-    null_pivots,
     system_class,
 )
 from .semismooth import ConvergenceError, NewtonLoop
+from .settings import SolverOptions
 from .spaces import Discretization
 
-__all__ = [
-    "LOOSE_RTOL",
-    "METHODS",
-    "SCHUR_KRYLOV_OPTIONS",
-    "SCHUR_MAX_MULTIPLIERS",
-    "ConvergenceError",
-    "DenseSchurComplement",
-    "KrylovSchurComplement",
-    "NewtonSystem",
-    "SchurNewtonSystem",
-    "Solution",
-    "default_petsc_options",
-    "fieldsplit_petsc_options",
-    "iterative_petsc_options",
-    "method_name",
-    "mumps_failure",
-    "null_pivots",
-    "solve",
-]
+__all__ = ["Solution", "method_name", "solve"]
 
 logger = logging.getLogger(__name__)
 
@@ -211,54 +229,35 @@ def solve(
     petsc_options_prefix: str | None = None,
     form_compiler_options: dict[str, Any] | None = None,
     jit_options: dict[str, Any] | None = None,
+    *,
+    options: SolverOptions | None = None,
 ) -> Solution:
     """Solve Signorini's problem with the semi-smooth Newton method (paper eq. 19-22).
 
     Args:
         problem_or_disc: A :class:`~dwr_signorini.SignoriniProblem` or a ready
             :class:`~dwr_signorini.spaces.Discretization`.
-        petsc_options: Options of the linear solver, merged on top of
-            :func:`default_petsc_options`, under ``petsc_options_prefix``. They win over the
-            command line for the same key; the command line wins over the defaults.
-            They stay in PETSc's options database until :meth:`Solution.destroy`.
+        petsc_options: Options of the linear solver (as
+            :class:`~dwr_signorini.settings.SolverOptions`).
         initial_guess: ``(u0, lam0)`` (or ``(u0, lam0, lam_t0)`` with friction) on this
             discretisation's V and Q (warm start).
         max_iterations: Most Newton steps before giving up.
-        rtol: Tolerance at convergence on the equilibrium residual, relative to the size of
-            its terms (max of ``||K|| ||u||``, ``||N^T lam||``, ``||f||``: a backward error,
-            which does not grow with lambda/mu or mesh grading), and on the NCP residual (20),
-            entry by entry
-            relative to ``|M lam|_i + c_n,i (M_i max|u| + |g_i|)``.
-        ncp_scale: c of the NCP function (20), the same for the Newton method, the dual
-            problem and the estimator (:mod:`dwr_signorini.residuals`): ``"physical"`` (default,
-            c_n,i = E / H_i on macro contact facet i, invariant under a change of units) or a
-            number c > 0 (c_n,i = c; the paper's c = 1 reproduces its Tables 1-2).
-        method: Linear solver of the Newton steps, one of :data:`METHODS`. ``"block"``
-            (reference, :class:`NewtonSystem`) factors the block Newton matrix in every step
-            (``petsc_options`` for the block matrix, e.g. :func:`fieldsplit_petsc_options`);
-            ``"schur"`` (:class:`SchurNewtonSystem`) solves S_AA lam_A = (N K^-1 f)_A - g_A,
-            S = N K^-1 N^T, with ``petsc_options`` for K: a direct solver (the default, K
-            factored once, S dense, at most :data:`SCHUR_MAX_MULTIPLIERS` multipliers) or a
-            Krylov solver (:func:`iterative_petsc_options`: CG + GAMG on K, CG on S_AA, for
-            large 3D meshes); ``"krylov"``
-            (:class:`~dwr_signorini.linalg.KrylovNewtonSystem`) solves each step and the dual as
-            one saddle-point system by GMRES with one multigrid cycle of K per iteration
-            (``petsc_options`` for the multigrid, :func:`iterative_petsc_options` by default).
-            All give the same iterates up to the solvers' tolerances, and the dual
-            problem is solved the same way. ``None`` (the default): ``"block"`` when
-            ``petsc_options`` are given (they are for the block matrix), otherwise the rule of
-            :func:`~dwr_signorini.linalg.choose_method`: in 3D ``"krylov"`` from 200k DoFs and
-            where MUMPS's analysis predicts a factorisation that does not fit in memory
-            (:mod:`~dwr_signorini.linalg.memory`), the dense Schur path for large 3D problems
-            with few multipliers and for 2D solves without ``initial_guess``, else ``"block"``.
-            :attr:`Solution.method` tells which was used.
+        rtol: Tolerance at convergence (as :class:`~dwr_signorini.settings.SolverOptions`).
+        ncp_scale: c of the NCP function (20): ``"physical"`` (default, E / H_i on macro
+            contact facet i) or a number c > 0 (the paper's c = 1 reproduces its Tables 1-2).
+        method: Linear solver of the Newton steps, one of :data:`~dwr_signorini.linalg.METHODS`
+            (module docstring). ``None`` (the default): ``"block"`` when ``petsc_options`` are
+            given (they are for the block matrix), otherwise the rule of
+            :func:`~dwr_signorini.linalg.choose_method`, told by MUMPS's analysis whether a
+            factorisation of a large 3D problem fits in memory. :attr:`Solution.method` tells
+            which was used.
         petsc_options_prefix: Base options prefix of this solve (default: a new unique
-            ``dwr_signorini_<n>_``); inner solvers use sub-prefixes
-            (:mod:`dwr_signorini.linalg.options`), so e.g. ``-<prefix>ksp_view`` on the
-            command line takes effect.
+            ``dwr_signorini_<n>_``).
         form_compiler_options: Passed to ``dolfinx.fem.form`` for the forms of the Newton
             system (as dolfinx's ``LinearProblem`` takes them).
         jit_options: Passed to ``dolfinx.fem.form`` likewise.
+        options: All of the above but the problem and the initial guess as one
+            :class:`~dwr_signorini.settings.SolverOptions`, instead of the keywords.
 
     Returns:
         The :class:`Solution`.
@@ -268,126 +267,90 @@ def solve(
         ConvergenceError: No convergence in ``max_iterations`` steps, active-set cycling that
             the safeguard could not break, a failed linear solve, NaN/Inf in the data (loads,
             gap) or in an iterate; with the iteration history. Raised on every rank.
-
-    The active set of step k is A = {i : (M lam + c_n (N u - g))_i > 0} (eq. 21), evaluated at
-    the previous iterate, with two safeguards:
-
-    * *Round-off.* In the test (M lam + c_n (N u - g))_i > 0 each part counts as zero below its
-      round-off level (``1e-10`` relative to ``M_i max|u| + |g_i|`` and to ``max_j |(M lam)_j|``).
-      Without it a bi-active index (lambda_i = 0 and (N u - g)_i = 0 at the solution, e.g.
-      grazing contact) would change sides on round-off noise and the iteration could cycle; and
-      the decisions stay independent of c_n.
-    * *Cycling.* If an active set repeats, the update switches to Murty's least-index rule: of the
-      indices the rule (21) would change, only the one with the smallest global number changes
-      sides. On the multipliers the contact conditions are a linear complementarity problem with
-      the matrix N K^-1 N^T, symmetric positive definite (a P-matrix) when Gamma_D clamps the
-      body, for which this rule terminates finitely (K. G. Murty, Opsearch 11, 1974, 123-130).
-      A law with coupled rows (Coulomb's, Tresca's in 3D) is not such a problem, and on it the
-      rule can cycle too: there a repeat switches to damped steps instead (the rule's sets,
-      half the Newton update, while the sets change; full steps once they repeat).
-
-    With a Krylov solver of K (``method="schur"``, :class:`KrylovSchurComplement`) the steps are
-    *inexact* while the active set changes: their solves stop at the relative tolerances
-    :data:`LOOSE_RTOL`, which are enough to decide the next active set. When it settles, its
-    system is solved once more at the tolerances of ``petsc_options`` (one more step, whose
-    iterate the convergence test then checks); direct solvers are always exact. A loose solve
-    can put a nearly degenerate row on the wrong side, so loose steps can cycle on the solves'
-    error alone: a set that repeats among loose steps makes every following step accurate
-    (instead of the least-index rule), and the accurate steps keep their own record of the
-    sets they visit (a set a loose step visited is no cycle when an accurate one returns to
-    it). Measured on an adaptive 3D level of 1.08M DoFs: 6 rows cycled under loose solves,
-    and the least-index rule took 12 steps in all.
-
-    After the first step every iterate has (N u - g)_A = 0 and lam_I = 0, so the test reduces to
-    lam_i > 0 on A and (N u - g)_i > 0 on I whatever c_n is: c_n (``ncp_scale``)
-    only weighs an initial guess against the gap, and the iterates from a zero initial guess do
-    not depend on it.
     """
+    disc = _discretization(problem_or_disc)
+    keywords = SolverOptions(
+        petsc_options, method, ncp_scale, max_iterations, rtol, petsc_options_prefix,
+        form_compiler_options, jit_options,
+    )
+    if options is None:
+        options = keywords
+    elif not isinstance(options, SolverOptions) or keywords != SolverOptions():
+        raise TypeError(
+            "options must be a SolverOptions, given instead of the solver's keyword arguments"
+        )
+    _check_initial_guess(disc, initial_guess)
+    return _solve(disc, initial_guess, options)
+
+
+def _discretization(problem_or_disc: Any) -> Discretization:
+    """The discretisation to solve on: ``problem_or_disc``'s, or itself."""
     from .problem import SignoriniProblem
     from .spaces import discretize
 
     if isinstance(problem_or_disc, SignoriniProblem):
-        disc = discretize(problem_or_disc)
-    elif isinstance(problem_or_disc, Discretization):
-        disc = problem_or_disc
-    else:
+        return discretize(problem_or_disc)
+    if isinstance(problem_or_disc, Discretization):
+        return problem_or_disc
+    raise TypeError(
+        "problem must be a SignoriniProblem or a Discretization (the first argument of "
+        f"solve()), got {type(problem_or_disc).__name__}"
+    )
+
+
+def _check_initial_guess(disc: Discretization, initial_guess: Any) -> None:
+    """Check that ``initial_guess`` holds the law's functions on ``disc``'s V and Q."""
+    if initial_guess is None:
+        return
+    num = len(disc.problem.law.components(disc.mesh.topology.dim))
+    if not isinstance(initial_guess, (tuple, list)) or not 2 <= len(initial_guess) <= 1 + num:
+        pair = "(u0, lam0) or a triple (u0, lam0, lam_t0)" if num > 1 else "(u0, lam0)"
         raise TypeError(
-            "problem must be a SignoriniProblem or a Discretization (the first argument of "
-            f"solve()), got {type(problem_or_disc).__name__}"
+            f"initial_guess must be a pair {pair} of dolfinx Functions, got "
+            f"{type(initial_guess).__name__}"
+            + (f" of length {len(initial_guess)}" if isinstance(initial_guess, (tuple, list))
+               else "")
         )
-    if (
-        isinstance(max_iterations, bool)
-        or not isinstance(max_iterations, int)
-        or max_iterations < 1
-    ):
-        raise ValueError(f"max_iterations must be a positive integer, got {max_iterations!r}")
-    ncp_scale = check_ncp_scale(ncp_scale)
-    for name, value in (("rtol", rtol),):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < np.inf:
-            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    if method is not None and method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS} or None, got {method!r}")
-    for name, value in (
-        ("form_compiler_options", form_compiler_options),
-        ("jit_options", jit_options),
-    ):
-        if value is not None and not isinstance(value, dict):
-            raise TypeError(f"{name} must be a dict, got {type(value).__name__}")
-    if petsc_options is not None and not isinstance(petsc_options, dict):
-        raise TypeError(
-            "petsc_options must be a dict of PETSc options such as {'pc_type': 'lu'}, got "
-            f"{type(petsc_options).__name__}"
-        )
-    if petsc_options_prefix is not None and (
-        not isinstance(petsc_options_prefix, str)
-        or not petsc_options_prefix
-        or not petsc_options_prefix.endswith("_")
+    u0, *lam0 = initial_guess
+    if getattr(u0, "function_space", None) != disc.V or any(
+        getattr(f, "function_space", None) != disc.Q for f in lam0
     ):
         raise ValueError(
-            "petsc_options_prefix must be a non-empty string ending with '_' (e.g. 'contact_') "
-            f"or None, got {petsc_options_prefix!r}"
+            "initial_guess must be functions on this discretisation's V and Q "
+            "(transfer them with dwr_signorini.transfer.transfer_solution)"
         )
-    if initial_guess is not None:
-        num = len(disc.problem.law.components(disc.mesh.topology.dim))
-        if not isinstance(initial_guess, (tuple, list)) or not 2 <= len(initial_guess) <= 1 + num:
-            pair = "(u0, lam0) or a triple (u0, lam0, lam_t0)" if num > 1 else "(u0, lam0)"
-            raise TypeError(
-                f"initial_guess must be a pair {pair} of dolfinx Functions, got "
-                f"{type(initial_guess).__name__}"
-                + (f" of length {len(initial_guess)}" if isinstance(initial_guess, (tuple, list))
-                   else "")
-            )
-        u0, *lam0 = initial_guess
-        if getattr(u0, "function_space", None) != disc.V or any(
-            getattr(f, "function_space", None) != disc.Q for f in lam0
-        ):
-            raise ValueError(
-                "initial_guess must be functions on this discretisation's V and Q "
-                "(transfer them with dwr_signorini.adapt.transfer_solution)"
-            )
-    compile_options = {"form_compiler_options": form_compiler_options, "jit_options": jit_options}
+
+
+def _solve(
+    disc: Discretization,
+    initial_guess: tuple[fem.Function, ...] | None,
+    options: SolverOptions,
+) -> Solution:
+    """:func:`solve` with checked arguments: set up the Newton system, run the loop."""
+    compile_options = options.compile_options
     symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
     assembled = None
+    method = options.method
     if method is None:
-        if petsc_options is not None:
+        if options.petsc_options is not None:
             method = "block"
         else:
             method, assembled = _automatic_method(
-                disc, symmetric, initial_guess is None, ncp_scale, compile_options
+                disc, symmetric, initial_guess is None, options.ncp_scale, compile_options
             )
     try:
         system = system_class(method, symmetric)(
             disc,
-            petsc_options,
-            prefix=petsc_options_prefix,
-            ncp_scale=ncp_scale,
+            options.petsc_options,
+            prefix=options.petsc_options_prefix,
+            ncp_scale=options.ncp_scale,
             compile_options=compile_options,
             algebra=assembled,
         )
     except LinearSolveError as err:
         raise ConvergenceError(str(err), []) from err
     try:
-        return _semismooth_newton(system, initial_guess, max_iterations, rtol)
+        return _semismooth_newton(system, initial_guess, options.max_iterations, options.rtol)
     except BaseException:
         system.destroy()
         raise

@@ -37,14 +37,14 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from .adapt import AdaptiveResult, LevelRecord, _progress, _record, _validate
-from .collective import call_collectively
+from .driver import LevelSettings, check_simplex
 from .estimator import Estimate, estimate
 from .goal import Goal
-from .io import OutputDirectory, check_output_dir
-from .marking import marking_defaults, refine_level
-from .newton import Solution, solve
+from .marking import MarkingRule, marking_defaults
+from .newton import Solution
 from .problem import SignoriniProblem
+from .report import AdaptiveResult, LevelRecord, Reporter
+from .settings import EstimateOptions, SolverOptions
 from .spaces import Discretization, discretize
 from .timing import timed
 from .transfer import transfer_solution
@@ -54,7 +54,7 @@ __all__ = ["PathResult", "StepRecord", "history_estimates", "history_goal", "sol
 
 @dataclass
 class StepRecord(LevelRecord):
-    """One row of a load path's table: a :class:`~dwr_signorini.adapt.LevelRecord` of the step.
+    """One row of a load path's table: a :class:`~dwr_signorini.LevelRecord` of the step.
 
     Attributes:
         step: The load step, from 0 (``level`` is the refinement level of its mesh).
@@ -77,7 +77,7 @@ class StepRecord(LevelRecord):
 class PathResult(AdaptiveResult):
     """The steps of a load path, and the last step's solution and estimate.
 
-    As :class:`~dwr_signorini.adapt.AdaptiveResult`; release it with :meth:`destroy` or use it
+    As :class:`~dwr_signorini.AdaptiveResult`; release it with :meth:`destroy` or use it
     as a context manager.
 
     Attributes:
@@ -185,8 +185,7 @@ def solve_path(
             :func:`~dwr_signorini.solve_adaptive`).
         output_dir: Where to write the table (``path.csv``, ``path.json``, after every step)
             and each step's fields.
-        callback: Called as ``callback(record, solution, estimate)`` after every step, on every
-            rank (errors raised on every rank).
+        callback: Called as ``callback(record, solution, estimate)`` after every step.
         petsc_options: The linear solver's options (as :func:`~dwr_signorini.solve`).
         method: The Newton steps' linear algebra (as :func:`~dwr_signorini.solve`).
         ncp_scale: c of the NCP function (as :func:`~dwr_signorini.solve`).
@@ -211,11 +210,8 @@ def solve_path(
     """
     problems = _check_problems(problems)
     goals = _goals(goal, len(problems))
-    _validate(problems[0], goals[0], "adaptive" if adaptive else "uniform", fraction,
-              "fixed_fraction", len(problems), None, None, estimator, weights, method, None,
-              callback, "edges", growth, verbose, output_dir)
-    if not isinstance(adaptive, bool):
-        raise TypeError(f"adaptive must be True or False, got {adaptive!r}")
+    settings = _path_settings(problems[0], adaptive, fraction, growth, estimator, weights,
+                              petsc_options, method, ncp_scale)
     if history is None:
         history = not adaptive
     if not isinstance(history, bool):
@@ -226,42 +222,58 @@ def solve_path(
             "on an adaptive path (use history=False or adaptive=False)"
         )
     comm = problems[0].mesh.comm
-    marking = marking_defaults(problems[0], fraction, growth) if adaptive else None
-    if marking is not None:
-        fraction, growth = marking.fraction, marking.growth
+    marking = settings.marking if adaptive else None
     meta = {"steps": len(problems), "adaptive": adaptive, "estimator": estimator,
-            "weights": weights, "fraction": fraction, "growth": growth,
+            "weights": weights, "fraction": settings.marking.fraction,
+            "growth": settings.marking.growth,
             "strategy": None if marking is None else marking.strategy,
             "max_growth": None if marking is None else marking.max_growth, "history": history,
             "num_processes": comm.size, "law": repr(problems[0].law)}
-    options = {
-        "solve": {"petsc_options": petsc_options, "method": method, "ncp_scale": ncp_scale},
-        "estimate": {"estimator": estimator, "weights": weights,
-                     "petsc_options": petsc_options},
-        "marking": marking,
-    }
-    out = None
-    if output_dir is not None:
-        check_output_dir(output_dir, comm)
-        out = OutputDirectory(output_dir, comm, name="path")
-    result = PathResult(levels=[], meta=meta, comm=comm)
+    reporter = Reporter(comm, "path", meta, output_dir, callback, verbose)
+    return _steps(problems, goals, settings, adaptive, history, initial_guess, reporter)
+
+
+def _path_settings(
+    first: SignoriniProblem, adaptive: Any, fraction: Any, growth: Any, estimator: Any,
+    weights: Any, petsc_options: Any, method: Any, ncp_scale: Any,
+) -> LevelSettings:
+    """The settings of every step of :func:`solve_path` (validated)."""
+    if not isinstance(adaptive, bool):
+        raise TypeError(f"adaptive must be True or False, got {adaptive!r}")
+    check_simplex(first, "adaptive" if adaptive else "uniform")
+    marking = (
+        marking_defaults(first, fraction, growth)
+        if adaptive
+        else MarkingRule("fixed_fraction", fraction, growth)  # recorded, not used
+    )
+    return LevelSettings(
+        SolverOptions(petsc_options, method, ncp_scale),
+        EstimateOptions(estimator, weights, petsc_options),
+        marking,
+    )
+
+
+def _steps(
+    problems: list[SignoriniProblem],
+    goals: list[Goal],
+    settings: LevelSettings,
+    adaptive: bool,
+    history: bool,
+    initial_guess: tuple[Any, ...] | None,
+    reporter: Reporter,
+) -> PathResult:
+    """The loop of :func:`solve_path` over the load steps."""
+    result = PathResult(levels=[], meta=reporter.meta, comm=reporter.comm)
     state = _PathState(first_guess=initial_guess, keep=history)
     try:
-        for k, problem in enumerate(problems):
-            record = _step(k, problem, goals[k], state, adaptive and k < len(problems) - 1,
-                           options)
-            result.levels.append(record)
-            sol, est = state.solution, state.estimate
-            if out is not None:
-                with timed("output"):
-                    out.write_fields(k, [sol.u, est.indicators, est.dual.y],
-                                     [*sol.multipliers, *est.dual.multipliers])
-                    out.append(record.as_dict(), meta)
-            if verbose:
-                _progress(comm, record, f"step {k:3d}  level {record.level:2d}")
-            if callback is not None:
-                call_collectively(comm, "callback", callback, record, sol, est)
-            result.solution, result.estimate, result.problem = sol, est, state.current
+        with reporter:
+            for k, problem in enumerate(problems):
+                refine = adaptive and k < len(problems) - 1
+                record = _step(k, problem, goals[k], state, refine, settings)
+                result.levels.append(record)
+                sol, est = state.solution, state.estimate
+                reporter.report(k, record, sol, est, f"step {k:3d}  level {record.level:2d}")
+                result.solution, result.estimate, result.problem = sol, est, state.current
     except Exception:
         state.destroy()
         raise
@@ -314,7 +326,7 @@ def _discretization(current: SignoriniProblem, state: _PathState) -> Discretizat
 
 def _step(
     k: int, problem: SignoriniProblem, goal: Goal, state: _PathState, refine: bool,
-    options: dict[str, Any],
+    settings: LevelSettings,
 ) -> StepRecord:
     """Solve and estimate load step ``k`` from the state of step k - 1; refine after it."""
     t_start = time.perf_counter()
@@ -327,23 +339,20 @@ def _step(
         guess = state.first_guess if previous is None else _warm_start(previous, disc)
     state.retire()
     t_setup = time.perf_counter() - t_start
+    sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal)
+    state.solution, state.estimate = sol, est
     tic = time.perf_counter()
-    sol = state.solution = solve(disc, initial_guess=guess, **options["solve"])
-    t_solve = time.perf_counter() - tic
-    est = state.estimate = estimate(sol, goal, **options["estimate"])
-    tic = time.perf_counter()
-    history = history_estimates(state.kept, sol, est, options["estimate"]) if state.keep else []
+    history = history_estimates(state.kept, sol, est, settings.estimate) if state.keep else []
     t_history = time.perf_counter() - tic
     tic = time.perf_counter()
     marked = np.zeros(0, dtype=np.int32)
     level, state.current = state.level, current
     if refine:
-        marked, state.current, state.macro_parent = refine_level(
-            disc, current, est, "adaptive", options["marking"], "edges")
+        marked, state.current, state.macro_parent = settings.refine(disc, current, est)
         state.level += 1
-    record = _record(level, disc, sol, est, marked,
-                     {"setup": t_setup, "solve": t_solve, "refine": time.perf_counter() - tic},
-                     None)
+    record = settings.record(level, disc, sol, est, marked,
+                             {"setup": t_setup, "solve": t_solve,
+                              "refine": time.perf_counter() - tic})
     step = StepRecord(**record.as_dict(), step=k)
     step.time["history"] = t_history
     if state.keep:
@@ -402,7 +411,10 @@ def history_goal(sol: Solution, est: Estimate) -> Goal:
 
 
 def history_estimates(
-    kept: list[Solution], sol: Solution, est: Estimate, options: dict[str, Any]
+    kept: list[Solution],
+    sol: Solution,
+    est: Estimate,
+    options: EstimateOptions | dict[str, Any],
 ) -> list[tuple[float, float, float]]:
     """The error that each earlier step carries into this step's goal, by a backward chain.
 
@@ -410,7 +422,8 @@ def history_estimates(
         kept: The earlier steps' solutions, first step first (on the same meshes).
         sol: This step's solution.
         est: Its estimate.
-        options: The keyword arguments of :func:`~dwr_signorini.estimate`.
+        options: The options of :func:`~dwr_signorini.estimate`: an
+            :class:`~dwr_signorini.settings.EstimateOptions` or its keyword arguments.
 
     Returns:
         One ``(estimate, low, high)`` per earlier step (last first): the estimated error of the
@@ -421,10 +434,12 @@ def history_estimates(
     dual solution of that goal), and that estimate's dual gives the next goal back. Costs one
     estimate per earlier step (with the earlier step's factorisation).
     """
+    if not isinstance(options, EstimateOptions):
+        options = EstimateOptions(**options)
     out = []
     later_sol, later_est, owned = sol, est, None
     for earlier in reversed(kept):
-        e = estimate(earlier, history_goal(later_sol, later_est), **options)
+        e = estimate(earlier, history_goal(later_sol, later_est), options=options)
         if owned is not None:
             owned.destroy()
         low, high = e.interval

@@ -35,8 +35,8 @@ from dolfinx import geometry, io, mesh
 import dwr_signorini as ds
 from dwr_signorini import compat
 from dwr_signorini import examples as ex
+from dwr_signorini.linalg import iterative_petsc_options
 from dwr_signorini.marking import mark, patch_indicators
-from dwr_signorini.newton import iterative_petsc_options
 from dwr_signorini.spaces import refine_marked
 
 from .problems import estimate_rel

@@ -252,7 +252,7 @@ def _solve_fails(problem, prefix, case):
     elif case == "schur-krylov-rejected-option":  # the CG on S_AA reads <prefix>schur_...
         PETSc.Options()[prefix + "schur_ksp_type"] = "cgg"
         try:
-            ds.solve(problem, ds.newton.iterative_petsc_options(), method="schur",
+            ds.solve(problem, ds.linalg.iterative_petsc_options(), method="schur",
                      petsc_options_prefix=prefix)
         finally:
             del PETSc.Options()[prefix + "schur_ksp_type"]

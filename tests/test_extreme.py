@@ -36,7 +36,7 @@ from dolfinx.fem import petsc as fem_petsc
 import dwr_signorini as ds
 from dwr_signorini import compat
 from dwr_signorini import examples as ex
-from dwr_signorini.newton import iterative_petsc_options
+from dwr_signorini.linalg import iterative_petsc_options
 
 TRI = mesh.CellType.triangle
 TET = mesh.CellType.tetrahedron

@@ -27,8 +27,12 @@ from dolfinx import mesh
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini import timing
-from dwr_signorini.linalg import DenseSchurComplement, SchurNewtonSystem, mumps
-from dwr_signorini.newton import iterative_petsc_options
+from dwr_signorini.linalg import (
+    DenseSchurComplement,
+    SchurNewtonSystem,
+    iterative_petsc_options,
+    mumps,
+)
 from dwr_signorini.spaces import discretize
 
 from .problems import strip_problem

@@ -162,8 +162,8 @@ def test_warm_start_by_parent_maps_equals_point_location(kind):
     """transfer_solution through the parent maps (no point location) gives what interpolating
     the same reconstructions with point location gives, after a marked (non-uniform) refinement,
     on a strip whose contact boundary is cut by the partition and on the 3D obstacle."""
-    from dwr_signorini.adapt import transfer_solution
     from dwr_signorini.spaces import refine_marked
+    from dwr_signorini.transfer import transfer_solution
     from tests.problems import strip_problem
 
     comm = MPI.COMM_WORLD

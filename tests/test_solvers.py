@@ -18,16 +18,17 @@ import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
-from dwr_signorini.linalg import KrylovNewtonSystem, schur
-from dwr_signorini.newton import (
+from dwr_signorini.linalg import (
     METHODS,
     DenseSchurComplement,
+    KrylovNewtonSystem,
     KrylovSchurComplement,
     NewtonSystem,
     SchurNewtonSystem,
     choose_method,
     fieldsplit_petsc_options,
     iterative_petsc_options,
+    schur,
 )
 from dwr_signorini.spaces import discretize
 
@@ -494,16 +495,10 @@ def _not_called(*args):
 
 
 def _level_line(record) -> str:
-    """The progress line of a level, as rank 0 prints it."""
-    import contextlib
-    import io
+    """The progress line of a level, as rank 0 shows it."""
+    from dwr_signorini.report import progress_line
 
-    from dwr_signorini.adapt import _progress
-
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        _progress(MPI.COMM_SELF, record)
-    return out.getvalue()
+    return progress_line(record)
 
 
 @pytest.mark.mpi
