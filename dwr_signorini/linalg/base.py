@@ -26,6 +26,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import scipy.sparse
 from dolfinx import fem
 
 from ..algebra import ContactAlgebra
@@ -33,7 +34,22 @@ from ..lifetime import destroy_attributes
 from ..spaces import Discretization
 from .options import OptionsScope, default_petsc_options, unique_prefix
 
-__all__ = ["NewtonLinearSystem"]
+__all__ = ["MULTIGRID", "LinearSolveError", "NewtonLinearSystem", "owned_rows"]
+
+#: Multigrid preconditioners: for K (``method="schur"``, ``"krylov"``), not for a block Newton
+#: matrix with its zero multiplier block.
+MULTIGRID = ("gamg", "hypre", "ml", "mg")
+
+
+class LinearSolveError(RuntimeError):
+    """A linear solve of a Newton step failed (the Newton loop adds its history)."""
+
+
+def owned_rows(mat: PETSc.Mat) -> scipy.sparse.csr_matrix:
+    """The rows of ``mat`` this rank owns, with global column indices, as a scipy matrix."""
+    indptr, indices, values = mat.getValuesCSR()
+    shape = (len(indptr) - 1, mat.getSize()[1])
+    return scipy.sparse.csr_matrix((values, indices, indptr), shape=shape)
 
 
 def _defaults_for(tdim: int, options: dict[str, Any] | None) -> dict[str, Any]:
