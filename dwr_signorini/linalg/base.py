@@ -1,5 +1,9 @@
 """What the linear solvers of the Newton steps share: the algebra, the options, the block layout.
 
+Also what more than one of them uses: :class:`LinearSolveError`, the preconditioners that do
+not suit a block Newton matrix (:data:`MULTIGRID`) and a rank's rows of a matrix
+(:func:`owned_rows`).
+
 A Newton system (:class:`~dwr_signorini.linalg.block.NewtonSystem`,
 :class:`~dwr_signorini.linalg.schur.SchurNewtonSystem`) solves, for an active set A, the
 linear system of one semi-smooth Newton step

@@ -81,9 +81,6 @@ class FactorCost:
 class ReusePolicy:
     """When a Newton step is solved with the factors of an earlier one (module docstring).
 
-    An update costs two single solves, one solve of k right-hand sides at once and dense
-    products; it is taken when that is at most :attr:`fraction` of the last factorisation.
-
     Attributes:
         fraction: A step reuses the factors if its solves take at most this part of a
             factorisation; negative: never (every step is factored).
@@ -98,6 +95,12 @@ class ReusePolicy:
             of a step solved by reusing the factors.
         refine_steps: Most steps of iterative refinement of a solve by reused factors before
             they are refused.
+
+    An update costs two single solves, one solve of k right-hand sides at once and dense
+    products; it is taken when that is at most :attr:`fraction` of the last factorisation.
+    A system takes its policy as ``reuse`` (e.g. ``NewtonSystem(disc, reuse=ReusePolicy(
+    fraction=-1.0))`` factors every step); without one, the class attribute
+    :attr:`FactoredNewtonSystem.reuse` (these defaults).
     """
 
     fraction: float = 0.7
@@ -108,15 +111,40 @@ class ReusePolicy:
     refine_steps: int = 3
 
     def solve(self, cost: FactorCost) -> float:
-        """The cost of one solve with the factors of ``cost``, in factorisations."""
+        """The cost of one solve with factors.
+
+        Args:
+            cost: The counts of the factorisation.
+
+        Returns:
+            The cost, in factorisations.
+        """
         return self.solve_entry_cost * cost.entries / cost.flops
 
     def dense(self, cost: FactorCost, flops: float) -> float:
-        """The cost of ``flops`` operations of dense products, in factorisations of ``cost``."""
+        """The cost of dense products.
+
+        Args:
+            cost: The counts of the factorisation.
+            flops: The products' floating-point operations.
+
+        Returns:
+            The cost, in factorisations.
+        """
         return flops / (self.dense_relative_rate * cost.flops)
 
     def pays(self, cost: FactorCost, rhs: int, dense: float = 0.0) -> bool:
-        """Whether an update of ``rhs`` right-hand sides and ``dense`` flops is to be taken."""
+        """Whether an update of the factors is to be taken.
+
+        Args:
+            cost: The counts of the factorisation.
+            rhs: The right-hand sides of the update's solve with the factors (two single
+                solves come on top).
+            dense: The floating-point operations of its dense products.
+
+        Returns:
+            Whether the update costs at most :attr:`fraction` of the factorisation.
+        """
         price = (2 + self.block_solve_cost * rhs) * self.solve(cost) + self.dense(cost, dense)
         return price <= self.fraction
 
