@@ -255,7 +255,15 @@ class NewtonLinearSystem:
         return force
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
-        """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem)."""
+        """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem).
+
+        Args:
+            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
+            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
+
+        Raises:
+            RuntimeError: No Newton step was solved, or the solve failed.
+        """
         raise NotImplementedError
 
     def _write_dual(

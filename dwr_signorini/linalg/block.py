@@ -253,14 +253,8 @@ class NewtonSystem(FactoredNewtonSystem):
 
         A^T = A_s L^T (:meth:`newton_matrix`): solve A_s w = rhs with the factors of the last
         step (two triangular solves), then z = L^-T w, i.e. z_u = w_u, z_A = -w_A and
-        z_I = w_I - (N w_u)_I / M_I.
-
-        Args:
-            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
-            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
-
-        Raises:
-            RuntimeError: No Newton step was solved, or the solve failed.
+        z_I = w_I - (N w_u)_I / M_I. Arguments and errors:
+        :meth:`.NewtonLinearSystem.solve_transpose`.
         """
         self.check_solved()
         reason = self._solve_symmetric(rhs, z)

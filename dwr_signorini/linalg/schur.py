@@ -471,15 +471,7 @@ class SchurNewtonSystem(NewtonLinearSystem):
         self.solved = True
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
-        """Solve A^T z = rhs for the Newton matrix A of the last step, eliminating y.
-
-        Args:
-            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
-            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
-
-        Raises:
-            RuntimeError: No Newton step was solved, or the solve failed.
-        """
+        """A^T z = rhs by eliminating y (:meth:`.NewtonLinearSystem.solve_transpose`)."""
         self.check_solved()
         j_u, j_lam = self.split(rhs)
         self._rhs_u.array_w[:] = j_u
