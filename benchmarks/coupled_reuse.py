@@ -4,8 +4,8 @@ The first ``--steps`` steps of the Cattaneo-Mindlin path (``examples.cattaneo_mi
 Coulomb friction) on the default mesh refined ``--refinements`` times uniformly, solved by
 ``ds.solve_path`` (patch weights, no history chain) twice: with the defaults (a step whose matrix
 differs from the factored one in few rows is solved by a row update of the old factors,
-``linalg.lowrank.RowUpdate``) and with ``linalg.block.REUSE_FRACTION = -1`` (every Newton step
-factored). Prints per step the Newton steps, factorisations and reused steps, J_h, and the time
+``linalg.lowrank.RowUpdate``) and with ``linalg.factor.ReusePolicy(fraction=-1)`` (every Newton
+step factored). Prints per step the Newton steps, factorisations and reused steps, J_h, and the time
 per phase of each run::
 
     scripts/fenicsx mpirun -n 2 python3 benchmarks/coupled_reuse.py
@@ -19,8 +19,8 @@ import time
 from mpi4py import MPI
 
 import dwr_signorini as ds
-import dwr_signorini.linalg.block as block
 from dwr_signorini import examples as ex
+from dwr_signorini.linalg.factor import FactoredNewtonSystem, ReusePolicy
 from dwr_signorini.refine import refine_marked
 from dwr_signorini.timing import snapshot
 
@@ -53,9 +53,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=3)
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    default = block.REUSE_FRACTION
-    for name, fraction in (("row updates", default), ("every step factored", -1.0)):
-        block.REUSE_FRACTION = fraction
+    default = FactoredNewtonSystem.reuse
+    for name, policy in (("row updates", default), ("every step factored", ReusePolicy(-1.0))):
+        FactoredNewtonSystem.reuse = policy
         rows, phases, total = run(comm, args.refinements, args.steps)
         if comm.rank == 0:
             print(f"{name}: {total:.1f} s, cells {rows[0][0]}")
@@ -63,7 +63,7 @@ def main() -> None:
                 print(f"  step {k}: Newton {newton:2d}  factorisations {factored:2d}  "
                       f"reused {reused:2d}  J_h {J_h:.12e}")
             print("  " + ", ".join(f"{k} {v:.1f} s" for k, v in phases.items()), flush=True)
-    block.REUSE_FRACTION = default
+    FactoredNewtonSystem.reuse = default
 
 
 if __name__ == "__main__":

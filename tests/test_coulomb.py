@@ -428,9 +428,9 @@ def test_cycling_slip_sets_are_broken_by_damped_steps(monkeypatch):
     factored: the iterates of factor reuse differ by round-off, and do not cycle here; for the
     same reason MUMPS orders with AMD, with which this path was found to cycle: with the 2D
     default, AMF, its round-off takes the first step past the cycle.)"""
-    import dwr_signorini.linalg.block
+    from dwr_signorini.linalg.factor import FactoredNewtonSystem, ReusePolicy
 
-    monkeypatch.setattr(dwr_signorini.linalg.block, "REUSE_FRACTION", -1.0)
+    monkeypatch.setattr(FactoredNewtonSystem, "reuse", ReusePolicy(fraction=-1.0))
     problems = ex.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
     damped = []
 
@@ -463,12 +463,12 @@ def test_factor_reuse_gives_the_factored_solution(monkeypatch):
     """The nonsymmetric path's row updates of old factors (linalg.lowrank.RowUpdate), taken
     on every step where they can be: the path's states and estimates equal those of a
     factorisation per Newton step (1e-9), with fewer factorisations."""
-    import dwr_signorini.linalg.block
+    from dwr_signorini.linalg.factor import FactoredNewtonSystem, ReusePolicy
 
     tops = [(0.0, -0.02), (0.005, -0.02), (0.01, -0.02)]
     runs = {}
     for name, fraction in (("reuse", 1e9), ("factor", -1.0)):
-        monkeypatch.setattr(dwr_signorini.linalg.block, "REUSE_FRACTION", fraction)
+        monkeypatch.setattr(FactoredNewtonSystem, "reuse", ReusePolicy(fraction=fraction))
         counts = []
 
         def record(rec, sol, est, counts=counts):

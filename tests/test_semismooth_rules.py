@@ -4,7 +4,7 @@
   reversing its slip, a consistent slip, a facet on the cone's edge, a stuck solution;
 * a one-facet Coulomb problem built so that the plain rule cycles (slip one way, slip the other
   way) and the set rules converge to its exact stick solution in two steps;
-* the price of factor reuse from MUMPS's counts (linalg.factor.FactorCost);
+* the price of factor reuse from MUMPS's counts (linalg.factor.FactorCost, ReusePolicy);
 * the message of a failed solve names the unsettled facets, the residuals and what to try.
 """
 
@@ -16,7 +16,7 @@ import pytest
 
 import dwr_signorini as ds
 from dwr_signorini.laws import CoulombCone, Tangential
-from dwr_signorini.linalg.factor import FactorCost
+from dwr_signorini.linalg.factor import FactorCost, ReusePolicy
 
 CONE = CoulombCone(Tangential())
 MU = 0.5
@@ -146,7 +146,10 @@ def test_factor_cost_from_mumps_counts():
     ksp.setUp()
     cost = FactorCost.of(ksp)
     assert cost is not None and cost.flops > 0 and cost.entries >= 3 * n - 2
-    assert cost.solve == pytest.approx(25.0 * cost.entries / cost.flops)
+    assert ReusePolicy().solve(cost) == pytest.approx(25.0 * cost.entries / cost.flops)
+    assert ReusePolicy(solve_entry_cost=10.0).solve(cost) == pytest.approx(
+        10.0 * cost.entries / cost.flops)
+    assert ReusePolicy(fraction=1e9).pays(cost, 8) and not ReusePolicy(fraction=-1.0).pays(cost, 0)
     ksp.getPC().setType("jacobi")
     assert FactorCost.of(ksp) is None
     ksp.destroy()

@@ -618,11 +618,11 @@ def test_newton_steps_reusing_factors_match_factoring(monkeypatch):
     (Woodbury) correction give the same J_h, estimates and Newton iterations as factoring
     every step, on adaptive levels of example 5.3 where the last steps change a few facets;
     the dual problem after such a step is solved the same way."""
-    from dwr_signorini.linalg import block
+    from dwr_signorini.linalg.factor import FactoredNewtonSystem, ReusePolicy
 
     runs = {}
     for name, fraction in (("factor", 0.0), ("reuse", 1e9)):  # never / whenever possible
-        monkeypatch.setattr(block, "REUSE_FRACTION", fraction)
+        monkeypatch.setattr(FactoredNewtonSystem, "reuse", ReusePolicy(fraction=fraction))
         counts = []
         res = ds.solve_adaptive(
             ex.obstacle_problem(MPI.COMM_WORLD, (1, 4, 4)), ex.goal_obstacle(), growth=2.0,

@@ -3,7 +3,10 @@
 * :mod:`~dwr_signorini.linalg.options`: defaults, prefixes, options that live with a solver;
 * :mod:`~dwr_signorini.linalg.mumps`: MUMPS diagnostics (INFOG, null pivots), inverse entries;
 * :mod:`~dwr_signorini.linalg.nullspace`: rigid body modes for algebraic multigrid;
-* :mod:`~dwr_signorini.linalg.base`: what every Newton system shares;
+* :mod:`~dwr_signorini.linalg.base`: what every Newton system shares, its errors;
+* :mod:`~dwr_signorini.linalg.factor`: a factored Newton matrix kept for later steps, when its
+  reuse pays (:class:`~dwr_signorini.linalg.factor.ReusePolicy`);
+* :mod:`~dwr_signorini.linalg.jacobi`: the sparse Jacobi approximation of the Schur complement;
 * :mod:`~dwr_signorini.linalg.block`: the block Newton matrix by LDL^T (``method="block"``);
 * :mod:`~dwr_signorini.linalg.schur`: elimination of u, dense or Krylov S_AA (``method="schur"``);
 * :mod:`~dwr_signorini.linalg.krylov`: the step as one saddle-point system by GMRES with one
@@ -13,9 +16,10 @@
   for a law with coupled rows: Tresca friction in 3D, Coulomb friction).
 """
 
-from .base import NewtonLinearSystem
-from .block import LinearSolveError, NewtonSystem
+from .base import LinearSolveError, NewtonLinearSystem
+from .block import NewtonSystem
 from .coupled import CoupledNewtonSystem
+from .factor import ReusePolicy
 from .krylov import KrylovNewtonSystem
 from .mumps import mumps_failure, mumps_inverse_entries, null_pivots
 from .options import (
@@ -140,6 +144,7 @@ __all__ = [
     "NewtonLinearSystem",
     "NewtonSystem",
     "OptionsScope",
+    "ReusePolicy",
     "SchurNewtonSystem",
     "choose_method",
     "default_petsc_options",

@@ -1,5 +1,9 @@
 """What the linear solvers of the Newton steps share: the algebra, the options, the block layout.
 
+Also what more than one of them uses: :class:`LinearSolveError`, the preconditioners that do
+not suit a block Newton matrix (:data:`MULTIGRID`) and a rank's rows of a matrix
+(:func:`owned_rows`).
+
 A Newton system (:class:`~dwr_signorini.linalg.block.NewtonSystem`,
 :class:`~dwr_signorini.linalg.schur.SchurNewtonSystem`) solves, for an active set A, the
 linear system of one semi-smooth Newton step
@@ -26,6 +30,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import scipy.sparse
 from dolfinx import fem
 
 from ..algebra import ContactAlgebra
@@ -33,7 +38,22 @@ from ..lifetime import destroy_attributes
 from ..spaces import Discretization
 from .options import OptionsScope, default_petsc_options, unique_prefix
 
-__all__ = ["NewtonLinearSystem"]
+__all__ = ["MULTIGRID", "LinearSolveError", "NewtonLinearSystem", "owned_rows"]
+
+#: Multigrid preconditioners: for K (``method="schur"``, ``"krylov"``), not for a block Newton
+#: matrix with its zero multiplier block.
+MULTIGRID = ("gamg", "hypre", "ml", "mg")
+
+
+class LinearSolveError(RuntimeError):
+    """A linear solve of a Newton step failed (the Newton loop adds its history)."""
+
+
+def owned_rows(mat: PETSc.Mat) -> scipy.sparse.csr_matrix:
+    """The rows of ``mat`` this rank owns, with global column indices, as a scipy matrix."""
+    indptr, indices, values = mat.getValuesCSR()
+    shape = (len(indptr) - 1, mat.getSize()[1])
+    return scipy.sparse.csr_matrix((values, indices, indptr), shape=shape)
 
 
 def _defaults_for(tdim: int, options: dict[str, Any] | None) -> dict[str, Any]:
@@ -235,7 +255,15 @@ class NewtonLinearSystem:
         return force
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
-        """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem)."""
+        """Solve A^T z = rhs with the Newton matrix A of the last step (the dual problem).
+
+        Args:
+            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
+            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
+
+        Raises:
+            RuntimeError: No Newton step was solved, or the solve failed.
+        """
         raise NotImplementedError
 
     def _write_dual(

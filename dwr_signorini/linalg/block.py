@@ -11,14 +11,14 @@ factored by MUMPS's LDL^T; the dual problem A^T z = r uses the same factors.
 Factor reuse: a step whose active set differs from that of the factors in r multipliers is
 solved with those factors and a rank-2r correction (:class:`~.lowrank.WoodburyUpdate`), when its
 solves (one of 2k right-hand sides for the k of those rows that no earlier step against the same
-factors had changed, priced at :data:`BLOCK_SOLVE_COST` single solves each, and two single ones)
-and its dense products take less than :data:`REUSE_FRACTION` of the last factorisation, both
-priced from MUMPS's counts (:class:`~.factor.FactorCost`: never measured time, so the same input
-takes the same decisions and iterates on every run). The columns of earlier steps are
-kept (:class:`~.lowrank.FactorColumns`). Steps of iterative refinement (at most
-:data:`REFINE_STEPS`) correct it until the correction, the estimate of the error, is below
-:data:`REUSE_RTOL`; a refused or inaccurate update falls back to factoring the new matrix, so
-that the null-pivot check applies.
+factors had changed, and two single ones) and its dense products take at most
+:attr:`~.factor.ReusePolicy.fraction` of the last factorisation, both priced from MUMPS's counts
+by the system's :class:`~.factor.ReusePolicy` (never measured time, so the same input takes the
+same decisions and iterates on every run). The columns of earlier steps are
+kept (:class:`~.lowrank.FactorColumns`). Steps of iterative refinement
+(:meth:`~.factor.Factorisation.refine`) correct it until the correction, the estimate of the
+error, is below the policy's ``rtol``; a refused or inaccurate update falls back to factoring
+the new matrix, so that the null-pivot check applies.
 The last semi-smooth Newton steps often change a few contact facets: those steps, and the dual
 problem after them, then cost a few solves instead of a factorisation.
 """
@@ -33,44 +33,22 @@ from petsc4py import PETSc
 import numpy as np
 
 from ..timing import timed
-from .base import NewtonLinearSystem
-from .factor import FactorCost
+from .base import MULTIGRID
+from .factor import FactoredNewtonSystem
 from .lowrank import FactorColumns, WoodburyUpdate
-from .mumps import mumps_failure, null_pivots, set_up
 from .nullspace import rigid_body_modes
 
-__all__ = ["LinearSolveError", "NewtonSystem"]
-
-#: Multigrid preconditioners: for K (``method="schur"``), not for the block Newton matrix.
-MULTIGRID = ("gamg", "hypre", "ml", "mg")
-
-#: A step reuses the factors if its solves take less than this part of a factorisation
-#: (priced by :class:`~.factor.FactorCost`).
-REUSE_FRACTION = 0.7
-
-#: The time of a solve of k right-hand sides at once with MUMPS's factors, in single solves per
-#: right-hand side (about 0.2-0.3 for 8-40 right-hand sides on 3D factors of 30k DoFs).
-BLOCK_SOLVE_COST = 0.3
-
-#: Largest relative error (estimated by iterative refinement, per block, max norms)
-#: of a step solved by reusing the factors.
-REUSE_RTOL = 1e-9
-
-#: Most steps of iterative refinement of a solve by reused factors before they are refused.
-REFINE_STEPS = 3
+__all__ = ["NewtonSystem"]
 
 
-class LinearSolveError(RuntimeError):
-    """A linear solve of a Newton step failed (the Newton loop adds its history)."""
-
-
-class NewtonSystem(NewtonLinearSystem):
+class NewtonSystem(FactoredNewtonSystem):
     """The Newton steps by the block matrix: A_s assembled and factored in every step.
 
     Args:
         disc, petsc_options, V, kwargs: See
             :class:`~dwr_signorini.linalg.base.NewtonLinearSystem`; ``petsc_options`` are for
             the block matrix (e.g. :func:`~dwr_signorini.linalg.options.fieldsplit_petsc_options`).
+        reuse: See :class:`~dwr_signorini.linalg.factor.FactoredNewtonSystem`.
 
     Attributes:
         A0: The block pattern [K, N^T; N, M] (all active sets share it).
@@ -85,13 +63,10 @@ class NewtonSystem(NewtonLinearSystem):
     """
 
     _petsc_objects = (
-        *NewtonLinearSystem._petsc_objects,
+        *FactoredNewtonSystem._petsc_objects,
         "_update",
         "_columns",
         "A0",
-        "A",
-        "_A_factored",
-        "b",
         "is_u",
         "is_lam",
         "_near_nullspace",
@@ -99,7 +74,7 @@ class NewtonSystem(NewtonLinearSystem):
 
     def _setup(self) -> None:
         """Check the PC; the block pattern A0 of the Newton matrices; the field split if any."""
-        self.A: PETSc.Mat | None = None
+        super()._setup()
         pc_type = self.ksp.getPC().getType()
         if pc_type in MULTIGRID:
             raise ValueError(
@@ -110,12 +85,9 @@ class NewtonSystem(NewtonLinearSystem):
             )
         self.direct = pc_type in ("lu", "cholesky")
         self._reuse = self.direct and self.ksp.getType() == "preonly"
-        self._A_factored: PETSc.Mat | None = None  # the matrix whose factors the KSP holds
-        self._factored_active: np.ndarray | None = None
+        self._factored_active: np.ndarray | None = None  # None: no factors to reuse
         self._update: WoodburyUpdate | None = None
         self._columns: FactorColumns | None = None  # of the current factors, per changed row
-        self._cost: FactorCost | None = None  # the counts of the last factorisation
-        self.factorizations = self.reused = 0
         comm, alg = self.disc.comm, self.algebra
         with timed("assemble"):
             D = PETSc.Mat().createAIJ(((self.n_lam, None), (self.n_lam, None)), nnz=1, comm=comm)
@@ -198,43 +170,17 @@ class NewtonSystem(NewtonLinearSystem):
         if self._update is not None:
             self._update.destroy()
             self._update = None
-        if self._solve_by_update(active):
-            self.reused += 1
-            self.solved = True
-            return
-        self._factor()
-        with timed("newton solve"):
-            self.ksp.solve(self.b, self.x)
-        reason = self.ksp.getConvergedReason()
-        if reason < 0:
-            cause = mumps_failure(self.ksp)
-            raise LinearSolveError(
-                f"linear solve of the Newton step failed (KSP reason {reason})"
-                + (f": {cause}" if cause else "")
-            )
-        self.solved = True
+        self._solve_step()
 
     def _factor(self) -> None:
-        """Factor the Newton matrix of this step (a copy of it is the KSP's operator)."""
-        if self._A_factored is None:
-            self._A_factored = self.A.copy()
-        else:
-            self.A.copy(self._A_factored, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        """Factor the Newton matrix of this step; its columns are kept for later updates."""
         self._factored_active = None
         if self._columns is not None:
             self._columns.destroy()
             self._columns = None
-        with timed("factorize"):
-            set_up(self.ksp, self._A_factored)
-        self._cost = FactorCost.of(self.ksp)
-        self.factorizations += 1
-        count = null_pivots(self.ksp)
-        if count > 0:
-            raise np.linalg.LinAlgError(
-                f"MUMPS found {count} null pivots: the Newton matrix is singular"
-            )
+        self.factors.factor(self.A)
         self._factored_active = self.active.copy()
-        self._columns = FactorColumns(self.ksp, self._A_factored)
+        self._columns = FactorColumns(self.ksp, self.factors.matrix)
 
     def _changed_rows(self, active: np.ndarray) -> np.ndarray:
         """Global rows of the multipliers whose activity differs from the factors' (all ranks)."""
@@ -242,15 +188,15 @@ class NewtonSystem(NewtonLinearSystem):
         local = first + np.flatnonzero(active != self._factored_active)
         return np.sort(np.concatenate(self.disc.comm.allgather(local))).astype(np.int64)
 
-    def _solve_by_update(self, active: np.ndarray) -> bool:
+    def _solve_by_update(self) -> bool:
         """Solve the step with the factors of an earlier one, if that pays (module docstring).
 
         Returns:
             Whether :attr:`x` holds the step.
         """
-        if not self._reuse or self._factored_active is None or self._cost is None:
+        if not self._reuse or self._factored_active is None or not self.factors.reusable:
             return False
-        comm = self.disc.comm
+        comm, active = self.disc.comm, self.active
         rows = self._changed_rows(active)
         if len(rows) == 0:  # the factored matrix itself
             with timed("newton solve"):
@@ -259,8 +205,7 @@ class NewtonSystem(NewtonLinearSystem):
         new_rows = len(self._columns.missing(rows))
         lo, hi = self.A.getOwnershipRange()
         dense = comm.allreduce((hi - lo) * (2 * len(rows)) ** 2, MPI.MAX)  # U^T Z
-        cost = (2 + BLOCK_SOLVE_COST * 2 * new_rows) * self._cost.solve + self._cost.dense(dense)
-        if cost > REUSE_FRACTION:
+        if not self.factors.pays(2 * new_rows, dense):
             return False
         with timed("newton solve"):
             try:
@@ -281,8 +226,8 @@ class NewtonSystem(NewtonLinearSystem):
         return True
 
     def _refine(self, update: WoodburyUpdate, rhs: PETSc.Vec, x: PETSc.Vec) -> bool:
-        """Iterative refinement of A_s x = rhs (:func:`refine_update`); whether x is accurate."""
-        return refine_update(self.A, update, rhs, x, self.n_u)
+        """Iterative refinement of A_s x = rhs (:meth:`~.factor.Factorisation.refine`)."""
+        return self.factors.refine(self.A, update, rhs, x, self.n_u)
 
     def _solve_symmetric(self, rhs: PETSc.Vec, w: PETSc.Vec) -> int:
         """A_s w = rhs for the last step's A_s: its factors, or the old ones and the update.
@@ -308,14 +253,8 @@ class NewtonSystem(NewtonLinearSystem):
 
         A^T = A_s L^T (:meth:`newton_matrix`): solve A_s w = rhs with the factors of the last
         step (two triangular solves), then z = L^-T w, i.e. z_u = w_u, z_A = -w_A and
-        z_I = w_I - (N w_u)_I / M_I.
-
-        Args:
-            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
-            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
-
-        Raises:
-            RuntimeError: No Newton step was solved, or the solve failed.
+        z_I = w_I - (N w_u)_I / M_I. Arguments and errors:
+        :meth:`.NewtonLinearSystem.solve_transpose`.
         """
         self.check_solved()
         reason = self._solve_symmetric(rhs, z)
@@ -330,37 +269,3 @@ class NewtonSystem(NewtonLinearSystem):
         for vec in (w_u, n_w):
             vec.destroy()
 
-
-def refine_update(A: PETSc.Mat, update: Any, rhs: PETSc.Vec, x: PETSc.Vec, n_u: int) -> bool:
-    """Iterative refinement of A x = rhs, at most :data:`REFINE_STEPS`; whether x is accurate.
-
-    The correction d of A d = rhs - A x (solved by ``update``, a low-rank update of old factors)
-    measures the error of x: once it is below :data:`REUSE_RTOL` of x in each block
-    (displacements, the first ``n_u`` owned entries, and multipliers; max norms), x + d is
-    accepted. A correction above it is applied and the next step measures again: the Woodbury
-    solves lose a few digits when the capacitance matrix is ill-conditioned, and one more step
-    recovers them at the cost of one solve, not a factorisation.
-    """
-    residual, correction = rhs.duplicate(), x.duplicate()
-    comm = A.getComm().tompi4py()
-    try:
-        for _ in range(REFINE_STEPS):
-            A.mult(x, residual)
-            residual.aypx(-1.0, rhs)
-            update.solve(residual, correction)
-            x.axpy(1.0, correction)
-            accurate = True
-            for part in (slice(0, n_u), slice(n_u, None)):
-                size = comm.allreduce(
-                    float(np.max(np.abs(x.array_r[part]), initial=0.0)), op=MPI.MAX
-                )
-                error = comm.allreduce(
-                    float(np.max(np.abs(correction.array_r[part]), initial=0.0)), op=MPI.MAX
-                )
-                accurate &= error <= REUSE_RTOL * size
-            if accurate:
-                return True
-        return False
-    finally:
-        for vec in (residual, correction):
-            vec.destroy()

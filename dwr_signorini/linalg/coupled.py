@@ -34,9 +34,9 @@ each step is a numerical factorisation.
 Factor reuse: a step whose matrix differs from the factored one in r rows (the multiplier rows
 of the facets whose sets or derivative blocks changed) is solved with the old factors and a
 rank-r row update (:class:`~.lowrank.RowUpdate`, checked by iterative refinement) when that
-costs less than :data:`~.block.REUSE_FRACTION` of a factorisation, as on the symmetric block
-path. The dual problem (and a forward solve) after such a step factors the step's matrix first
-(``benchmarks/coupled_reuse.py``).
+costs at most :attr:`~.factor.ReusePolicy.fraction` of a factorisation, as on the symmetric
+block path (:mod:`~dwr_signorini.linalg.factor`). The dual problem (and a forward solve)
+after such a step factors the step's matrix first (``benchmarks/coupled_reuse.py``).
 """
 
 from __future__ import annotations
@@ -51,13 +51,9 @@ import scipy.sparse
 
 from ..laws import Coupling
 from ..timing import timed
-from . import block
-from .base import NewtonLinearSystem
-from .block import BLOCK_SOLVE_COST, MULTIGRID, LinearSolveError, refine_update
-from .factor import FactorCost
+from .base import MULTIGRID, owned_rows
+from .factor import FactoredNewtonSystem
 from .lowrank import RowUpdate
-from .mumps import mumps_failure, null_pivots, set_up
-from .schur import owned_rows
 
 __all__ = ["CoupledNewtonSystem"]
 
@@ -70,13 +66,14 @@ def _pattern(mat: scipy.sparse.csr_matrix) -> tuple[scipy.sparse.csr_matrix, np.
     return mat, rows * mat.shape[1] + mat.indices
 
 
-class CoupledNewtonSystem(NewtonLinearSystem):
+class CoupledNewtonSystem(FactoredNewtonSystem):
     """The Newton steps of a law with coupled rows, by LU of the block matrix (module docstring).
 
     Args:
         disc, petsc_options, V, kwargs: See
             :class:`~dwr_signorini.linalg.base.NewtonLinearSystem`; the default solver is
             MUMPS's LU.
+        reuse: See :class:`~dwr_signorini.linalg.factor.FactoredNewtonSystem`.
 
     Attributes:
         A: The Newton matrix of the last step (None before the first).
@@ -85,8 +82,6 @@ class CoupledNewtonSystem(NewtonLinearSystem):
     Raises:
         ValueError: ``pc_type`` a Cholesky factorisation or a multigrid preconditioner.
     """
-
-    _petsc_objects = (*NewtonLinearSystem._petsc_objects, "A", "_A_factored", "b")
 
     @staticmethod
     def default_options(defaults: dict[str, Any]) -> dict[str, Any]:
@@ -97,6 +92,7 @@ class CoupledNewtonSystem(NewtonLinearSystem):
 
     def _setup(self) -> None:
         """Check the PC; the owned rows of N for the products W N."""
+        super()._setup()
         pc_type = self.ksp.getPC().getType()
         if pc_type == "cholesky" or pc_type in MULTIGRID:
             raise ValueError(
@@ -104,11 +100,7 @@ class CoupledNewtonSystem(NewtonLinearSystem):
                 "Coulomb friction) is not symmetric and has a zero multiplier block where "
                 "facets are constrained; factor it by LU (pc_type='lu', the default)"
             )
-        self.A: PETSc.Mat | None = None
-        self._A_factored: PETSc.Mat | None = None  # the matrix whose factors the KSP holds
-        self._current = False  # whether those factors are the last step's matrix
-        self._cost: FactorCost | None = None  # the counts of the last factorisation
-        self.factorizations = self.reused = 0
+        self._current = False  # whether the factors are those of the last step's matrix
         self._N = owned_rows(self.N).tocsr()
         self._lo = self.N.getOwnershipRange()[0]
         self.b = self.x.duplicate()
@@ -227,41 +219,21 @@ class CoupledNewtonSystem(NewtonLinearSystem):
                 A.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
                 A.destroy()
         self.solved = False
-        if self._solve_by_update():
-            self.reused += 1
-            self.solved = True
-            return
-        self._factor()
-        with timed("newton solve"):
-            self.ksp.solve(self.b, self.x)
-        self._check("linear solve of the Newton step")
-        self.solved = True
+        self._solve_step()
 
     def _factor(self) -> None:
-        """Factor the last step's matrix (a copy of it is the KSP's operator).
+        """Factor the last step's matrix.
 
         Raises:
             numpy.linalg.LinAlgError: MUMPS found null pivots (a singular Newton matrix).
         """
-        if self._A_factored is None:
-            self._A_factored = self.A.copy()
-        else:  # the same pattern: the factorisation's analysis is kept
-            self.A.copy(self._A_factored, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        with timed("factorize"):
-            set_up(self.ksp, self._A_factored)
-        self._cost = FactorCost.of(self.ksp)
-        self.factorizations += 1
         self._current = True
-        count = null_pivots(self.ksp)
-        if count > 0:
-            raise np.linalg.LinAlgError(
-                f"MUMPS found {count} null pivots: the Newton matrix is singular"
-            )
+        self.factors.factor(self.A)
 
     def _changed_rows(self) -> np.ndarray:
         """Global rows in which the step's matrix differs from the factored one (all ranks)."""
         ptr, _, new = self.A.getValuesCSR()
-        _, _, old = self._A_factored.getValuesCSR()
+        _, _, old = self.factors.matrix.getValuesCSR()
         lengths = np.diff(ptr)
         differs = np.repeat(np.arange(len(lengths)), lengths)[new != old]
         local = self.A.getOwnershipRange()[0] + np.unique(differs)
@@ -271,15 +243,14 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         """Solve the step with the factors of an earlier one and a row update, if that pays.
 
         The update (:class:`~.lowrank.RowUpdate`) costs a solve of r right-hand sides with the
-        old factors (r the changed rows) and two single solves; it is taken when that is less
-        than :data:`~.block.REUSE_FRACTION` of the last factorisation (both priced from MUMPS's
-        counts, :class:`~.factor.FactorCost`), and its
-        result is accepted after iterative refinement (:func:`~.block.refine_update`).
+        old factors (r the changed rows) and two single solves; it is taken when the system's
+        :class:`~.factor.ReusePolicy` finds that it pays (from MUMPS's counts), and its result
+        is accepted after iterative refinement (:meth:`~.factor.Factorisation.refine`).
 
         Returns:
             Whether :attr:`x` holds the step.
         """
-        if self._A_factored is None or block.REUSE_FRACTION < 0 or self._cost is None:
+        if not self.factors.reusable:
             return False
         rows = self._changed_rows()
         if len(rows) == 0:  # the factored matrix itself (a RowUpdate of rank 0 has no columns)
@@ -287,16 +258,16 @@ class CoupledNewtonSystem(NewtonLinearSystem):
                 self.ksp.solve(self.b, self.x)
             self._current = True
             return self.ksp.getConvergedReason() > 0
-        if (2 + BLOCK_SOLVE_COST * len(rows)) * self._cost.solve > block.REUSE_FRACTION:
+        if not self.factors.pays(len(rows)):
             return False
         with timed("newton solve"):
             try:
-                update = RowUpdate(self.ksp, self._A_factored, self.A, rows)
+                update = RowUpdate(self.ksp, self.factors.matrix, self.A, rows)
             except np.linalg.LinAlgError:
                 return False
             try:
                 update.solve(self.b, self.x)
-                accurate = refine_update(self.A, update, self.b, self.x, self.n_u)
+                accurate = self.factors.refine(self.A, update, self.b, self.x, self.n_u)
             except np.linalg.LinAlgError:
                 accurate = False
             finally:
@@ -309,28 +280,19 @@ class CoupledNewtonSystem(NewtonLinearSystem):
         if not self._current:
             self._factor()
 
-    def _check(self, what: str) -> None:
-        """LinearSolveError if the last solve failed (with MUMPS's reason)."""
-        reason = self.ksp.getConvergedReason()
-        if reason < 0:
-            cause = mumps_failure(self.ksp)
-            raise LinearSolveError(
-                f"{what} failed (KSP reason {reason})" + (f": {cause}" if cause else "")
-            )
-
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
         """Solve A^T z = rhs with the factors of the last step (the dual problem)."""
         self.check_solved()
         self._factored_current()
         self.ksp.solveTranspose(rhs, z)
-        self._check("the dual solve")
+        self.factors.check("the dual solve")
 
     def solve_forward(self, rhs: PETSc.Vec, x: PETSc.Vec) -> None:
         """Solve A x = rhs with the factors of the last step."""
         self.check_solved()
         self._factored_current()
         self.ksp.solve(rhs, x)
-        self._check("the solve with the Newton matrix")
+        self.factors.check("the solve with the Newton matrix")
 
     @property
     def n_lam_global(self) -> int:

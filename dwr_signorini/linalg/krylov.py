@@ -44,12 +44,11 @@ from petsc4py import PETSc
 import numpy as np
 
 from ..timing import timed
-from .base import NewtonLinearSystem
-from .block import LinearSolveError
-from .mumps import mumps_failure, null_pivots, set_up
+from .base import LinearSolveError, NewtonLinearSystem
+from .jacobi import check_independent, factor_on_active, jacobi_schur_approximation
+from .mumps import mumps_failure, set_up
 from .nullspace import rigid_body_modes
 from .options import LOOSE_RTOL, SCHUR_KRYLOV_OPTIONS, OptionsScope, iterative_petsc_options
-from .schur import factor_on_active, jacobi_schur_approximation
 
 __all__ = ["ALPHA", "SADDLE_KRYLOV_OPTIONS", "KrylovNewtonSystem"]
 
@@ -234,11 +233,7 @@ class KrylovNewtonSystem(NewtonLinearSystem):
         """The masks of ``active`` and the factors of S_hat on it (null pivots: LinAlgError)."""
         self.masks.set(active, self.c_n)
         self._P = factor_on_active(self.factor_ksp, self._S_hat, active, self._P)
-        if null_pivots(self.factor_ksp) > 0:
-            raise np.linalg.LinAlgError(
-                "N diag(K)^-1 N^T, and so N K^-1 N^T, is singular on the active rows: active "
-                "contact constraints are linearly dependent"
-            )
+        check_independent(self.factor_ksp)
 
     def _solve(self, a: np.ndarray, b: np.ndarray, guess: tuple | None) -> tuple:
         """[u; lam_A] of K u + N_A^T lam_A = a, (N u)_A = b_A (owned arrays) by the GMRES."""
@@ -282,15 +277,7 @@ class KrylovNewtonSystem(NewtonLinearSystem):
         self.solved = True
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
-        """Solve A^T z = rhs for the Newton matrix A of the last step (the dual problem).
-
-        Args:
-            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
-            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
-
-        Raises:
-            RuntimeError: No Newton step was solved, or the solve failed.
-        """
+        """A^T z = rhs, the dual problem (:meth:`.NewtonLinearSystem.solve_transpose`)."""
         self.check_solved()
         j_u, j_lam = self.split(rhs)
         try:

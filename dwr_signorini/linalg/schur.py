@@ -41,8 +41,8 @@ import scipy.sparse
 from ..algebra import ContactAlgebra
 from ..lifetime import destroy_attributes
 from ..timing import timed
-from .base import NewtonLinearSystem
-from .block import LinearSolveError
+from .base import LinearSolveError, NewtonLinearSystem, owned_rows
+from .jacobi import DEPENDENT, check_independent, factor_on_active, jacobi_schur_approximation
 from .mumps import (
     inverse_entries_available,
     mumps_factor,
@@ -59,8 +59,6 @@ __all__ = [
     "DenseSchurComplement",
     "KrylovSchurComplement",
     "SchurNewtonSystem",
-    "factor_on_active",
-    "jacobi_schur_approximation",
 ]
 
 logger = logging.getLogger(__name__)
@@ -76,8 +74,6 @@ SCHUR_BLOCK_ENTRIES = 2**24
 #: A Cholesky pivot of S_AA below this times its diagonal entry means dependent active rows.
 _PIVOT_RTOL = 1e-12
 
-_DEPENDENT = "active contact constraints are linearly dependent"
-
 
 def solve_with(ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
     """Solve with ``ksp`` (factors, or a set-up Krylov solver); LinearSolveError if it fails."""
@@ -85,13 +81,6 @@ def solve_with(ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
     reason = ksp.getConvergedReason()
     if reason < 0:
         raise LinearSolveError(f"the solve with K failed (KSP reason {reason})")
-
-
-def owned_rows(mat: PETSc.Mat) -> scipy.sparse.csr_matrix:
-    """The rows of ``mat`` this rank owns, with global column indices, as a scipy matrix."""
-    indptr, indices, values = mat.getValuesCSR()
-    shape = (len(indptr) - 1, mat.getSize()[1])
-    return scipy.sparse.csr_matrix((values, indices, indptr), shape=shape)
 
 
 class DenseSchurComplement:
@@ -203,7 +192,7 @@ class DenseSchurComplement:
                     if np.any(np.diag(factor[0]) ** 2 <= _PIVOT_RTOL * S_AA.diagonal()):
                         raise np.linalg.LinAlgError
             except np.linalg.LinAlgError:
-                error = f"N K^-1 N^T is singular on the active rows: {_DEPENDENT}"
+                error = f"N K^-1 N^T is singular on the active rows: {DEPENDENT}"
             self._factor = (index, factor)
         error = self.comm.bcast(error, root=0)
         if error is not None:
@@ -228,56 +217,6 @@ class DenseSchurComplement:
     def destroy(self) -> None:
         """Nothing of PETSc's to destroy (numpy only)."""
         self.S = self._factor = None
-
-
-def jacobi_schur_approximation(algebra: ContactAlgebra) -> PETSc.Mat:
-    """N diag(K)^-1 N^T, the sparse approximation of the Schur complement N K^-1 N^T.
-
-    Args:
-        algebra: The pieces of the mesh.
-
-    Returns:
-        A new sparse matrix on the multiplier rows (the caller destroys it).
-    """
-    inv_diag = algebra.K.getDiagonal()
-    inv_diag.reciprocal()
-    scaled = algebra.NT.copy()
-    scaled.diagonalScale(L=inv_diag)
-    try:
-        return algebra.N.matMult(scaled)
-    finally:
-        inv_diag.destroy()
-        scaled.destroy()
-
-
-def factor_on_active(
-    ksp: PETSc.KSP,
-    S_hat: PETSc.Mat,
-    active: np.ndarray,
-    old: PETSc.Mat | None,
-    operator: PETSc.Mat | None = None,
-) -> PETSc.Mat:
-    """``S_hat`` with the inactive rows and columns the identity, factored by ``ksp``'s PC.
-
-    Args:
-        ksp: The solver whose preconditioner factors the matrix (e.g. MUMPS's LDL^T).
-        S_hat: The sparse Schur approximation (:func:`jacobi_schur_approximation`).
-        active: The active rows (owned).
-        old: The matrix of the last active set, destroyed here (None: none).
-        operator: The operator of ``ksp`` (None: the new matrix itself).
-
-    Returns:
-        The new matrix (the caller keeps it while ``ksp`` uses it). Check
-        :func:`~dwr_signorini.linalg.mumps.null_pivots` of ``ksp`` for dependent rows.
-    """
-    if old is not None:
-        old.destroy()
-    P = S_hat.copy()
-    lo = S_hat.getOwnershipRange()[0]
-    P.zeroRowsColumns((lo + np.flatnonzero(~active)).astype(PETSc.IntType), diag=1.0)
-    ksp.setOperators(P if operator is None else operator, P)
-    ksp.setUp()
-    return P
 
 
 class _MaskedSchurOperator:
@@ -373,10 +312,7 @@ class KrylovSchurComplement:
         """
         self._operator.mask = active.astype(float)
         self.P = factor_on_active(self.ksp, self.S_hat, active, self.P, operator=self.S)
-        if null_pivots(self.ksp) > 0:
-            raise np.linalg.LinAlgError(
-                f"N diag(K)^-1 N^T, and so N K^-1 N^T, is singular on the active rows: {_DEPENDENT}"
-            )
+        check_independent(self.ksp)
 
     def solve(self, r: np.ndarray, guess: np.ndarray | None = None) -> np.ndarray:
         """The owned l with S_AA l_A = r_A, l_I = 0, by CG from ``guess`` (None: zero)."""
@@ -535,15 +471,7 @@ class SchurNewtonSystem(NewtonLinearSystem):
         self.solved = True
 
     def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
-        """Solve A^T z = rhs for the Newton matrix A of the last step, eliminating y.
-
-        Args:
-            rhs: Block vector [j_u; j_lam], laid out as :attr:`x`.
-            z: Block vector [y; xi] for the solution, laid out as :attr:`x`.
-
-        Raises:
-            RuntimeError: No Newton step was solved, or the solve failed.
-        """
+        """A^T z = rhs by eliminating y (:meth:`.NewtonLinearSystem.solve_transpose`)."""
         self.check_solved()
         j_u, j_lam = self.split(rhs)
         self._rhs_u.array_w[:] = j_u
