@@ -421,28 +421,28 @@ def test_history_goal_is_the_derivative_of_J_in_u_old():
 
 
 @pytest.mark.slow
-def test_cycling_slip_sets_are_broken_by_damped_steps(monkeypatch):
-    """A Coulomb path whose first shear step cycles (Cattaneo-Mindlin, nu = 0.2, contact facets
-    of 0.0025: the slip directions of a few facets alternate, which Murty's rule, changing one
-    row per step, does not break): damped steps converge, to the tolerance. (Every step
-    factored: the iterates of factor reuse differ by round-off, and do not cycle here; for the
-    same reason MUMPS orders with AMD, with which this path was found to cycle: with the 2D
-    default, AMF, its round-off takes the first step past the cycle.)"""
+def test_cycling_slip_sets_are_broken(monkeypatch):
+    """A Coulomb path whose first shear step cycled with the plain set rule (Cattaneo-Mindlin,
+    nu = 0.2, contact facets of 0.0025: the slip directions of a few facets alternated, which
+    Murty's rule, changing one row per step, did not break) converges to the tolerance on both
+    steps: a slip that reverses passes through stick (:func:`dwr_signorini.laws.reversing`),
+    and damped steps remain behind it. (Every step factored and MUMPS ordering with AMD, the
+    conditions under which the path was found to cycle.)"""
     from dwr_signorini.linalg.factor import FactoredNewtonSystem, ReusePolicy
 
     monkeypatch.setattr(FactoredNewtonSystem, "reuse", ReusePolicy(fraction=-1.0))
     problems = ex.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
-    damped = []
+    residuals = []
 
     def record(rec, sol, est):
-        damped.append(any(h.get("damped") for h in sol.history))
-        assert sol.history[-1]["residual_ncp"] <= 1e-8
+        residuals.append(sol.history[-1]["residual_ncp"])
 
     with ds.solve_path(problems, ex.goal_friction_force(), weights="patch", history=False,
                        callback=record, verbose=False,
                        petsc_options={"mat_mumps_icntl_7": 0}):
         pass
-    assert damped == [False, True]
+    assert len(residuals) == 2
+    assert max(residuals) <= 1e-8
 
 
 def test_for_problem_refuses_another_mesh_or_tags():
