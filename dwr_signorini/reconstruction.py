@@ -200,22 +200,7 @@ def patch_surplus_matrix(
     if np.any(parent_node_dof[has_children] < 0):
         raise RuntimeError("a P2 node of a macro cell is not a vertex of its children")
 
-    # The P2 nodes of each child (vertices, then the midpoints of the reference edges), in
-    # units of 1/4 of the parent's reference cell, and i_2h^(2) - I there: the parent's P2
-    # basis minus half at the parent nodes of the ends of the child's edge. They depend on the
-    # child's vertex nodes alone: tabulated once for every combination of them.
-    grid = np.array([q for q in np.ndindex(*(5,) * tdim) if sum(q) <= 4])
-    row_of_key = np.full(5**tdim, -1, dtype=np.int64)
-    row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
-    table = element.tabulate(0, grid / 4.0)[0, :, :, 0]  # (grid points, num_nodes)
-    combinations = np.array(list(np.ndindex(*(num_nodes,) * (tdim + 1))), dtype=np.int64)
-    combinations = combinations[np.argsort(_lattice_key(combinations, num_nodes))]  # row = key
-    quarter = _p2_nodes_doubled(half[combinations], cell)  # (combinations, P2 nodes, tdim)
-    surplus_of = table[row_of_key[_lattice_key(quarter, 5)]]  # (combinations, nodes, nodes)
-    ends = _child_edge_ends(cell)
-    at_row, at_node = np.indices(combinations.shape[:1] + ends.shape[:1])
-    for k in range(2):
-        np.subtract.at(surplus_of, (at_row, at_node, combinations[:, ends[:, k]]), 0.5)
+    surplus_of, quarter = _surplus_table(element, half, cell)
     combination = _lattice_key(node, num_nodes)  # (n,): the row of each child in the table
 
     # Each fine P2 node once (any of its cells: on a macro facet the parents' P2 interpolants
@@ -241,6 +226,40 @@ def patch_surplus_matrix(
         shape=(num_rows, num_cols),
     )
     return matrix, parent_node_dof
+
+
+def _surplus_table(
+    element: basix.finite_element.FiniteElement, half: np.ndarray, cell: basix.CellType
+) -> tuple[np.ndarray, np.ndarray]:
+    """i_2h^(2) - I at the P2 nodes of a child, for every combination of its vertex nodes.
+
+    Args:
+        element: The parent's P2 element.
+        half: The parent's P2 nodes in units of 1/2 of its reference cell.
+        cell: The simplex.
+
+    Returns:
+        ``(surplus_of, quarter)``: ``surplus_of[combination, node, parent node]`` and the
+        child's P2 nodes in units of 1/4 (``quarter[combination, node]``).
+    """
+    num_nodes, tdim = half.shape
+    # The P2 nodes of each child (vertices, then the midpoints of the reference edges), in
+    # units of 1/4 of the parent's reference cell, and i_2h^(2) - I there: the parent's P2
+    # basis minus half at the parent nodes of the ends of the child's edge. They depend on the
+    # child's vertex nodes alone: tabulated once for every combination of them.
+    grid = np.array([q for q in np.ndindex(*(5,) * tdim) if sum(q) <= 4])
+    row_of_key = np.full(5**tdim, -1, dtype=np.int64)
+    row_of_key[_lattice_key(grid, 5)] = np.arange(len(grid))
+    table = element.tabulate(0, grid / 4.0)[0, :, :, 0]  # (grid points, num_nodes)
+    combinations = np.array(list(np.ndindex(*(num_nodes,) * (tdim + 1))), dtype=np.int64)
+    combinations = combinations[np.argsort(_lattice_key(combinations, num_nodes))]  # row = key
+    quarter = _p2_nodes_doubled(half[combinations], cell)  # (combinations, P2 nodes, tdim)
+    surplus_of = table[row_of_key[_lattice_key(quarter, 5)]]  # (combinations, nodes, nodes)
+    ends = _child_edge_ends(cell)
+    at_row, at_node = np.indices(combinations.shape[:1] + ends.shape[:1])
+    for k in range(2):
+        np.subtract.at(surplus_of, (at_row, at_node, combinations[:, ends[:, k]]), 0.5)
+    return surplus_of, quarter
 
 
 def _child_edge_ends(cell: basix.CellType) -> np.ndarray:

@@ -16,6 +16,7 @@ supplies the coordinates of exactly its own block to :func:`dolfinx.mesh.create_
 """
 
 from collections.abc import Callable
+from typing import Any
 
 from mpi4py import MPI
 
@@ -152,7 +153,6 @@ def refine_uniform_tensor(
     comm = msh.comm
     rank = comm.rank
     tdim = topology.dim
-    gdim = msh.geometry.dim
     num_cell_vertices = 2**tdim
     lattice_entity, child_nodes, child_parent_facet = _reference_tables(cell_type)
 
@@ -162,54 +162,11 @@ def refine_uniform_tensor(
         topology.create_connectivity(tdim, d)
         topology.create_connectivity(d, tdim)
     maps = [topology.index_map(d) for d in range(tdim + 1)]
-    num_cells = maps[tdim].size_local
-
-    # --- Global numbering of the new nodes: one block per rank ------------------------------------
-    sizes = np.array([im.size_local for im in maps], dtype=np.int64)
-    starts = np.array([im.local_range[0] for im in maps], dtype=np.int64)
-    all_sizes = np.array(comm.allgather(sizes), dtype=np.int64).reshape(comm.size, tdim + 1)
-    all_starts = np.array(comm.allgather(starts), dtype=np.int64).reshape(comm.size, tdim + 1)
-    block_start = np.concatenate(([0], np.cumsum(all_sizes.sum(axis=1))[:-1]))
-    # dim_start[r, d]: global index of the node of rank r's first owned entity of dimension d.
-    dim_start = block_start[:, None] + np.cumsum(all_sizes, axis=1) - all_sizes
-
-    node_index = []  # node_index[d][local entity] -> global node index
-    for d in range(tdim):
-        im = maps[d]
-        glob = np.concatenate(
-            (im.local_range[0] + np.arange(im.size_local, dtype=np.int64), im.ghosts)
-        ).astype(np.int64)
-        owner = np.concatenate(
-            (np.full(im.size_local, rank, dtype=np.int64), np.asarray(im.owners, dtype=np.int64))
-        )
-        node_index.append(dim_start[owner, d] + glob - all_starts[owner, d])
-    node_index.append(dim_start[rank, tdim] + np.arange(num_cells, dtype=np.int64))
-
-    # --- Cells of the refined mesh ----------------------------------------------------------------
-    cell_entities = []
-    for d in range(tdim):
-        conn = topology.connectivity(tdim, d).array
-        cell_entities.append(conn.reshape(-1, len(basix.topology(_BASIX_CELL[cell_type])[d])))
-    cell_entities.append(np.arange(num_cells, dtype=np.int32)[:, None])
-    lattice_nodes = np.empty((num_cells, lattice_entity.shape[0]), dtype=np.int64)
-    for p, (d, i) in enumerate(lattice_entity):
-        lattice_nodes[:, p] = node_index[d][cell_entities[d][:num_cells, i]]
-    cells = lattice_nodes[:, child_nodes].reshape(-1, num_cell_vertices)
-    num_children = child_nodes.shape[0]
-    created_parent_cell = np.repeat(np.arange(num_cells, dtype=np.int32), num_children)
-    created_parent_facet = np.tile(child_parent_facet, (num_cells, 1))
-
-    # --- Coordinates of this rank's block: means of the entity vertices (multilinear images) ------
-    x = msh.geometry.x
-    coords = []
-    for d in range(tdim):
-        owned = np.arange(sizes[d], dtype=np.int32)
-        nodes = dmesh.entities_to_geometry(msh, d, owned).reshape(owned.size, -1)
-        coords.append(x[nodes, :gdim].mean(axis=1).reshape(-1, gdim))
-    dofmap = compat.geometry_dofmap(msh)[:num_cells]
-    coords.append(x[dofmap, :gdim].mean(axis=1).reshape(-1, gdim))
-    x_block = np.ascontiguousarray(np.concatenate(coords, axis=0), dtype=x.dtype)
-
+    node_index = _node_numbering(comm, maps)
+    cells, created_parent_cell, created_parent_facet = _refined_cells(
+        msh, node_index, lattice_entity, child_nodes, child_parent_facet
+    )
+    x_block = _block_coordinates(msh, maps)
     domain = ufl.Mesh(msh.ufl_domain().ufl_coordinate_element())
     fine = compat.create_mesh(
         comm, cells, x_block, domain, partitioner=_keep_on_rank(rank, num_cell_vertices)
@@ -226,3 +183,92 @@ def refine_uniform_tensor(
     parent_cell = np.ascontiguousarray(created_parent_cell[created], dtype=np.int32)
     parent_facet = np.ascontiguousarray(created_parent_facet[created].reshape(-1), dtype=np.int8)
     return fine, parent_cell, parent_facet
+
+
+def _node_numbering(comm: MPI.Comm, maps: list[Any]) -> list[npt.NDArray[np.int64]]:
+    """Global indices of the refined mesh's nodes, one per entity of the coarse mesh.
+
+    The nodes of each rank form one block: its owned vertices, edges (midpoints), faces and
+    cells (centres), in that order.
+
+    Args:
+        comm: The mesh's communicator.
+        maps: The index maps of the entities of dimension 0, ..., tdim.
+
+    Returns:
+        ``node_index[d][e]``: the global node of local entity ``e`` of dimension ``d`` (owned
+        and ghost entities below the cells, owned cells).
+    """
+    rank, tdim = comm.rank, len(maps) - 1
+    sizes = np.array([im.size_local for im in maps], dtype=np.int64)
+    starts = np.array([im.local_range[0] for im in maps], dtype=np.int64)
+    all_sizes = np.array(comm.allgather(sizes), dtype=np.int64).reshape(comm.size, tdim + 1)
+    all_starts = np.array(comm.allgather(starts), dtype=np.int64).reshape(comm.size, tdim + 1)
+    block_start = np.concatenate(([0], np.cumsum(all_sizes.sum(axis=1))[:-1]))
+    # dim_start[r, d]: global index of the node of rank r's first owned entity of dimension d.
+    dim_start = block_start[:, None] + np.cumsum(all_sizes, axis=1) - all_sizes
+
+    node_index = []
+    for d in range(tdim):
+        im = maps[d]
+        glob = np.concatenate(
+            (im.local_range[0] + np.arange(im.size_local, dtype=np.int64), im.ghosts)
+        ).astype(np.int64)
+        owner = np.concatenate(
+            (np.full(im.size_local, rank, dtype=np.int64), np.asarray(im.owners, dtype=np.int64))
+        )
+        node_index.append(dim_start[owner, d] + glob - all_starts[owner, d])
+    node_index.append(dim_start[rank, tdim] + np.arange(sizes[tdim], dtype=np.int64))
+    return node_index
+
+
+def _refined_cells(
+    msh: dmesh.Mesh,
+    node_index: list[npt.NDArray[np.int64]],
+    lattice_entity: np.ndarray,
+    child_nodes: np.ndarray,
+    child_parent_facet: np.ndarray,
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int32], np.ndarray]:
+    """The children of the owned cells, in the order they are created.
+
+    Returns:
+        ``(cells, parent_cell, parent_facet)``: the children's global nodes (one row per
+        child), the local index of each child's parent and the parent facet of each of its
+        facets (rows of the reference table, -1 inside the parent).
+    """
+    topology = msh.topology
+    tdim = topology.dim
+    num_cells = topology.index_map(tdim).size_local
+    cell_entities = []
+    for d in range(tdim):
+        conn = topology.connectivity(tdim, d).array
+        cell_entities.append(
+            conn.reshape(-1, len(basix.topology(_BASIX_CELL[topology.cell_type])[d]))
+        )
+    cell_entities.append(np.arange(num_cells, dtype=np.int32)[:, None])
+    lattice_nodes = np.empty((num_cells, lattice_entity.shape[0]), dtype=np.int64)
+    for p, (d, i) in enumerate(lattice_entity):
+        lattice_nodes[:, p] = node_index[d][cell_entities[d][:num_cells, i]]
+    cells = lattice_nodes[:, child_nodes].reshape(-1, 2**tdim)
+    num_children = child_nodes.shape[0]
+    parent_cell = np.repeat(np.arange(num_cells, dtype=np.int32), num_children)
+    parent_facet = np.tile(child_parent_facet, (num_cells, 1))
+    return cells, parent_cell, parent_facet
+
+
+def _block_coordinates(msh: dmesh.Mesh, maps: list[Any]) -> np.ndarray:
+    """Coordinates of this rank's block of nodes.
+
+    The means of each owned entity's vertices: the multilinear images of the reference
+    midpoints and centres.
+    """
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    x = msh.geometry.x
+    coords = []
+    for d in range(tdim):
+        owned = np.arange(maps[d].size_local, dtype=np.int32)
+        nodes = dmesh.entities_to_geometry(msh, d, owned).reshape(owned.size, -1)
+        coords.append(x[nodes, :gdim].mean(axis=1).reshape(-1, gdim))
+    dofmap = compat.geometry_dofmap(msh)[: maps[tdim].size_local]
+    coords.append(x[dofmap, :gdim].mean(axis=1).reshape(-1, gdim))
+    return np.ascontiguousarray(np.concatenate(coords, axis=0), dtype=x.dtype)

@@ -189,6 +189,34 @@ def plot_convergence(
 
     fig = new_figure((6.4, 4.8))
     ax = fig.add_subplot()
+    anchor, xs_all = _plot_runs(ax, runs, x, quantities, reference)
+    if anchor is not None and xs_all:
+        _reference_slopes(ax, anchor, max(xs_all), slopes, x)
+    if xs_all:  # the data's range (error bars on a log axis can widen matplotlib's own)
+        ax.set_xlim(min(xs_all) / 1.5, max(xs_all) * 1.5)
+    ax.set_xlabel(
+        r"cells $M_\Omega$ of $T_h$" if x == "num_cells" else "cumulative wall-clock time [s]"
+    )
+    ax.set_ylabel("relative error / estimate")
+    ax.grid(True, which="both", alpha=0.3)
+    if title:
+        ax.set_title(title)
+    ax.legend(fontsize="small")
+    return save_figure(fig, path)
+
+
+def _plot_runs(
+    ax: Any,
+    runs: Mapping[str, Sequence[Mapping[str, Any]]],
+    x: str,
+    quantities: Sequence[str],
+    reference: float | None,
+) -> tuple[tuple[float, float] | None, list[float]]:
+    """The series of :func:`plot_convergence`: one colour per run, one line style per quantity.
+
+    Returns:
+        The first point drawn (the reference slopes' anchor) and every abscissa drawn.
+    """
     colors = [f"C{i}" for i in range(10)]
     anchor: tuple[float, float] | None = None
     xs_all: list[float] = []
@@ -218,30 +246,24 @@ def plot_convergence(
             xs_all.extend(xs[ok])
             if anchor is None:
                 anchor = (float(xs[ok][0]), float(ys[ok][0]))
-    if anchor is not None and xs_all:
-        x0, y0 = anchor
-        x1 = max(xs_all)
-        for k, s in enumerate(slopes):
-            xr = np.array([x0, x1])
-            ax.loglog(
-                xr,
-                y0 * 0.5 * (xr / x0) ** s,
-                color="0.5",
-                linestyle=(0, (1, 1 + k)),
-                linewidth=1.0,
-                label=_slope_label(s, x),
-            )
-    if xs_all:  # the data's range (error bars on a log axis can widen matplotlib's own)
-        ax.set_xlim(min(xs_all) / 1.5, max(xs_all) * 1.5)
-    ax.set_xlabel(
-        r"cells $M_\Omega$ of $T_h$" if x == "num_cells" else "cumulative wall-clock time [s]"
-    )
-    ax.set_ylabel("relative error / estimate")
-    ax.grid(True, which="both", alpha=0.3)
-    if title:
-        ax.set_title(title)
-    ax.legend(fontsize="small")
-    return save_figure(fig, path)
+    return anchor, xs_all
+
+
+def _reference_slopes(
+    ax: Any, anchor: tuple[float, float], x1: float, slopes: Sequence[float], x: str
+) -> None:
+    """Dotted grey lines ``N^s`` from ``anchor`` to ``x1``, at half the anchor's value."""
+    x0, y0 = anchor
+    for k, s in enumerate(slopes):
+        xr = np.array([x0, x1])
+        ax.loglog(
+            xr,
+            y0 * 0.5 * (xr / x0) ** s,
+            color="0.5",
+            linestyle=(0, (1, 1 + k)),
+            linewidth=1.0,
+            label=_slope_label(s, x),
+        )
 
 
 def _error_range(rows: Sequence[Mapping[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
