@@ -25,6 +25,7 @@ from dolfinx import fem, mesh
 from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 
 from .test_friction import BOTTOM, LEFT, RIGHT, TOP, _square_tags, global_max, global_sum
@@ -431,7 +432,7 @@ def test_cycling_slip_sets_are_broken_by_damped_steps(monkeypatch):
     import dwr_signorini.linalg.block
 
     monkeypatch.setattr(dwr_signorini.linalg.block, "REUSE_FRACTION", -1.0)
-    problems = ex.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
+    problems = cases.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
     damped = []
 
     def record(rec, sol, est):

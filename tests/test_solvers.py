@@ -15,6 +15,7 @@ import pytest
 from dolfinx import fem
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
@@ -64,7 +65,7 @@ SCHUR_CASES = {
     "obstacle-3d-tet": (lambda comm: ex.obstacle_problem(comm, (2, 8, 8)), ex.goal_obstacle()),
     "tresca-2d-tri": (lambda comm: ex.friction_problem(comm, s=0.05), ex.goal_friction_force()),
     "indentation-3d-tet": (
-        lambda comm: ex.indentation_problem(comm, 8, depth=0.02), ex.goal_total_force
+        lambda comm: cases.indentation_problem(comm, 8, depth=0.02), cases.goal_total_force
     ),
 }
 
