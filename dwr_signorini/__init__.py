@@ -7,7 +7,7 @@ interest J(u, lambda) estimated by the dual weighted residual method with the NC
 identities (13) and (15), with an interval for J; adaptive refinement in parallel.
 """
 
-from . import obstacles
+from . import compat, obstacles
 from .adapt import AdaptiveResult, LevelRecord, solve_adaptive
 from .collective import CollectiveError
 from .estimator import ESTIMATORS, WEIGHTS, Estimate, estimate
@@ -17,6 +17,10 @@ from .newton import ConvergenceError, Solution, solve
 from .path import PathResult, StepRecord, solve_path
 from .problem import SignoriniProblem
 from .spaces import Discretization, Measures, discretize
+
+# Each FFCx JIT module is loaded from the disk cache once per process, for every form compiled
+# from here on (compat.memoize_jit_modules): the one place the memo is switched on.
+compat.memoize_jit_modules()
 
 __version__ = "0.1.0"
 

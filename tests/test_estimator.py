@@ -19,7 +19,6 @@ from dolfinx import fem, mesh
 from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
-from dwr_signorini import compat
 from dwr_signorini import examples as ex
 from dwr_signorini.estimator import ncp_scale_function
 from dwr_signorini.examples import analytic_problem
@@ -27,6 +26,7 @@ from dwr_signorini.goal import GoalForms
 from dwr_signorini.quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
 from dwr_signorini.residuals import contact_violation, dual_residual, primal_residual
 
+from . import fem_compat
 from .problems import strip_problem
 
 TRI, QUAD = mesh.CellType.triangle, mesh.CellType.quadrilateral
@@ -396,7 +396,7 @@ def _p2_solution(sol):
     dofs = fem.locate_dofs_topological(V2, msh.topology.dim - 1, facets)
     bc = fem.dirichletbc(np.zeros(msh.geometry.dim), dofs, V2)
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-    return compat.linear_problem(a, L, bcs=[bc], petsc_options=options).solve()
+    return fem_compat.linear_problem(a, L, bcs=[bc], petsc_options=options).solve()
 
 
 def _volume_part(u, m):

@@ -38,6 +38,8 @@ from dwr_signorini import compat
 from dwr_signorini import examples as ex
 from dwr_signorini.newton import iterative_petsc_options
 
+from . import fem_compat
+
 TRI = mesh.CellType.triangle
 TET = mesh.CellType.tetrahedron
 DIRICHLET, NEUMANN, CONTACT = ex.DIRICHLET, ex.NEUMANN, ex.CONTACT
@@ -379,7 +381,7 @@ def _linear_elasticity(sol):
     for tag, t in problem.traction.items():
         L += ufl.inner(ufl.as_vector(t), v) * m.ds(tag)
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-    lp = compat.linear_problem(a, L, bcs=disc.bcs, petsc_options=options)
+    lp = fem_compat.linear_problem(a, L, bcs=disc.bcs, petsc_options=options)
     return lp.solve()
 
 
