@@ -32,8 +32,7 @@ from dwr_signorini.newton import (
 )
 from dwr_signorini.spaces import discretize
 
-from .problems import indented_block, strip_problem
-from .test_extreme import _cycling_cantilever
+from .problems import cycling_cantilever, indented_block, strip_problem
 
 
 @pytest.mark.mpi
@@ -178,7 +177,7 @@ def test_schur_path_with_least_index_safeguard(solver):
     """Active-set cycling and the least-index safeguard: the same solution on both paths, the
     same iterates until the sets repeat."""
     options, tol = SCHUR_SOLVERS[solver]
-    disc = discretize(_cycling_cantilever(MPI.COMM_WORLD))
+    disc = discretize(cycling_cantilever(MPI.COMM_WORLD))
     s0 = ds.solve(disc)
     s1 = ds.solve(disc, method="schur", petsc_options=options)
     first = next(h["iteration"] for h in s0.history if h["safeguard"])
