@@ -1,6 +1,7 @@
 """An installed package works outside the checkout: ``pip install .`` of a copy of the sources,
 imported from a directory that knows nothing of the checkout, finds the gmsh scripts its
-examples build their meshes from (``dwr_signorini.meshes``, the checkout's ``meshes/``)."""
+examples and cases build their meshes from (``dwr_signorini.meshes``, the checkout's
+``meshes/``)."""
 
 import os
 import shutil
