@@ -1,6 +1,6 @@
 """Factor reuse on the coupled (nonsymmetric) Newton path: row updates against factorisations.
 
-The first ``--steps`` steps of the Cattaneo-Mindlin path (``examples.cattaneo_mindlin_path``,
+The first ``--steps`` steps of the Cattaneo-Mindlin path (``cases.cattaneo_mindlin_path``,
 Coulomb friction) on the default mesh refined ``--refinements`` times uniformly, solved by
 ``ds.solve_path`` (patch weights, no history chain) twice: with the defaults (a step whose matrix
 differs from the factored one in few rows is solved by a row update of the old factors,
@@ -19,6 +19,7 @@ import time
 from mpi4py import MPI
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 from dwr_signorini.linalg.factor import FactoredNewtonSystem, ReusePolicy
 from dwr_signorini.refine import refine_marked
@@ -27,7 +28,7 @@ from dwr_signorini.timing import snapshot
 
 def run(comm: MPI.Comm, refinements: int, steps: int) -> tuple[list, dict, float]:
     """One path: per step (Newton steps, factorisations, reused, J_h), phase times, total."""
-    problems = ex.cattaneo_mindlin_path(comm)
+    problems = cases.cattaneo_mindlin_path(comm)
     for _ in range(refinements):
         refined, _ = refine_marked(problems[0], None)
         problems = [p.with_mesh(refined.mesh, refined.facet_tags, refined.cell_tags)

@@ -34,6 +34,7 @@ from mpi4py import MPI
 import numpy as np
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 from dwr_signorini.io import write_json
 
@@ -91,7 +92,7 @@ def path_table(comm: MPI.Comm, steps: int) -> list[dict]:
     """Table 2: Newton steps per load step of the Cattaneo-Mindlin paths; one-step solves."""
     rows = []
     goal = ex.goal_friction_force()
-    for dim, build in ((2, ex.cattaneo_mindlin_path), (3, ex.cattaneo_mindlin_path_3d)):
+    for dim, build in ((2, cases.cattaneo_mindlin_path), (3, cases.cattaneo_mindlin_path_3d)):
         problems = build(comm, steps=steps)
         counts: list[int] = []
 

@@ -1,6 +1,6 @@
 """The estimate along a Coulomb load path: effectivity and coverage on every step and level.
 
-The 2D Cattaneo-Mindlin path (``examples.cattaneo_mindlin_path``: a cylinder pressed onto a
+The 2D Cattaneo-Mindlin path (``cases.cattaneo_mindlin_path``: a cylinder pressed onto a
 rigid flat, then sheared in steps, Coulomb friction) is solved with ``ds.solve_path`` on a
 sequence of meshes, each the uniform refinement of the last (the arc projected onto the circle).
 The goal of every step is the friction force Q = int_GC lambda_t. The reference of each step is
@@ -26,6 +26,7 @@ from typing import Any
 from mpi4py import MPI
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 from dwr_signorini.refine import refine_marked
 
@@ -37,7 +38,7 @@ def paths(
     comm: MPI.Comm, levels: int, weights: str, nu: float | None = None
 ) -> list[list[dict[str, Any]]]:
     """The path's step records on ``levels`` meshes, each the uniform refinement of the last."""
-    problems = ex.cattaneo_mindlin_path(comm, **({} if nu is None else {"nu": nu}))
+    problems = cases.cattaneo_mindlin_path(comm, **({} if nu is None else {"nu": nu}))
     runs = []
     for level in range(levels):
         with ds.solve_path(problems, ex.goal_friction_force(), weights=weights,

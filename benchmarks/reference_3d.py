@@ -41,12 +41,13 @@ from mpi4py import MPI
 import numpy as np
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 
 
 def indentation_problem(comm: MPI.Comm, n: int) -> ds.SignoriniProblem:
-    """The indentation on n x n x n/2 boxes (:func:`dwr_signorini.examples.indentation_problem`)."""
-    return ex.indentation_problem(comm, n)
+    """The indentation on n x n x n/2 boxes (:func:`dwr_signorini.cases.indentation_problem`)."""
+    return cases.indentation_problem(comm, n)
 
 
 #: The references as weights_3d.py stored them beside its runs (problem -> run in that file).
@@ -65,7 +66,7 @@ def stored_reference(name: str, results: Path = Path("benchmarks/results")) -> t
     return run["J_ref"], run["uncertainty"]
 
 
-total_force = ex.goal_total_force
+total_force = cases.goal_total_force
 
 
 def extrapolate(N: list[float], J: list[float]) -> tuple[float, float, float]:

@@ -16,7 +16,7 @@
 # The top is displaced by $(0, -\delta)$ in step 0 (the press) and by
 # $(k\,s/n, -\delta)$ in the shear steps $k = 1, \dots, n$; $\delta = 0.012$ gives
 # $a / R = 0.094$ and the final shear $s = 0.0055$ gives $Q / (\mu P) = 0.69$
-# (`dwr_signorini.examples.cattaneo_mindlin_path`). The macro mesh has facets of $h_C$ on the
+# (`dwr_signorini.cases.cattaneo_mindlin_path`). The macro mesh has facets of $h_C$ on the
 # arc near the first contact point; `--levels` solves the path on meshes with
 # $h_C = 0.02, 0.01, 0.005, \dots$, and `--adaptive` also solves it adaptively
 # (`solve_path(..., adaptive=True)`: the mesh refined after each step for the friction force).
@@ -97,8 +97,9 @@ from mpi4py import MPI
 import numpy as np
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
-from dwr_signorini.examples import cattaneo_mindlin_3d as cm
+from dwr_signorini.cases import cattaneo_mindlin_3d as cm
 from dwr_signorini.io import write_csv, write_json
 from dwr_signorini.viz.canvas import new_figure, save_figure
 from dwr_signorini.viz.gather import snapshot_mesh
@@ -132,11 +133,11 @@ parser.add_argument("--levels", type=int, default=None,
 parser.add_argument("--h-contact", type=float, default=None,
                     help="macro facet size at the contact on the coarsest mesh (default 0.02, "
                     "in 3D 0.03)")
-parser.add_argument("--steps", type=int, default=int(ex.CM_DEFAULTS["steps"]),
+parser.add_argument("--steps", type=int, default=int(cases.CM_DEFAULTS["steps"]),
                     help="shear steps")
-parser.add_argument("--mu", type=float, default=ex.CM_DEFAULTS["mu"],
+parser.add_argument("--mu", type=float, default=cases.CM_DEFAULTS["mu"],
                     help="Coulomb's friction coefficient")
-parser.add_argument("--nu", type=float, default=ex.CM_DEFAULTS["nu"], help="Poisson's ratio")
+parser.add_argument("--nu", type=float, default=cases.CM_DEFAULTS["nu"], help="Poisson's ratio")
 parser.add_argument("--press", type=float, default=None,
                     help="downward displacement of the top (default 0.012, in 3D 0.01)")
 parser.add_argument("--shear", type=float, default=None,
@@ -151,7 +152,7 @@ parser.add_argument("--output", type=Path, default=None,
 parser.add_argument("--no-plots", action="store_true")
 args = parser.parse_args([] if "ipykernel" in sys.modules else None)
 dim = args.dim
-D = ex.CM_DEFAULTS if dim == 2 else cm.CM_DEFAULTS_3D
+D = cases.CM_DEFAULTS if dim == 2 else cm.CM_DEFAULTS_3D
 levels = args.levels if args.levels is not None else (3 if dim == 2 else 2)
 h_coarse = args.h_contact if args.h_contact is not None else (0.02 if dim == 2 else 0.03)
 if levels < 1 or args.steps < 1:
@@ -159,12 +160,12 @@ if levels < 1 or args.steps < 1:
 press = args.press if args.press is not None else D["press"]
 shear = args.shear if args.shear is not None else D["shear"] * args.mu / D["mu"]
 out = args.output or Path("results/cattaneo_mindlin" + ("_3d" if dim == 3 else ""))
-builder = ex.cattaneo_mindlin_path if dim == 2 else cm.cattaneo_mindlin_path_3d
+builder = cases.cattaneo_mindlin_path if dim == 2 else cm.cattaneo_mindlin_path_3d
 estimate_options = ({} if dim == 2 or args.full_estimate
                     else {"weights": "patch", "history": False})
 data = {"mu": args.mu, "nu": args.nu, "E": D["E"], "radius": D["radius"]}
 print0(f"Cattaneo-Mindlin in {dim}D on {comm.size} process(es): mu = {args.mu}, nu = {args.nu} "
-       f"(Dundurs' beta = {ex.dundurs_beta(args.nu):.4f}), {args.steps} shear steps; "
+       f"(Dundurs' beta = {cases.dundurs_beta(args.nu):.4f}), {args.steps} shear steps; "
        f"output in {out}/")
 # -
 
@@ -194,8 +195,8 @@ def run(name: str, h_contact: float, adaptive: bool) -> None:
     print0(HEADER)
 
     def on_step(record: ds.StepRecord, sol: ds.Solution, est: ds.Estimate) -> None:
-        m = ex.measure_cattaneo_mindlin(sol, **data)
-        profiles[name].append(ex.gather_contact_profile(sol) if dim == 2
+        m = cases.measure_cattaneo_mindlin(sol, **data)
+        profiles[name].append(cases.gather_contact_profile(sol) if dim == 2
                               else cm.gather_contact_patch(sol))
         if adaptive and dim == 2 and not args.no_plots:
             snapshots.append(snapshot_mesh(sol.disc.macro_mesh))
@@ -257,7 +258,7 @@ for name, r in last.items():
     print0(f"{'':>18}{name:>9} {r['ratio']:6.3f} {r['c_h'] - r['c']:+8.4f} "
            f"{r['c_error_facets']:+6.2f} {r['l2_lam_t']:6.3f} {r['l2_best']:6.3f}")
 press = [r for r in rows if r["step"] == 0]
-print0(f"press step (coupling, beta = {ex.dundurs_beta(args.nu):.4f}): "
+print0(f"press step (coupling, beta = {cases.dundurs_beta(args.nu):.4f}): "
        + ", ".join(f"{r['run']}: mean {r['coupling']:+.4f}, rms {r['rms_lam_t']:.3f} of mu p, "
                    f"max {r['max_lam_t']:.3f} mu p0" for r in press))
 print0(f"{len(runs)} paths in {wall:.1f} s")
@@ -266,7 +267,7 @@ if comm.rank == 0:
     write_csv(out / "table.csv", rows)
     write_json(out / "summary.json", {
         "args": {k: str(v) for k, v in vars(args).items()}, "num_processes": comm.size,
-        "shear": shear, "dundurs_beta": ex.dundurs_beta(args.nu), "wall_time": wall,
+        "shear": shear, "dundurs_beta": cases.dundurs_beta(args.nu), "wall_time": wall,
         "runs": {name: [r for r in rows if r["run"] == name] for name in runs},
     })
 # -
@@ -339,7 +340,7 @@ if not args.no_plots and comm.rank == 0:
         rr = np.linspace(0.0, 1.2 * a, 801)
         ax.plot(rr / a, cm.cm_traction_3d(rr, a, c, p0, mu) / (mu * p0), "k-",
                 label="theory $q(r)$")
-        ax.plot(rr / a, ex.hertz_pressure(rr, a, p0) / p0, "k--", lw=0.8,
+        ax.plot(rr / a, cases.hertz_pressure(rr, a, p0) / p0, "k--", lw=0.8,
                 label=r"theory $\mu p(r)$ (slip limit)")
         inside = p.r < 1.2 * a
         ax.plot(p.r[inside] / a, p.lam[inside] / p0, ".", color="C7", markersize=4,
@@ -361,8 +362,8 @@ if not args.no_plots and comm.rank == 0:
     if p is not None:
         ax = fig.add_subplot()
         x = np.linspace(-1.2 * a, 1.2 * a, 801)
-        ax.plot(x / a, ex.cm_traction(x, a, c, p0, mu) / (mu * p0), "k-", label="theory $q(x)$")
-        ax.plot(x / a, ex.hertz_pressure(x, a, p0) / p0, "k--", lw=0.8,
+        ax.plot(x / a, cases.cm_traction(x, a, c, p0, mu) / (mu * p0), "k-", label="theory $q(x)$")
+        ax.plot(x / a, cases.hertz_pressure(x, a, p0) / p0, "k--", lw=0.8,
                 label=r"theory $\mu p(x)$ (slip limit)")
         edges = np.stack([p.x0, p.x1], axis=1).ravel() / a
         ax.plot(edges, np.repeat(sign * p.lam_t / (mu * p0), 2), "-", color="C0",

@@ -7,7 +7,7 @@ interest J(u, lambda) estimated by the dual weighted residual method with the NC
 identities (13) and (15), with an interval for J; adaptive refinement in parallel.
 """
 
-from . import obstacles
+from . import compat, obstacles
 from .adapt import solve_adaptive
 from .collective import CollectiveError
 from .estimator import Estimate, estimate
@@ -20,6 +20,10 @@ from .report import AdaptiveResult, LevelRecord
 from .semismooth import ConvergenceError
 from .settings import ESTIMATORS, WEIGHTS
 from .spaces import Discretization, Measures, discretize
+
+# Each FFCx JIT module is loaded from the disk cache once per process, for every form compiled
+# from here on (compat.memoize_jit_modules): the one place the memo is switched on.
+compat.memoize_jit_modules()
 
 __version__ = "0.1.0"
 

@@ -23,17 +23,13 @@ Differences the package meets, in short:
   Python cell partitioner must return the C++ object: :func:`cpp_adjacencylist`.
 * ``dolfinx.io.gmshio.model_to_mesh`` -> ``dolfinx.io.gmsh.model_to_mesh``, returning a
   ``MeshData`` named tuple of six fields instead of three values: :func:`gmsh_model_to_mesh`.
-* ``fem.petsc.LinearProblem`` requires ``petsc_options_prefix`` (0.11): :func:`linear_problem`.
-* ``fem.petsc.create_vector(L)`` takes function spaces (0.11), and the ``*_block`` / ``*_nest``
-  assemblers are gone (0.11: ``assemble_matrix(forms, kind=...)``): :func:`create_vector`,
-  :func:`assemble_matrix_block`.
 * ``element.interpolation_points`` is a property (0.11) instead of a method:
   :func:`interpolation_points`; ``ufl.Cell.is_simplex`` likewise (ufl 2026): :func:`is_simplex`.
 * ``Geometry.dofmap`` / ``Geometry.cmap`` are deprecated for ``dofmaps[0]`` / ``cmaps[0]``
   (0.11): :func:`geometry_dofmap`, :func:`geometry_cmap`.
-* ``geometry.bb_tree(mesh, dim, entities)``: ``entities`` is keyword-only (0.11):
-  :func:`bb_tree`; ``PointOwnershipData.dest_cells`` etc. are properties (0.11) instead of
-  methods: :func:`ownership_field`.
+
+The wrappers only the tests use (``LinearProblem``, ``create_vector``, block assembly,
+``bb_tree``, ``PointOwnershipData``) are in the tests (``tests/fem_compat.py``).
 
 Unchanged (checked): ``fem.create_interpolation_data(V_to, V_from, cells, padding)`` and
 ``Function.interpolate_nonmatching(u, cells, data)`` (0.11 adds optional ``tol``, ``maxit``);
@@ -44,8 +40,7 @@ Unchanged (checked): ``fem.create_interpolation_data(V_to, V_from, cells, paddin
 from __future__ import annotations
 
 import inspect
-import itertools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -55,13 +50,10 @@ from dolfinx import mesh as dmesh
 
 __all__ = [
     "HAS_ENTITY_MAP",
-    "assemble_matrix_block",
-    "bb_tree",
     "cell_partitioner",
     "cpp_adjacencylist",
     "create_mesh",
     "create_submesh",
-    "create_vector",
     "entity_maps",
     "form",
     "geometry_cmap",
@@ -69,9 +61,8 @@ __all__ = [
     "gmsh_model_to_mesh",
     "interpolation_points",
     "is_simplex",
-    "linear_problem",
     "memoize_jit_modules",
-    "ownership_field",
+    "parameter_names",
     "refine",
 ]
 
@@ -85,8 +76,15 @@ def _num_entities(msh: dmesh.Mesh, dim: int) -> int:
     return imap.size_local + imap.num_ghosts
 
 
-def _parameters(func: Callable) -> list[str]:
-    """Parameter names of ``func`` (empty if it has no Python signature, e.g. a nanobind one)."""
+def parameter_names(func: Callable) -> list[str]:
+    """Parameter names of ``func``, a feature test.
+
+    Args:
+        func: A function or class.
+
+    Returns:
+        Its parameter names; empty if it has no Python signature (e.g. a nanobind one).
+    """
     try:
         return list(inspect.signature(func).parameters)
     except (TypeError, ValueError):
@@ -202,8 +200,9 @@ def memoize_jit_modules() -> bool:
     finds compiled: with the thousands of modules of a used cache that took 4.6 ms per form,
     0.07 s per level of example 5.1 (15 forms). The same module name is the same code (the name
     is the signature of the forms and the options), so it is loaded once and its objects reused.
-    Installed by the first call of :func:`form` (every form of the package is compiled there);
-    a no-op where FFCx lacks the function or its signature differs.
+    Switched on once, where the package is imported (``dwr_signorini/__init__.py``), before
+    any form is compiled; a no-op where FFCx lacks the function or its signature differs, and
+    when called again.
 
     Returns:
         Whether the memo is installed.
@@ -245,11 +244,8 @@ def form(expr: Any, entity_maps: Any = None, **kwargs: Any) -> fem.Form:
 
     What differs: see :func:`entity_maps`. A dict is converted for the form's integration mesh
     (the mesh of its first integral's measure); a value already built by :func:`entity_maps`
-    (a dict on 0.9, a list on 0.11) is passed through. ``expr`` is a single UFL form. JIT
-    modules are loaded once per process (:func:`memoize_jit_modules`).
+    (a dict on 0.9, a list on 0.11) is passed through. ``expr`` is a single UFL form.
     """
-    if not _JIT_MODULES:
-        memoize_jit_modules()
     if entity_maps is None:
         return fem.form(expr, **kwargs)
     if HAS_ENTITY_MAP and isinstance(entity_maps, Mapping):
@@ -325,7 +321,7 @@ def cell_partitioner(ghost_mode: dmesh.GhostMode, max_facet_to_cell_links: int =
     What differs: 0.11 requires ``max_facet_to_cell_links`` (2 for a manifold mesh); 0.9's
     binding accepts only the ghost mode.
     """
-    if "max_facet_to_cell_links" in _parameters(dmesh.create_cell_partitioner):
+    if "max_facet_to_cell_links" in parameter_names(dmesh.create_cell_partitioner):
         return dmesh.create_cell_partitioner(ghost_mode, max_facet_to_cell_links)
     return dmesh.create_cell_partitioner(ghost_mode)
 
@@ -398,30 +394,7 @@ def geometry_cmap(msh: dmesh.Mesh) -> Any:
     return geometry.cmap
 
 
-def bb_tree(
-    msh: dmesh.Mesh,
-    dim: int,
-    entities: npt.NDArray[np.int32] | None = None,
-    padding: float = 0.0,
-) -> Any:
-    """``dolfinx.geometry.bb_tree(msh, dim, entities, padding)``.
 
-    What differs: ``entities`` and ``padding`` are keyword-only in 0.11 (positional in 0.9); the
-    names are the same, so they are passed by name.
-    """
-    from dolfinx import geometry
-
-    return geometry.bb_tree(msh, dim, entities=entities, padding=padding)
-
-
-def ownership_field(data: Any, name: str) -> np.ndarray:
-    """A field of ``PointOwnershipData``, e.g. of ``fem.create_interpolation_data``.
-
-    ``name`` is ``src_owner``, ``dest_owner``, ``dest_points`` or ``dest_cells``. What differs:
-    methods in 0.9, properties in 0.11.
-    """
-    value = getattr(data, name)
-    return value() if callable(value) else value
 
 
 # -- forms, elements, solvers ------------------------------------------------------------------
@@ -444,61 +417,3 @@ def is_simplex(cell: Any) -> bool:
     """
     value = cell.is_simplex
     return bool(value() if callable(value) else value)
-
-
-_prefix_counter = itertools.count()
-
-
-def linear_problem(
-    a: Any,
-    L: Any,
-    bcs: Sequence[Any] | None = None,
-    petsc_options: Mapping[str, Any] | None = None,
-    petsc_options_prefix: str | None = None,
-    **kwargs: Any,
-) -> Any:
-    """``dolfinx.fem.petsc.LinearProblem`` on both versions.
-
-    What differs: 0.11 requires the keyword ``petsc_options_prefix`` (and makes ``bcs`` keyword-
-    only); 0.9 has no such parameter and sets the options under an internal prefix. Without a
-    prefix, a unique one (``dwr_signorini_lp<n>_``) is used on 0.11 and it is ignored on 0.9.
-    ``solve()`` returns the solution Function on both.
-    """
-    from dolfinx.fem import petsc as fem_petsc
-
-    kwargs = dict(kwargs, bcs=list(bcs or []), petsc_options=dict(petsc_options or {}))
-    if "petsc_options_prefix" in _parameters(fem_petsc.LinearProblem):
-        if petsc_options_prefix is None:
-            petsc_options_prefix = f"dwr_signorini_lp{next(_prefix_counter)}_"
-        kwargs["petsc_options_prefix"] = petsc_options_prefix
-    return fem_petsc.LinearProblem(a, L, **kwargs)
-
-
-def create_vector(L: fem.Form) -> Any:
-    """A PETSc vector (ghosted) for the compiled linear form ``L``.
-
-    What differs: ``fem.petsc.create_vector`` takes the form in 0.9 and its function space(s) in
-    0.11.
-    """
-    from dolfinx.fem import petsc as fem_petsc
-
-    if _parameters(fem_petsc.create_vector)[:1] == ["V"]:
-        return fem_petsc.create_vector(L.function_spaces[0])
-    return fem_petsc.create_vector(L)
-
-
-def assemble_matrix_block(a: Sequence[Sequence[fem.Form]], bcs: Sequence[Any] = ()) -> Any:
-    """One monolithic PETSc matrix (AIJ) of a block of compiled bilinear forms, assembled.
-
-    What differs: 0.9 has ``fem.petsc.assemble_matrix_block``; 0.11 removed the ``*_block`` and
-    ``*_nest`` functions: ``assemble_matrix(a, bcs, kind=None)`` on a list of lists gives the
-    monolithic matrix (``kind=PETSc.Mat.Type.NEST`` a nest).
-    """
-    from dolfinx.fem import petsc as fem_petsc
-
-    if hasattr(fem_petsc, "assemble_matrix_block"):
-        A = fem_petsc.assemble_matrix_block(a, bcs=list(bcs))
-    else:
-        A = fem_petsc.assemble_matrix(a, bcs=list(bcs))
-    A.assemble()
-    return A

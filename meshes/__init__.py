@@ -1,4 +1,4 @@
-"""The gmsh scripts of the demos' and examples' meshes, one module per mesh.
+"""The gmsh scripts of the demos', examples' and cases' meshes, one module per mesh.
 
 Each module has ``build(model, ...)`` (geometry, named physical groups and the mesh, in a gmsh
 model), its tags as constants and, for curved faces, ``projections()`` for

@@ -144,13 +144,14 @@ class UniformCase:
         )
 
 
-def block_tags(msh: mesh.Mesh) -> mesh.MeshTags:
-    """Facet tags of the block: bottom 1, top 2, then the sides (:data:`SIDES`)."""
+def block_tags(msh: mesh.Mesh, height: float = HEIGHT) -> mesh.MeshTags:
+    """Facet tags of the block of ``height`` (and width 1): bottom 1, top 2, then the sides
+    (:data:`SIDES`: 2D left 3, right 4; 3D x = 0 3, x = 1 4, y = 0 5, y = 1 6)."""
     d = msh.topology.dim
     msh.topology.create_connectivity(d - 1, d)
     lower = d - 1
     sides = [(BOTTOM, lambda x: np.isclose(x[lower], 0.0)),
-             (TOP, lambda x: np.isclose(x[lower], HEIGHT))]
+             (TOP, lambda x: np.isclose(x[lower], height))]
     for k in range(d - 1):
         sides.append((SIDES[2 * k], lambda x, k=k: np.isclose(x[k], 0.0)))
         sides.append((SIDES[2 * k + 1], lambda x, k=k: np.isclose(x[k], 1.0)))

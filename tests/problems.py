@@ -7,6 +7,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+import ufl
 from dolfinx import mesh
 
 import dwr_signorini as ds
@@ -14,6 +15,19 @@ from dwr_signorini import examples as ex
 
 TRI = mesh.CellType.triangle
 E, NU = ex.ANALYTIC_MATERIAL.E, ex.ANALYTIC_MATERIAL.nu
+
+
+def top_clamped_tags(msh, height):
+    """The examples' facet tags of a rectangle (0, l) x (0, height): its top y = height clamped
+    (DIRICHLET), its bottom y = 0 in possible contact (CONTACT), its sides free (NEUMANN)."""
+
+    def classify(x):
+        values = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
+        values[np.isclose(x[1], height)] = ex.DIRICHLET
+        values[np.isclose(x[1], 0.0)] = ex.CONTACT
+        return values
+
+    return ex.tag_exterior_facets(msh, classify)
 
 
 def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
@@ -30,15 +44,9 @@ def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
         ghost_mode=mesh.GhostMode.none,
     )
 
-    def classify(x):
-        values = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
-        values[np.isclose(x[1], 1.0)] = ex.DIRICHLET
-        values[np.isclose(x[1], 0.0)] = ex.CONTACT
-        return values
-
     return ds.SignoriniProblem(
         msh,
-        ex.tag_exterior_facets(msh, classify),
+        top_clamped_tags(msh, 1.0),
         contact=ex.CONTACT,
         dirichlet=(ex.DIRICHLET,),
         E=E,
@@ -114,3 +122,69 @@ def estimate_rel(level) -> float:
     from dwr_signorini.hierarchical import HIERARCHICAL_RTOL
 
     return 1e-8 if level.weights == "patch" else HIERARCHICAL_RTOL
+
+
+def block(comm, nx, ny, lx=1.0, ly=1.0, transform=None, cell_type=TRI):
+    """(0, lx) x (0, ly): top clamped, bottom y = 0 in possible contact, sides free.
+
+    ``transform`` maps the coordinates (an array (2, n)) onto the same rectangle (grading).
+    """
+    msh = mesh.create_rectangle(
+        comm, [(0.0, 0.0), (lx, ly)], [nx, ny], cell_type, ghost_mode=mesh.GhostMode.none
+    )
+    if transform is not None:
+        msh.geometry.x[:, :2] = np.asarray(transform(msh.geometry.x[:, :2].T)).T
+    return msh, top_clamped_tags(msh, ly)
+
+
+def cantilever(comm, nx, ny, length, diagonal=mesh.DiagonalType.right):
+    """(0, length) x (0, 1) clamped at x = 0, bottom y = 0 in possible contact."""
+    msh = mesh.create_rectangle(
+        comm,
+        [(0.0, 0.0), (length, 1.0)],
+        [nx, ny],
+        TRI,
+        ghost_mode=mesh.GhostMode.none,
+        diagonal=diagonal,
+    )
+
+    def classify(x):
+        tags = np.full(x.shape[1], ex.NEUMANN)
+        tags[np.isclose(x[0], 0.0)] = ex.DIRICHLET
+        tags[np.isclose(x[1], 0.0) & (x[0] > 1e-12)] = ex.CONTACT
+        return tags
+
+    return msh, ex.tag_exterior_facets(msh, classify)
+
+
+def make(msh, tags, **kwargs):
+    """A SignoriniProblem with the tags of :func:`block` and small defaults."""
+    args = {"contact": ex.CONTACT, "dirichlet": (ex.DIRICHLET,), "E": 1.0, "nu": 0.3}
+    args.update(kwargs)
+    return ds.SignoriniProblem(msh, tags, **args)
+
+
+def loaded_block(comm, gap, body_force=(0.02, -0.1), n=8):
+    """The n x n :func:`block` under a body force and a downward traction on its sides."""
+    msh, tags = block(comm, n, n)
+    return make(msh, tags, body_force=body_force, traction={ex.NEUMANN: (0.0, -0.01)}, gap=gap)
+
+
+#: A gap, piecewise constant on the 10 unit macro facets of the cantilever's bottom, for which
+#: the plain semi-smooth Newton method (primal-dual active set) cycles with period 3. Found by
+#: running the method on the Schur complement N K^-1 N^T of this mesh for random gaps; a P-matrix
+#: linear complementarity problem has a unique solution, which the least-index safeguard finds.
+CYCLING_GAP = [-2.2, 0.6, -0.4, -1.4, 0.3, -1.1, -1.0, 1.7, 0.8, -0.6]
+
+
+def cycling_cantilever(comm):
+    """Cantilever 10 x 1 (one macro cell high): bending makes N K^-1 N^T far from an M-matrix."""
+    msh, tags = cantilever(comm, 10, 1, 10.0)
+
+    def gap(x):
+        g = ufl.as_ufl(1e-3 * CYCLING_GAP[-1])
+        for i in range(len(CYCLING_GAP) - 2, -1, -1):
+            g = ufl.conditional(ufl.lt(x[0], i + 1.0), 1e-3 * CYCLING_GAP[i], g)
+        return g
+
+    return make(msh, tags, gap=gap)

@@ -33,12 +33,12 @@ import pytest
 from dolfinx import geometry, io, mesh
 
 import dwr_signorini as ds
-from dwr_signorini import compat
 from dwr_signorini import examples as ex
 from dwr_signorini.linalg import iterative_petsc_options
 from dwr_signorini.marking import mark, patch_indicators
 from dwr_signorini.spaces import refine_marked
 
+from . import fem_compat
 from .problems import estimate_rel
 
 TRI, QUAD = mesh.CellType.triangle, mesh.CellType.quadrilateral
@@ -415,7 +415,7 @@ def geometric_patch_sums(disc, indicators):
     """Sum of the fine indicators over the fine cells whose midpoint lies in each macro cell."""
     macro, tdim = disc.macro_mesh, disc.macro_mesh.topology.dim
     mid = cell_midpoints(disc.mesh)
-    tree = compat.bb_tree(macro, tdim, owned_cells(macro))
+    tree = fem_compat.bb_tree(macro, tdim, owned_cells(macro))
     candidates = geometry.compute_collisions_points(tree, mid)
     hits = geometry.compute_colliding_cells(macro, candidates, mid)
     one = np.all(np.diff(hits.offsets) == 1)  # each midpoint lies in exactly one macro cell

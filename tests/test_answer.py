@@ -23,6 +23,8 @@ from dwr_signorini import weights as auto_weights
 from dwr_signorini.linalg import memory
 from dwr_signorini.viz.tables import read_rows
 
+from .problems import top_clamped_tags
+
 COMM = MPI.COMM_WORLD
 LAWS = {"tresca": lambda: ds.Tresca(0.2), "coulomb": lambda: ds.Coulomb(0.3)}
 
@@ -34,15 +36,8 @@ def pressed_block(law, comm=COMM, nx=8, ny=4, diagonal="crossed", press=0.02, nu
         comm, [np.array([0.0, 0.0]), np.array([1.0, 0.5])], [nx, ny], dmesh.CellType.triangle,
         ghost_mode=dmesh.GhostMode.none, diagonal=getattr(dmesh.DiagonalType, diagonal),
     )
-
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
-        tags[np.isclose(x[1], 0.5)] = ex.DIRICHLET
-        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
-        return tags
-
     return ds.SignoriniProblem(
-        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        msh, top_clamped_tags(msh, 0.5), contact=ex.CONTACT,
         dirichlet={ex.DIRICHLET: (0.0, -press)}, E=10.0, nu=nu, gap=ex.friction_gap(1.0),
         friction=law,
     )

@@ -1,4 +1,4 @@
-"""Cattaneo-Mindlin in 2D (dwr_signorini.examples.cattaneo_mindlin_2d) against the theory.
+"""Cattaneo-Mindlin in 2D (dwr_signorini.cases.cattaneo_mindlin_2d) against the theory.
 
 A half-cylinder (``meshes/cattaneo_2d.py``, R = 1, E = 1, nu = 0.49, plane strain) pressed onto
 a rigid flat (a / R = 0.094) and sheared in four steps to Q / (mu P) = 0.69 with Coulomb
@@ -28,25 +28,26 @@ from mpi4py import MPI
 import pytest
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
-from dwr_signorini.examples import cattaneo_mindlin_3d as cm
+from dwr_signorini.cases import cattaneo_mindlin_3d as cm
 
 COMM = MPI.COMM_WORLD
-MU = ex.CM_DEFAULTS["mu"]
+MU = cases.CM_DEFAULTS["mu"]
 _CACHE: dict = {}
 
 
 def run_path(h_contact, comm=COMM):
-    """The measures (ex.CMMeasure) and J_h of every step of the default path."""
+    """The measures (cases.CMMeasure) and J_h of every step of the default path."""
     key = (h_contact, comm.size)
     if key not in _CACHE:
         rows = []
 
         def keep(record, sol, est):
-            rows.append((ex.measure_cattaneo_mindlin(sol), record.J_h, record.num_stick,
+            rows.append((cases.measure_cattaneo_mindlin(sol), record.J_h, record.num_stick,
                          record.num_slip))
 
-        problems = ex.cattaneo_mindlin_path(comm, h_contact=h_contact)
+        problems = cases.cattaneo_mindlin_path(comm, h_contact=h_contact)
         ds.solve_path(problems, ex.goal_friction_force(), callback=keep,
                       verbose=False).destroy()
         _CACHE[key] = rows
@@ -58,8 +59,8 @@ def test_setting_is_cattaneo_mindlins():
     """The default path is in the theory's range: a / R about 0.1, the press step's Q about 0,
     Q growing to 0.6-0.7 mu P, J_h = Q (the friction force), the facets counted by solve_path."""
     rows = run_path(0.01)
-    assert len(rows) == 1 + ex.CM_DEFAULTS["steps"]
-    a_over_r = rows[-1][0].a / ex.CM_DEFAULTS["radius"]
+    assert len(rows) == 1 + cases.CM_DEFAULTS["steps"]
+    a_over_r = rows[-1][0].a / cases.CM_DEFAULTS["radius"]
     assert 0.08 < a_over_r < 0.11
     assert abs(rows[0][0].ratio) < 0.01
     ratios = [m.ratio for m, *_ in rows]
@@ -133,22 +134,22 @@ def test_theory_functions():
     import numpy as np
 
     P, R, E, nu = 0.009, 1.0, 1.0, 0.49
-    a, p0 = ex.hertz_half_width(P, R, E, nu)
+    a, p0 = cases.hertz_half_width(P, R, E, nu)
     assert 2 * P / (np.pi * a) == pytest.approx(p0)
-    assert ex.stick_half_width(a, 0.0, MU, P) == pytest.approx(a)
-    assert ex.stick_half_width(a, MU * P, MU, P) == 0.0
+    assert cases.stick_half_width(a, 0.0, MU, P) == pytest.approx(a)
+    assert cases.stick_half_width(a, MU * P, MU, P) == 0.0
     with pytest.raises(ValueError, match="slides"):
-        ex.stick_half_width(a, 1.01 * MU * P, MU, P)
-    assert ex.dundurs_beta(0.5) == 0.0
-    assert ex.dundurs_beta(0.49) == pytest.approx(0.0196, abs=1e-4)
+        cases.stick_half_width(a, 1.01 * MU * P, MU, P)
+    assert cases.dundurs_beta(0.5) == 0.0
+    assert cases.dundurs_beta(0.49) == pytest.approx(0.0196, abs=1e-4)
     Q = 0.6 * MU * P
-    c = ex.stick_half_width(a, Q, MU, P)
+    c = cases.stick_half_width(a, Q, MU, P)
     x = np.linspace(-a, a, 200001)
-    q = ex.cm_traction(x, a, c, p0, MU)
+    q = cases.cm_traction(x, a, c, p0, MU)
     assert np.trapezoid(q, x) == pytest.approx(Q, rel=1e-5)
-    assert np.trapezoid(ex.hertz_pressure(x, a, p0), x) == pytest.approx(P, rel=1e-5)
+    assert np.trapezoid(cases.hertz_pressure(x, a, p0), x) == pytest.approx(P, rel=1e-5)
     slip = np.abs(x) >= c
-    assert np.allclose(q[slip], MU * ex.hertz_pressure(x[slip], a, p0))
+    assert np.allclose(q[slip], MU * cases.hertz_pressure(x[slip], a, p0))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -183,7 +184,7 @@ def run_path_3d(h_contact=cm.CM_DEFAULTS_3D["h_contact"], comm=COMM):
         rows = []
 
         def keep(record, sol, est):
-            rows.append((ex.measure_cattaneo_mindlin(sol), record.J_h, record.num_stick,
+            rows.append((cases.measure_cattaneo_mindlin(sol), record.J_h, record.num_stick,
                          record.num_slip))
 
         problems = cm.cattaneo_mindlin_path_3d(comm, h_contact=h_contact)
@@ -270,7 +271,7 @@ def test_theory_functions_3d():
     r = np.linspace(0.0, a, 400001)
     q = cm.cm_traction_3d(r, a, c, p0, MU)
     assert np.trapezoid(2 * np.pi * r * q, r) == pytest.approx(Q, rel=1e-5)
-    p = ex.hertz_pressure(r, a, p0)
+    p = cases.hertz_pressure(r, a, p0)
     assert np.trapezoid(2 * np.pi * r * p, r) == pytest.approx(P, rel=1e-5)
     slip = r >= c
     assert np.allclose(q[slip], MU * p[slip])

@@ -16,6 +16,8 @@ from dolfinx.fem import petsc as fem_petsc
 
 from dwr_signorini import compat
 
+from . import fem_compat
+
 
 def _macro(tdim, comm=MPI.COMM_WORLD, ghost_mode=mesh.GhostMode.shared_facet):
     if tdim == 2:
@@ -259,7 +261,7 @@ def test_linear_problem_and_prefixes():
     options = {"ksp_type": "preonly", "pc_type": "lu"}
     sols = []
     for prefix in (None, None, "compat_test_"):
-        problem = compat.linear_problem(a, L, bcs=[bc], petsc_options=options,
+        problem = fem_compat.linear_problem(a, L, bcs=[bc], petsc_options=options,
                                         petsc_options_prefix=prefix)
         sols.append(problem.solve())
         assert isinstance(sols[-1], fem.Function)
@@ -276,11 +278,11 @@ def test_create_vector_and_block_matrix():
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     p, q = ufl.TrialFunction(Q), ufl.TestFunction(Q)
     L = fem.form(v * ufl.dx)
-    b = compat.create_vector(L)
+    b = fem_compat.create_vector(L)
     assert b.getSize() == V.dofmap.index_map.size_global
     blocks = [[fem.form(u * v * ufl.dx), fem.form(p * v * ufl.dx)],
               [fem.form(u * q * ufl.dx), fem.form(p * q * ufl.dx)]]
-    A = compat.assemble_matrix_block(blocks)
+    A = fem_compat.assemble_matrix_block(blocks)
     assert A.getSize() == (V.dofmap.index_map.size_global + Q.dofmap.index_map.size_global,) * 2
     norms = []
     for row in blocks:
@@ -298,13 +300,13 @@ def test_bb_tree_and_interpolation_data_fields():
     coarse = mesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
     fine = mesh.create_unit_square(MPI.COMM_WORLD, 5, 3)
     owned = np.arange(coarse.topology.index_map(2).size_local, dtype=np.int32)
-    tree = compat.bb_tree(coarse, 2, owned, padding=0.0)
+    tree = fem_compat.bb_tree(coarse, 2, owned, padding=0.0)
     assert tree.num_bboxes == max(2 * len(owned) - 1, 0)  # leaves and inner nodes
     V_from = fem.functionspace(coarse, ("Lagrange", 1))
     V_to = fem.functionspace(fine, ("Lagrange", 1))
     cells = np.arange(fine.topology.index_map(2).size_local, dtype=np.int32)
     data = fem.create_interpolation_data(V_to, V_from, cells, padding=1e-10)
-    assert compat.ownership_field(data, "dest_cells").ndim == 1
+    assert fem_compat.ownership_field(data, "dest_cells").ndim == 1
     src, dst = fem.Function(V_from), fem.Function(V_to)
     src.interpolate(lambda x: 1 + x[0] - 2 * x[1])
     dst.interpolate_nonmatching(src, cells, data)

@@ -16,18 +16,26 @@
 import math
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 import pytest
 import ufl
 from dolfinx import fem, mesh
-from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 
-from .test_friction import BOTTOM, LEFT, RIGHT, TOP, _square_tags, global_max, global_sum
+from .friction_cases import BOTTOM, SIDES, TOP, block_tags
+from .helpers import (
+    dual_against_finite_differences,
+    global_max,
+    global_sum,
+    linear_friction_goal,
+    with_body_force,
+)
+
+LEFT, RIGHT = SIDES[:2]
 
 COMM = MPI.COMM_WORLD
 MU_F = 0.3
@@ -92,16 +100,12 @@ def test_zero_friction_is_frictionless(dim):
 # --------------------------------------------------------------------------------------------------
 
 
-def linear_goal(u, lam, m, lam_t):
-    return (lam_t + 0.5 * lam + ufl.dot(u, ufl.as_vector((1.0, 2.0)))) * m.ds_contact
-
-
 @pytest.mark.mpi
 def test_adjoint_consistency_for_a_linear_goal():
     """With the final sets the primal map is linear, A w_h = F (F = [f; h], h the multiplier
     rows of the last Newton step's right-hand side, coupled rows included); the dual solves
     A^T z_h = J', so for a linear goal J(w_h) = z_h . F to round-off (1e-10)."""
-    with ds.solve(cylinder(), rtol=1e-12) as sol, ds.estimate(sol, linear_goal) as est:
+    with ds.solve(cylinder(), rtol=1e-12) as sol, ds.estimate(sol, linear_friction_goal) as est:
         assert est.goal_is_linear and sol.num_stick > 0 and sol.num_slip > 0
         s = sol.system
         xi = sol.stacked(est.dual.multipliers)
@@ -124,31 +128,15 @@ def test_dual_is_the_derivative_of_J_against_finite_differences():
     goal = ex.goal_friction_force()
 
     def solve(eps):
-        base = cylinder()
-        problem = ds.SignoriniProblem(
-            base.mesh, base.facet_tags, contact=ex.CONTACT, dirichlet=base.dirichlet_values,
-            E=10.0, nu=0.3, gap=base.gap, friction=base.law, body_force=(eps, 0.0),
-        )
-        return ds.solve(problem, rtol=1e-12)
+        return ds.solve(with_body_force(cylinder(), (eps, 0.0)), rtol=1e-12)
 
-    eps = 1e-5
-    with solve(0.0) as sol, ds.estimate(sol, goal, estimator="eta_p") as est:
+    def same_sets(other, sol):
         assert sol.num_slip > 0
-        v = ufl.TestFunction(sol.disc.V)
-        load = fem_petsc.assemble_vector(sol.disc.form(v[0] * sol.disc.m.dx))
-        load.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem_petsc.set_bc(load, sol.system.bcs)
-        predicted = global_sum(est.dual.y.x.array[: sol.system.n_u] @ load.array)
-        load.destroy()
-        values = []
-        for sign in (1.0, -1.0):
-            with solve(sign * eps) as other:
-                assert np.array_equal(other.system.active, sol.system.active)
-                with ds.estimate(other, goal, estimator="eta_p") as e:
-                    values.append(e.J_h)
-        fd = (values[0] - values[1]) / (2 * eps)
-        assert abs(predicted) > 1e-3
-        assert fd == pytest.approx(predicted, rel=1e-6)
+        assert np.array_equal(other.system.active, sol.system.active)
+
+    predicted, fd = dual_against_finite_differences(solve, goal, lambda v: v[0], same_sets)
+    assert abs(predicted) > 1e-3
+    assert fd == pytest.approx(predicted, rel=1e-6)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -162,7 +150,7 @@ def test_a_path_that_stays_stuck_ends_where_one_step_does():
     every facet in contact and stuck on every step, the problem is linear and the end states
     agree to 1e-10."""
     msh = mesh.create_unit_square(COMM, 6, 6, ghost_mode=mesh.GhostMode.none)
-    tags = _square_tags(msh)
+    tags = block_tags(msh, height=1.0)
 
     def problem(k, n):
         return ds.SignoriniProblem(
@@ -242,7 +230,7 @@ def incline_path(pushes, alpha, mu, press=0.01, comm=COMM):
     cos alpha)). The plate's force on the block has the horizontal part F and the downward
     part G; in full slip up the slope F / G = (tan alpha + mu) / (1 - mu tan alpha)."""
     msh = mesh.create_unit_square(comm, 6, 6, ghost_mode=mesh.GhostMode.none)
-    tags = _square_tags(msh)
+    tags = block_tags(msh, height=1.0)
     e_h = np.array([math.cos(alpha), -math.sin(alpha)])
     e_v = np.array([math.sin(alpha), math.cos(alpha)])
     return [
@@ -431,7 +419,7 @@ def test_cycling_slip_sets_are_broken(monkeypatch):
     from dwr_signorini.linalg.factor import FactoredNewtonSystem, ReusePolicy
 
     monkeypatch.setattr(FactoredNewtonSystem, "reuse", ReusePolicy(fraction=-1.0))
-    problems = ex.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
+    problems = cases.cattaneo_mindlin_path(COMM, nu=0.2, h_contact=0.0025)[:2]
     residuals = []
 
     def record(rec, sol, est):

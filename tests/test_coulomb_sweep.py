@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import dwr_signorini as ds
-from dwr_signorini import examples as ex
+from dwr_signorini import cases
 
 from . import friction_cases as fc
 
@@ -133,7 +133,7 @@ def _press_tractions(case):
 def test_cattaneo_mindlin_in_one_step_from_zero(mu):
     """The 2D Cattaneo-Mindlin problem (a cylinder pressed onto a rigid flat and sheared,
     partial slip at mu = 0.3) solved in one step from zero: at most 15 Newton steps."""
-    problem = ex.cattaneo_mindlin_path(COMM, mu=mu, steps=1, h_contact=0.02)[-1]
+    problem = cases.cattaneo_mindlin_path(COMM, mu=mu, steps=1, h_contact=0.02)[-1]
     with ds.solve(problem) as sol:
         assert sol.newton_iterations <= 15
         assert sol.num_active > 0 and sol.history[-1]["residual_ncp"] <= 1e-8

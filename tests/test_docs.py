@@ -126,12 +126,13 @@ def test_site(tmp_path):
     for name in dwr_signorini.obstacles.__all__:
         assert f'id="dwr_signorini.obstacles.{name}"' in api, name
     # the public modules beside ds: their pages' names and what they export
-    for module in ("obstacles", "interval", "examples", "viz", "io", "meshes"):
+    for module in ("obstacles", "interval", "examples", "cases", "viz", "io", "meshes"):
         assert f'id="module-dwr_signorini.{module}"' in api, module
     for name in ("plot_convergence", "plot_interval", "plot_friction"):
         assert f'id="dwr_signorini.viz.{name}"' in api, name
-    for name in ("bar_problem", "friction_problem", "cattaneo_mindlin_path", "goal_bar"):
+    for name in ("bar_problem", "friction_problem", "goal_bar"):
         assert f'id="dwr_signorini.examples.{name}"' in api, name
+    assert 'id="dwr_signorini.cases.cattaneo_mindlin_path"' in api
     assert 'id="dwr_signorini.io.write_csv"' in api
     guide = (out / "guide" / "estimate.html").read_text()
     assert 'id="how-far-can-i-trust-the-number"' in guide

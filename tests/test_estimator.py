@@ -19,7 +19,6 @@ from dolfinx import fem, mesh
 from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
-from dwr_signorini import compat
 from dwr_signorini import examples as ex
 from dwr_signorini.estimator import ncp_scale_function
 from dwr_signorini.examples import analytic_problem
@@ -27,6 +26,8 @@ from dwr_signorini.goal import GoalForms
 from dwr_signorini.quadrature import DATA_QUADRATURE_DEGREE, with_quadrature_degrees
 from dwr_signorini.residuals import contact_violation, dual_residual, primal_residual
 
+from . import fem_compat
+from .helpers import global_sum, integrate
 from .problems import strip_problem
 
 TRI, QUAD = mesh.CellType.triangle, mesh.CellType.quadrilateral
@@ -87,15 +88,6 @@ def energy_goal(u, lam, m):
     return ufl.inner(m.sigma(u), m.epsilon(u)) * m.dx + m.x[0] * lam**2 * m.ds_contact
 
 
-def integrate(sol, form):
-    comm = sol.disc.comm
-    return comm.allreduce(fem.assemble_scalar(sol.disc.form(form)), op=MPI.SUM)
-
-
-def global_sum(comm, local):
-    return comm.allreduce(float(local), op=MPI.SUM)
-
-
 def global_norm(comm, local):
     return math.sqrt(comm.allreduce(float(np.dot(local, local)), op=MPI.SUM))
 
@@ -146,11 +138,11 @@ def test_adjoint_consistency_for_a_linear_goal(case):
     F_lam = np.where(sol.active, -s.c_n * s.g.array, 0.0)
     y = est.dual.y.x.array[: s.n_u]
     xi = est.dual.xi.x.array[: s.n_lam]
-    z_dot_F = global_sum(comm, y @ F_u + xi @ F_lam)
+    z_dot_F = global_sum(y @ F_u + xi @ F_lam, comm)
     assert z_dot_F == pytest.approx(J_direct, rel=1e-10, abs=0.0)
     assert est.J_h == pytest.approx(J_direct, rel=1e-12, abs=0.0)
     # Both parts contribute (so the check covers the contact rows).
-    assert abs(global_sum(comm, xi @ F_lam)) > 1e-3 * abs(J_direct)
+    assert abs(global_sum(xi @ F_lam, comm)) > 1e-3 * abs(J_direct)
 
 
 @pytest.mark.mpi
@@ -321,7 +313,7 @@ def test_indicators_sum_to_the_estimate(case, goal, estimator):
     ind = est.indicators
     assert ind.function_space.mesh is sol.disc.mesh
     n_local = ind.function_space.dofmap.index_map.size_local
-    total = global_sum(sol.disc.comm, ind.x.array[:n_local].sum())
+    total = global_sum(ind.x.array[:n_local].sum(), sol.disc.comm)
     disc, m, rec, z = sol.disc, sol.disc.m, est.reconstructor, est.dual
     c = ncp_scale_function(sol)
     w_y = rec.weight(rec.patch_quadratic(z.y), z.y)
@@ -337,7 +329,7 @@ def test_indicators_sum_to_the_estimate(case, goal, estimator):
         dual = dual_residual(sol, GoalForms(goal, sol.u, sol.lam, disc), z, w_u, w_lam, c)
         form = 0.5 * primal + 0.5 * dual - contact
     form = with_quadrature_degrees(form, DATA_QUADRATURE_DEGREE)
-    value = global_sum(sol.disc.comm, fem.assemble_scalar(disc.form(form)))
+    value = global_sum(fem.assemble_scalar(disc.form(form)), sol.disc.comm)
     assert total == pytest.approx(value, rel=1e-10)
 
 
@@ -396,7 +388,7 @@ def _p2_solution(sol):
     dofs = fem.locate_dofs_topological(V2, msh.topology.dim - 1, facets)
     bc = fem.dirichletbc(np.zeros(msh.geometry.dim), dofs, V2)
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-    return compat.linear_problem(a, L, bcs=[bc], petsc_options=options).solve()
+    return fem_compat.linear_problem(a, L, bcs=[bc], petsc_options=options).solve()
 
 
 def _volume_part(u, m):

@@ -14,50 +14,31 @@
 """
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 import pytest
-import ufl
 from dolfinx import mesh
-from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+
+from .friction_cases import BOTTOM, SIDES, TOP, block_tags
+from .helpers import (
+    check_frictionless_limit,
+    dual_against_finite_differences,
+    example_variant,
+    global_max,
+    global_sum,
+    linear_friction_goal,
+    with_body_force,
+)
 
 COMM = MPI.COMM_WORLD
 E, NU = 10.0, 0.3
 MU = E / (2 * (1 + NU))
 LMBDA = E * NU / ((1 + NU) * (1 - 2 * NU))
 PRESS, SHEAR = 0.01, 0.02
-BOTTOM, TOP, LEFT, RIGHT = 1, 2, 3, 4
-
-
-def global_max(values):
-    return COMM.allreduce(float(np.max(np.abs(values), initial=0.0)), op=MPI.MAX)
-
-
-def global_sum(value):
-    return COMM.allreduce(float(value), op=MPI.SUM)
-
-
-def _square_tags(msh):
-    """Facet tags of the unit square: bottom 1, top 2, left 3, right 4."""
-    msh.topology.create_connectivity(1, 2)
-    sides = [
-        (BOTTOM, lambda x: np.isclose(x[1], 0.0)),
-        (TOP, lambda x: np.isclose(x[1], 1.0)),
-        (LEFT, lambda x: np.isclose(x[0], 0.0)),
-        (RIGHT, lambda x: np.isclose(x[0], 1.0)),
-    ]
-    facets, values = [], []
-    for tag, where in sides:
-        found = mesh.locate_entities_boundary(msh, 1, where)
-        facets.append(found)
-        values.append(np.full(len(found), tag, dtype=np.int32))
-    facets, values = np.concatenate(facets), np.concatenate(values)
-    order = np.argsort(facets)
-    return mesh.meshtags(msh, 1, facets[order], values[order])
+LEFT, RIGHT = SIDES[:2]
 
 
 def patch_problem(s, comm=COMM, n=6, cell_type=mesh.CellType.triangle, law=None):
@@ -74,8 +55,8 @@ def patch_problem(s, comm=COMM, n=6, cell_type=mesh.CellType.triangle, law=None)
     a = 0.0 if MU * SHEAR < s else SHEAR - s / MU
     sxx, sxy = -LMBDA * PRESS, MU * (SHEAR - a)
     problem = ds.SignoriniProblem(
-        msh, _square_tags(msh), contact=BOTTOM, dirichlet={TOP: (SHEAR, -PRESS)}, E=E, nu=NU,
-        traction={RIGHT: (sxx, sxy), LEFT: (-sxx, -sxy)}, gap=0.0,
+        msh, block_tags(msh, height=1.0), contact=BOTTOM, dirichlet={TOP: (SHEAR, -PRESS)},
+        E=E, nu=NU, traction={RIGHT: (sxx, sxy), LEFT: (-sxx, -sxy)}, gap=0.0,
         friction=ds.Tresca(s) if law is None else law,
     )
     return problem, a, sxy
@@ -98,16 +79,8 @@ def _bottom_displacement(sol):
 def test_tiny_threshold_is_frictionless():
     """s = 1e-12: the solution is the frictionless one to 1e-8 (relative, max norm)."""
     tresca = ex.friction_problem(COMM, s=1e-12)
-    free = ds.SignoriniProblem(
-        tresca.mesh, tresca.facet_tags, contact=ex.CONTACT,
-        dirichlet=tresca.dirichlet_values, E=10.0, nu=0.3,
-        gap=ex.friction_gap(ex.FRICTION_DEFAULTS["radius"]),
-    )
-    with ds.solve(tresca) as a, ds.solve(free) as b:
-        assert a.num_active > 0 and b.lam_t is None
-        assert global_max(a.u.x.array - b.u.x.array) <= 1e-8 * global_max(b.u.x.array)
-        assert global_max(a.lam.x.array - b.lam.x.array) <= 1e-8 * global_max(b.lam.x.array)
-        assert global_max(a.lam_t.x.array) <= 1e-12
+    free = example_variant(tresca, gap=ex.friction_gap(ex.FRICTION_DEFAULTS["radius"]))
+    check_frictionless_limit(tresca, free)
 
 
 @pytest.mark.mpi
@@ -116,8 +89,8 @@ def test_huge_threshold_under_a_tangential_load_sticks():
     (T u)_i = int_E_i u_t = 0 on every macro contact facet to round-off."""
     msh = mesh.create_unit_square(COMM, 6, 6, ghost_mode=mesh.GhostMode.none)
     problem = ds.SignoriniProblem(
-        msh, _square_tags(msh), contact=BOTTOM, dirichlet={TOP: (SHEAR, 0.0)}, E=E, nu=NU,
-        gap=0.0, friction=ds.Tresca(1e8),
+        msh, block_tags(msh, height=1.0), contact=BOTTOM, dirichlet={TOP: (SHEAR, 0.0)},
+        E=E, nu=NU, gap=0.0, friction=ds.Tresca(1e8),
     )
     with ds.solve(problem) as sol:
         alg = sol.system.algebra
@@ -206,16 +179,12 @@ def test_discrete_problem_equals_its_dual_qp_by_lbfgsb():
 # --------------------------------------------------------------------------------------------------
 
 
-def linear_goal(u, lam, m, lam_t):
-    return (lam_t + 0.5 * lam + ufl.dot(u, ufl.as_vector((1.0, 2.0)))) * m.ds_contact
-
-
 @pytest.mark.mpi
 def test_adjoint_consistency_for_a_linear_goal():
     """With the final sets the primal map is linear, A w_h = F with F = [f; -c g on the
     constrained rows; M free on the free rows]; the dual solves A^T z_h = J', so for a linear
     goal J(w_h) = z_h . F to round-off, each part of F contributing."""
-    with ds.solve(ex.friction_problem(COMM)) as sol, ds.estimate(sol, linear_goal) as est:
+    with ds.solve(ex.friction_problem(COMM)) as sol, ds.estimate(sol, linear_friction_goal) as est:
         assert est.goal_is_linear and sol.num_stick > 0 and sol.num_slip > 0
         s = sol.system
         constrained = s.active
@@ -236,31 +205,15 @@ def test_dual_is_the_derivative_of_J_against_finite_differences():
     goal = ex.goal_friction_force()
 
     def solve(eps):
-        base = ex.friction_problem(COMM)
-        problem = ds.SignoriniProblem(
-            base.mesh, base.facet_tags, contact=ex.CONTACT, dirichlet=base.dirichlet_values,
-            E=10.0, nu=0.3, gap=base.gap, friction=base.law, body_force=(eps, 0.0),
-        )
-        return ds.solve(problem)
+        return ds.solve(with_body_force(ex.friction_problem(COMM), (eps, 0.0)))
 
-    eps = 1e-5
-    with solve(0.0) as sol, ds.estimate(sol, goal, estimator="eta_p") as est:
-        v = ufl.TestFunction(sol.disc.V)
-        load = fem_petsc.assemble_vector(sol.disc.form(v[0] * sol.disc.m.dx))
-        load.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem_petsc.set_bc(load, sol.system.bcs)
-        predicted = global_sum(est.dual.y.x.array[: sol.system.n_u] @ load.array)
-        load.destroy()
-        values = []
-        for sign in (1.0, -1.0):
-            with solve(sign * eps) as other:
-                assert np.array_equal(other.system.active, sol.system.active)
-                assert np.array_equal(np.sign(other.system.free), np.sign(sol.system.free))
-                with ds.estimate(other, goal, estimator="eta_p") as e:
-                    values.append(e.J_h)
-        fd = (values[0] - values[1]) / (2 * eps)
-        assert abs(predicted) > 1e-3
-        assert fd == pytest.approx(predicted, rel=1e-6)
+    def same_sets(other, sol):
+        assert np.array_equal(other.system.active, sol.system.active)
+        assert np.array_equal(np.sign(other.system.free), np.sign(sol.system.free))
+
+    predicted, fd = dual_against_finite_differences(solve, goal, lambda v: v[0], same_sets)
+    assert abs(predicted) > 1e-3
+    assert fd == pytest.approx(predicted, rel=1e-6)
 
 
 # --------------------------------------------------------------------------------------------------

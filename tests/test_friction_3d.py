@@ -15,16 +15,24 @@
 import itertools
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 import pytest
 import ufl
 from dolfinx import mesh
-from dolfinx.fem import petsc as fem_petsc
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
+
+from .friction_cases import BOTTOM, SIDES, TOP, block_tags
+from .helpers import (
+    check_frictionless_limit,
+    dual_against_finite_differences,
+    example_variant,
+    global_max,
+    global_sum,
+    with_body_force,
+)
 
 COMM = MPI.COMM_WORLD
 E, NU = 10.0, 0.3
@@ -32,32 +40,7 @@ MU = E / (2 * (1 + NU))
 LMBDA = E * NU / ((1 + NU) * (1 - 2 * NU))
 PRESS = 0.01
 SHEAR = np.array([0.012, 0.016])  # oblique to the tangent basis (e_x, -e_y) of the bottom
-BOTTOM, TOP, X0, X1, Y0, Y1 = 1, 2, 3, 4, 5, 6
-
-
-def global_max(values):
-    return COMM.allreduce(float(np.max(np.abs(values), initial=0.0)), op=MPI.MAX)
-
-
-def global_sum(value):
-    return COMM.allreduce(float(value), op=MPI.SUM)
-
-
-def _cube_tags(msh):
-    """Facet tags of the unit cube: bottom 1, top 2, x = 0 / 1: 3 / 4, y = 0 / 1: 5 / 6."""
-    sides = [
-        (BOTTOM, lambda x: np.isclose(x[2], 0.0)), (TOP, lambda x: np.isclose(x[2], 1.0)),
-        (X0, lambda x: np.isclose(x[0], 0.0)), (X1, lambda x: np.isclose(x[0], 1.0)),
-        (Y0, lambda x: np.isclose(x[1], 0.0)), (Y1, lambda x: np.isclose(x[1], 1.0)),
-    ]
-    facets, values = [], []
-    for tag, where in sides:
-        found = mesh.locate_entities_boundary(msh, 2, where)
-        facets.append(found)
-        values.append(np.full(len(found), tag, dtype=np.int32))
-    facets, values = np.concatenate(facets), np.concatenate(values)
-    order = np.argsort(facets)
-    return mesh.meshtags(msh, 2, facets[order], values[order])
+X0, X1, Y0, Y1 = SIDES
 
 
 def patch_problem(s, n=4, law=None):
@@ -79,8 +62,8 @@ def patch_problem(s, n=4, law=None):
     traction = {X1: (sxx, 0.0, sxz), X0: (-sxx, 0.0, -sxz), Y1: (0.0, sxx, syz),
                 Y0: (0.0, -sxx, -syz)}
     problem = ds.SignoriniProblem(
-        msh, _cube_tags(msh), contact=BOTTOM, dirichlet={TOP: (*SHEAR, -PRESS)}, E=E, nu=NU,
-        traction=traction, gap=0.0, friction=ds.Tresca(s) if law is None else law,
+        msh, block_tags(msh, height=1.0), contact=BOTTOM, dirichlet={TOP: (*SHEAR, -PRESS)},
+        E=E, nu=NU, traction=traction, gap=0.0, friction=ds.Tresca(s) if law is None else law,
     )
     return problem, a, np.array([sxz, syz, 0.0])
 
@@ -145,15 +128,7 @@ def test_slipping_facets_converge_quadratically(law):
 def test_tiny_threshold_is_frictionless():
     """s = 1e-12: the solution is the frictionless one to 1e-8 (relative, max norm)."""
     tresca = example(s=1e-12)
-    free = ds.SignoriniProblem(
-        tresca.mesh, tresca.facet_tags, contact=ex.CONTACT, dirichlet=tresca.dirichlet_values,
-        E=10.0, nu=0.3, gap=tresca.gap,
-    )
-    with ds.solve(tresca) as a, ds.solve(free) as b:
-        assert a.num_active > 0 and b.lam_t is None
-        assert global_max(a.u.x.array - b.u.x.array) <= 1e-8 * global_max(b.u.x.array)
-        assert global_max(a.lam.x.array - b.lam.x.array) <= 1e-8 * global_max(b.lam.x.array)
-        assert global_max(a.lam_t.x.array) <= 1e-12
+    check_frictionless_limit(tresca, example_variant(tresca, gap=tresca.gap))
 
 
 @pytest.mark.mpi
@@ -162,8 +137,8 @@ def test_huge_threshold_under_a_tangential_load_sticks():
     both tangent directions, to round-off."""
     msh = mesh.create_unit_cube(COMM, 3, 3, 3, ghost_mode=mesh.GhostMode.none)
     problem = ds.SignoriniProblem(
-        msh, _cube_tags(msh), contact=BOTTOM, dirichlet={TOP: (*SHEAR, 0.0)}, E=E, nu=NU,
-        gap=0.0, friction=ds.Tresca(1e8),
+        msh, block_tags(msh, height=1.0), contact=BOTTOM, dirichlet={TOP: (*SHEAR, 0.0)},
+        E=E, nu=NU, gap=0.0, friction=ds.Tresca(1e8),
     )
     with ds.solve(problem) as sol:
         alg = sol.system.algebra
@@ -280,30 +255,17 @@ def test_dual_is_the_derivative_of_J_against_finite_differences():
     base = example()
 
     def solve(eps):
-        problem = ds.SignoriniProblem(
-            base.mesh, base.facet_tags, contact=ex.CONTACT, dirichlet=base.dirichlet_values,
-            E=10.0, nu=0.3, gap=base.gap, friction=base.law, body_force=(eps, eps, 0.0),
-        )
-        return ds.solve(problem)
+        return ds.solve(with_body_force(base, (eps, eps, 0.0)))
 
-    eps = 1e-5
-    with solve(0.0) as sol, ds.estimate(sol, goal, estimator="eta_p") as est:
-        v = ufl.TestFunction(sol.disc.V)
-        load = fem_petsc.assemble_vector(sol.disc.form((v[0] + v[1]) * sol.disc.m.dx))
-        load.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem_petsc.set_bc(load, sol.system.bcs)
-        predicted = global_sum(est.dual.y.x.array[: sol.system.n_u] @ load.array)
-        load.destroy()
-        values = []
-        for sign in (1.0, -1.0):
-            with solve(sign * eps) as other:
-                assert np.array_equal(other.system.active, sol.system.active)
-                assert np.array_equal(other.slip, sol.slip)
-                with ds.estimate(other, goal, estimator="eta_p") as e:
-                    values.append(e.J_h)
-        fd = (values[0] - values[1]) / (2 * eps)
-        assert sol.num_slip > 0 and abs(predicted) > 1e-3
-        assert fd == pytest.approx(predicted, rel=1e-6)
+    def same_sets(other, sol):
+        assert np.array_equal(other.system.active, sol.system.active)
+        assert np.array_equal(other.slip, sol.slip)
+        assert sol.num_slip > 0
+
+    predicted, fd = dual_against_finite_differences(
+        solve, goal, lambda v: v[0] + v[1], same_sets)
+    assert abs(predicted) > 1e-3
+    assert fd == pytest.approx(predicted, rel=1e-6)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -32,12 +32,12 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 import ufl
-from dolfinx import fem
 
 import dwr_signorini as ds
 from dwr_signorini import obstacles as ob
 from dwr_signorini.refine import refine_marked
 
+from .helpers import integrate
 from .problems import from_model, mesh_script
 
 COMM = MPI.COMM_WORLD
@@ -45,10 +45,6 @@ E, NU = 1.0, 0.3
 E_STAR = E / (1 - NU**2)
 
 
-
-
-def integrate(sol, form):
-    return COMM.allreduce(fem.assemble_scalar(sol.disc.form(form)), op=MPI.SUM)
 
 
 def peak(sol):

@@ -26,13 +26,10 @@ from dwr_signorini.goal import GoalForms
 from dwr_signorini.hierarchical import hierarchical_solutions
 from dwr_signorini.reconstruction import Reconstructor
 
+from .helpers import total_force
 from .problems import strip_problem
 
 pytestmark = pytest.mark.mpi
-
-
-def total_force(u, lam, m):
-    return lam * m.ds_contact
 
 
 def _norm(f: fem.Function) -> float:

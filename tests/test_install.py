@@ -1,6 +1,7 @@
 """An installed package works outside the checkout: ``pip install .`` of a copy of the sources,
 imported from a directory that knows nothing of the checkout, finds the gmsh scripts its
-examples build their meshes from (``dwr_signorini.meshes``, the checkout's ``meshes/``)."""
+examples and cases build their meshes from (``dwr_signorini.meshes``, the checkout's
+``meshes/``)."""
 
 import os
 import shutil
@@ -18,14 +19,15 @@ OUTSIDE = """
 import sys
 from mpi4py import MPI
 import dwr_signorini
-from dwr_signorini.examples import cattaneo_mindlin_2d as cm
+from dwr_signorini import cases
+from dwr_signorini.cases.load_path import MESHES
 from dwr_signorini.meshes import hertz_2d
 
-msh, cell_tags, facet_tags = cm.cattaneo_mindlin_mesh(MPI.COMM_SELF, h_contact=0.1, h=0.4)
+msh, cell_tags, facet_tags = cases.cattaneo_mindlin_mesh(MPI.COMM_SELF, h_contact=0.1, h=0.4)
 print(dwr_signorini.__file__)
-print(cm._MESHES)
+print(MESHES)
 print(hertz_2d.__file__)
-print(msh.topology.index_map(2).size_local, len(facet_tags.find(cm.CM_CONTACT)))
+print(msh.topology.index_map(2).size_local, len(facet_tags.find(cases.CM_CONTACT)))
 """
 
 

@@ -18,6 +18,7 @@ import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini.examples import analytic_problem, bar_problem, obstacle_problem
 
+from .helpers import global_max, integrate, owned
 from .problems import strip_problem
 
 TRI, QUAD = mesh.CellType.triangle, mesh.CellType.quadrilateral
@@ -39,12 +40,6 @@ CASES = {
 }
 
 
-def integrate(sol, form):
-    """A scalar form on the fine mesh (it may use lam), summed over all ranks."""
-    comm = sol.disc.comm
-    return comm.allreduce(fem.assemble_scalar(sol.disc.form(form)), op=MPI.SUM)
-
-
 def analytic_errors(sol):
     """L2 and H1-seminorm errors of u_h and the L2(Gamma_C) error of lambda_H (Example 5.1)."""
     m = sol.disc.m
@@ -63,17 +58,6 @@ def rates(errors):
     """Convergence rates in h for halving h from one entry to the next."""
     e = np.asarray(errors)
     return np.log2(e[:-1] / e[1:])
-
-
-def owned(sol):
-    """Owned (u, lam) arrays of the solution."""
-    s = sol.system
-    return sol.u.x.array[: s.n_u], sol.lam.x.array[: s.n_lam]
-
-
-def global_max(comm, values):
-    local = float(np.max(np.abs(values))) if len(values) else 0.0
-    return comm.allreduce(local, op=MPI.MAX)
 
 
 def transfer(V_to, f):
@@ -151,8 +135,8 @@ def test_contact_conditions_hold_at_convergence(case):
     _, lam = owned(sol)
     gap = system.algebra.gap_residual(sol.u.x.petsc_vec)  # N u - g, owned rows
     Mlam = system.M.array * lam
-    gap_scale = global_max(comm, system.g.array)
-    lam_scale = global_max(comm, Mlam)
+    gap_scale = global_max(system.g.array, comm)
+    lam_scale = global_max(Mlam, comm)
     assert gap_scale > 0.0 and lam_scale > 0.0
     tol = 1e-10
     assert np.all(gap <= tol * gap_scale), gap.max()
@@ -177,7 +161,7 @@ def test_contact_conditions_hold_at_convergence(case):
     for vec in (r, lam_vec, reaction):
         vec.destroy()
     # The NCP residual (20) of the package vanishes too.
-    assert global_max(comm, system.algebra.ncp_residual(sol.u.x.petsc_vec, lam)) <= tol * lam_scale
+    assert global_max(system.algebra.ncp_residual(sol.u.x.petsc_vec, lam), comm) <= tol * lam_scale
 
 
 # --------------------------------------------------------------------------------------------------
@@ -273,8 +257,8 @@ def test_warm_start_needs_no_more_iterations():
             assert warm.num_active == cold.num_active
             u_cold, _ = owned(cold)
             u_warm, _ = owned(warm)
-            scale = global_max(comm, u_cold)
-            assert global_max(comm, u_warm - u_cold) <= 1e-9 * scale
+            scale = global_max(u_cold, comm)
+            assert global_max(u_warm - u_cold, comm) <= 1e-9 * scale
             cold_its.append(cold.newton_iterations)
             warm_its.append(warm.newton_iterations)
         coarse = cold
@@ -293,8 +277,8 @@ def test_solution_is_a_fixed_point(case):
     u, lam = owned(sol)
     u2, lam2 = owned(again)
     comm = sol.disc.comm
-    assert global_max(comm, u2 - u) <= 1e-10 * global_max(comm, u)
-    assert global_max(comm, lam2 - lam) <= 1e-10 * global_max(comm, lam)
+    assert global_max(u2 - u, comm) <= 1e-10 * global_max(u, comm)
+    assert global_max(lam2 - lam, comm) <= 1e-10 * global_max(lam, comm)
 
 
 def test_initial_guess_on_other_spaces_is_rejected():
@@ -326,7 +310,7 @@ def test_load_free_and_tiny_load_problems_driven_by_the_obstacle():
     assert np.array_equal(free.active, tiny.active)
     u_free, _ = owned(free)
     u_tiny, _ = owned(tiny)
-    assert global_max(comm, u_tiny - u_free) <= 1e-6 * global_max(comm, u_free)
+    assert global_max(u_tiny - u_free, comm) <= 1e-6 * global_max(u_free, comm)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -15,6 +15,7 @@ import pytest
 from dolfinx import fem
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 from dwr_signorini import examples as ex
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
@@ -32,8 +33,7 @@ from dwr_signorini.linalg import (
 )
 from dwr_signorini.spaces import discretize
 
-from .problems import indented_block, strip_problem
-from .test_extreme import _cycling_cantilever
+from .problems import cycling_cantilever, indented_block, strip_problem
 
 
 @pytest.mark.mpi
@@ -65,7 +65,7 @@ SCHUR_CASES = {
     "obstacle-3d-tet": (lambda comm: ex.obstacle_problem(comm, (2, 8, 8)), ex.goal_obstacle()),
     "tresca-2d-tri": (lambda comm: ex.friction_problem(comm, s=0.05), ex.goal_friction_force()),
     "indentation-3d-tet": (
-        lambda comm: ex.indentation_problem(comm, 8, depth=0.02), ex.goal_total_force
+        lambda comm: cases.indentation_problem(comm, 8, depth=0.02), cases.goal_total_force
     ),
 }
 
@@ -178,7 +178,7 @@ def test_schur_path_with_least_index_safeguard(solver):
     """Active-set cycling and the least-index safeguard: the same solution on both paths, the
     same iterates until the sets repeat."""
     options, tol = SCHUR_SOLVERS[solver]
-    disc = discretize(_cycling_cantilever(MPI.COMM_WORLD))
+    disc = discretize(cycling_cantilever(MPI.COMM_WORLD))
     s0 = ds.solve(disc)
     s1 = ds.solve(disc, method="schur", petsc_options=options)
     first = next(h["iteration"] for h in s0.history if h["safeguard"])

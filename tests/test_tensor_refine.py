@@ -13,8 +13,9 @@ import ufl
 from dolfinx import fem, mesh
 
 from dwr_signorini import compat
-from dwr_signorini.compat import linear_problem
 from dwr_signorini.tensor_refine import refine_uniform_tensor
+
+from .fem_compat import linear_problem
 
 QUAD, HEX = mesh.CellType.quadrilateral, mesh.CellType.hexahedron
 

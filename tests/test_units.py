@@ -17,13 +17,10 @@ from dolfinx import mesh
 
 import dwr_signorini as ds
 
+from .helpers import total_force
 from .problems import indented_block as _indented_block
 
 S_L, S_E = 1e-3, 1e6  # e.g. mm -> m and MPa -> Pa
-
-
-def total_force(u, lam, m):
-    return lam * m.ds_contact
 
 
 def _run(comm, nx, ny, delta, ncp_scale, s_L=1.0, s_E=1.0):

@@ -16,11 +16,8 @@ import pytest
 
 import dwr_signorini as ds
 
+from .helpers import total_force
 from .problems import indented_block
-
-
-def total_force(u, lam, m):
-    return lam * m.ds_contact
 
 
 def _crossing(errors: list[float], k: int) -> bool:

@@ -29,10 +29,8 @@ Sign conventions (Section 2): ``n`` is the outer unit normal, ``u_n = u . n``,
 ``lambda_n = -sigma_nn(u)``; Signorini's conditions (2) and (7) read
 ``u_n - g <= 0``, ``lambda_n >= 0`` and ``lambda_n (u_n - g) = 0`` on Gamma_C.
 
-Also not in the paper, with gmsh meshes, tags and load paths of their own: Cattaneo-Mindlin
-with Coulomb friction, a cylinder (:mod:`~dwr_signorini.examples.cattaneo_mindlin_2d`) or a sphere
-(:mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`) pressed onto a rigid flat and sheared in
-steps, measured against the theory (:mod:`~dwr_signorini.examples.cattaneo_mindlin_measure`).
+The benchmark cases beside them (Cattaneo-Mindlin, the 3D indentation) are
+:mod:`dwr_signorini.cases`.
 """
 
 from dolfinx.mesh import CellType
@@ -72,35 +70,6 @@ from .bar_2d import (
     bar_problem,
     goal_bar,
 )
-from .cattaneo_mindlin_2d import (
-    CM_CONTACT,
-    CM_DEFAULTS,
-    CM_TOP,
-    cattaneo_mindlin_mesh,
-    cattaneo_mindlin_path,
-    cm_traction,
-    dundurs_beta,
-    hertz_half_width,
-    hertz_pressure,
-    stick_half_width,
-)
-from .cattaneo_mindlin_3d import (
-    CM_DEFAULTS_3D,
-    CM_SYMMETRY_Y,
-    ContactPatch,
-    cattaneo_mindlin_mesh_3d,
-    cattaneo_mindlin_path_3d,
-    cm_traction_3d,
-    gather_contact_patch,
-    hertz_radius,
-    stick_radius,
-)
-from .cattaneo_mindlin_measure import (
-    CMMeasure,
-    ContactProfile,
-    gather_contact_profile,
-    measure_cattaneo_mindlin,
-)
 from .friction_2d import (
     FRICTION_DEFAULTS,
     FRICTION_DEFAULTS_3D,
@@ -108,7 +77,6 @@ from .friction_2d import (
     friction_problem,
     goal_friction_force,
 )
-from .indentation_3d import INDENTATION_MATERIAL, goal_total_force, indentation_problem
 from .obstacle_3d import (
     OBSTACLE_MATERIAL,
     goal_obstacle,
@@ -124,22 +92,13 @@ __all__ = [
     "BAR_GAP",
     "BAR_J_REF",
     "BAR_MATERIAL",
-    "CM_CONTACT",
-    "CM_DEFAULTS",
-    "CM_DEFAULTS_3D",
-    "CM_SYMMETRY_Y",
-    "CM_TOP",
     "CONTACT",
     "DIRICHLET",
     "FRICTION_DEFAULTS",
     "FRICTION_DEFAULTS_3D",
-    "INDENTATION_MATERIAL",
     "NEUMANN",
     "OBSTACLE_MATERIAL",
-    "CMMeasure",
     "CellType",
-    "ContactPatch",
-    "ContactProfile",
     "Goal",
     "GoalContext",
     "Material",
@@ -154,13 +113,6 @@ __all__ = [
     "bar_body_force",
     "bar_gap",
     "bar_problem",
-    "cattaneo_mindlin_mesh",
-    "cattaneo_mindlin_mesh_3d",
-    "cattaneo_mindlin_path",
-    "cattaneo_mindlin_path_3d",
-    "cm_traction",
-    "cm_traction_3d",
-    "dundurs_beta",
     "exact_J_a",
     "exact_J_a2",
     "exact_contact_pressure_np",
@@ -170,28 +122,18 @@ __all__ = [
     "exact_stress_np",
     "friction_gap",
     "friction_problem",
-    "gather_contact_patch",
-    "gather_contact_profile",
     "goal_a",
     "goal_a2",
     "goal_a2_weight",
     "goal_bar",
     "goal_friction_force",
     "goal_obstacle",
-    "goal_total_force",
-    "hertz_half_width",
-    "hertz_pressure",
-    "hertz_radius",
-    "indentation_problem",
     "lame_parameters",
-    "measure_cattaneo_mindlin",
     "obstacle_3d_mesh",
     "obstacle_gap",
     "obstacle_problem",
     "obstacle_psi",
     "omega",
-    "stick_half_width",
-    "stick_radius",
     "stress",
     "tag_exterior_facets",
 ]

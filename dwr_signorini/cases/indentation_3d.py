@@ -16,9 +16,8 @@ import numpy as np
 import ufl
 from dolfinx import mesh as _mesh
 
+from ..examples import CONTACT, DIRICHLET, NEUMANN, GoalContext, Material, tag_exterior_facets
 from ..problem import SignoriniProblem
-from ._common import GoalContext, Material
-from ._mesh import CONTACT, DIRICHLET, NEUMANN, tag_exterior_facets
 
 __all__ = ["INDENTATION_MATERIAL", "goal_total_force", "indentation_problem"]
 

@@ -8,13 +8,11 @@ coefficient mu (:class:`~dwr_signorini.laws.Coulomb`). The plane y = 0 is a symm
 displaced by ``(0, 0, -press)`` in the first load step and by ``(k shear / steps, 0, -press)``
 in steps k = 1, ..., ``steps``. :func:`cattaneo_mindlin_path_3d` builds these ``steps + 1``
 problems on one mesh for :func:`~dwr_signorini.solve_path`, as
-:func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_path` does for the
-cylinder; what the two share lives in :mod:`~dwr_signorini.examples.cattaneo_mindlin_2d` (the
-facet tags, the gmsh reader, the load path) and
-:mod:`~dwr_signorini.examples.cattaneo_mindlin_measure` (the gathering of the facets,
-:class:`~dwr_signorini.examples.cattaneo_mindlin_measure.CMMeasure` and
-:func:`~dwr_signorini.examples.cattaneo_mindlin_measure.measure_cattaneo_mindlin`, which
-measures solutions of either path).
+:func:`~dwr_signorini.cases.cattaneo_mindlin_2d.cattaneo_mindlin_path` does for the
+cylinder; what the two share lives in :mod:`~dwr_signorini.cases.load_path` (the
+facet tags, the gmsh reader, the load path) and :mod:`~dwr_signorini.cases.measurement` (the
+gathering of the facets, the theory's fields, :class:`~dwr_signorini.cases.CMMeasure`);
+:func:`~dwr_signorini.cases.measure_cattaneo_mindlin` measures solutions of either path.
 
 Theory (a << R; Johnson, *Contact Mechanics*, 1985, eqs. (4.22)-(4.23) and (7.38)-(7.43)): for
 a rigid flat, with E* = E / (1 - nu^2), P the normal force on the whole sphere and r the
@@ -32,11 +30,11 @@ along Q)
            q(r) = mu p(r),                                                  c <= r <= a.
 
 As in 2D the theory assumes that the normal and the tangential problems decouple (Dundurs'
-beta = 0, :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.dundurs_beta`); nu = 0.49 is the
+beta = 0, :func:`~dwr_signorini.cases.cattaneo_mindlin_2d.dundurs_beta`); nu = 0.49 is the
 default here too.
 
-The measurements (:func:`~dwr_signorini.examples.measure_cattaneo_mindlin` of a 3D solution,
-:class:`~dwr_signorini.examples.CMMeasure`) are those of the whole sphere: on the half body P
+The measurements (:func:`~dwr_signorini.cases.measure_cattaneo_mindlin` of a 3D solution,
+:class:`~dwr_signorini.cases.CMMeasure`) are those of the whole sphere: on the half body P
 and Q (from lambda_t . e_x) are twice the integrals over its Gamma_C, the computed radii a_h and
 c_h are those of the discs whose areas are the (doubled) areas in the flat of the macro facets
 in contact and sticking, and the relative L2 errors are integrated on every macro facet by a
@@ -61,15 +59,9 @@ import numpy.typing as npt
 from dolfinx import mesh as dmesh
 
 from ..problem import SignoriniProblem
-from .cattaneo_mindlin_2d import (
-    _MESHES,
-    _check_steps,
-    _gmsh_mesh,
-    _mesh_script,
-    _shear_path,
-    hertz_pressure,
-)
-from .cattaneo_mindlin_measure import CMMeasure, _cm_measure, _gather_facets, _rel, _theory
+from .cattaneo_mindlin_2d import hertz_pressure
+from .load_path import MESHES, check_steps, gmsh_mesh, mesh_script, shear_path
+from .measurement import CMMeasure, cm_measure, gather_facets, relative_l2, theory_fields
 
 __all__ = [
     "CM_DEFAULTS_3D",
@@ -80,6 +72,7 @@ __all__ = [
     "cm_traction_3d",
     "gather_contact_patch",
     "hertz_radius",
+    "measure_contact_patch",
     "stick_radius",
 ]
 
@@ -87,14 +80,14 @@ __all__ = [
 CM_SYMMETRY_Y = 4
 
 #: The data of :func:`cattaneo_mindlin_path_3d`, as
-#: :data:`~dwr_signorini.examples.CM_DEFAULTS`: ``press`` gives a / R = 0.105 and ``shear`` a
+#: :data:`~dwr_signorini.cases.CM_DEFAULTS`: ``press`` gives a / R = 0.105 and ``shear`` a
 #: final Q / (mu P) of about 0.8 (c / a = 0.57).
 CM_DEFAULTS_3D: dict[str, float] = {
     "radius": 1.0, "E": 1.0, "nu": 0.49, "mu": 0.3, "press": 0.01, "shear": 0.004,
     "steps": 4, "h": 0.25, "h_contact": 0.03, "refine_radius": 0.15,
 }
 
-_MESH_SCRIPT_3D = _MESHES / "hertz_3d.py"
+_MESH_SCRIPT_3D = MESHES / "hertz_3d.py"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -178,7 +171,7 @@ def cattaneo_mindlin_mesh_3d(
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """The half hemisphere y >= 0 of ``meshes/hertz_3d.py``, built by gmsh on rank 0.
 
-    Collective; gmsh as :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_mesh`.
+    Collective; gmsh as :func:`~dwr_signorini.cases.cattaneo_mindlin_2d.cattaneo_mindlin_mesh`.
 
     Args:
         comm: The communicator.
@@ -188,15 +181,16 @@ def cattaneo_mindlin_mesh_3d(
         radius: The radius R.
 
     Returns:
-        ``(mesh, cell_tags, facet_tags)`` with the facet tags :data:`CM_CONTACT` (the sphere),
-        :data:`CM_TOP` (z = R) and :data:`CM_SYMMETRY_Y` (y = 0).
+        ``(mesh, cell_tags, facet_tags)`` with the facet tags
+        :data:`~dwr_signorini.cases.CM_CONTACT` (the sphere),
+        :data:`~dwr_signorini.cases.CM_TOP` (z = R) and :data:`CM_SYMMETRY_Y` (y = 0).
 
     Raises:
         RuntimeError: If the script's tag of the plane y = 0 is not :data:`CM_SYMMETRY_Y`.
     """
-    if _mesh_script(_MESH_SCRIPT_3D).SYMMETRY_Y != CM_SYMMETRY_Y:
+    if mesh_script(_MESH_SCRIPT_3D).SYMMETRY_Y != CM_SYMMETRY_Y:
         raise RuntimeError(f"{_MESH_SCRIPT_3D}: SYMMETRY_Y differs from CM_SYMMETRY_Y")
-    return _gmsh_mesh(comm, _MESH_SCRIPT_3D, radius=radius, h=h, h_contact=h_contact,
+    return gmsh_mesh(comm, _MESH_SCRIPT_3D, radius=radius, h=h, h_contact=h_contact,
                       refine_radius=refine_radius, quarter=0, half=1)
 
 
@@ -229,7 +223,8 @@ def cattaneo_mindlin_path_3d(
         h: Mesh size away from the contact.
         refine_radius: Radius (relative to R) of the zone of size ``h_contact``.
         mesh: ``(msh, cell_tags, facet_tags)`` to use instead of building one (tags
-            :data:`CM_CONTACT`, :data:`CM_TOP`, :data:`CM_SYMMETRY_Y`).
+            :data:`~dwr_signorini.cases.CM_CONTACT`, :data:`~dwr_signorini.cases.CM_TOP`,
+            :data:`CM_SYMMETRY_Y`).
 
     Returns:
         ``steps + 1`` problems on the half body (its forces are half the whole sphere's).
@@ -237,17 +232,17 @@ def cattaneo_mindlin_path_3d(
     Raises:
         ValueError: If ``steps`` is not a positive integer.
 
-    As :func:`~dwr_signorini.examples.cattaneo_mindlin_2d.cattaneo_mindlin_path` on
+    As :func:`~dwr_signorini.cases.cattaneo_mindlin_2d.cattaneo_mindlin_path` on
     :func:`cattaneo_mindlin_mesh_3d`: the top z = R is displaced by ``(0, 0, -press)``, then by
     ``(k shear / steps, 0, -press)``; the plane y = 0 is a symmetry plane (u_y = 0; a shear
     along x keeps the whole sphere's problem symmetric about it). The sphere is projected onto
     itself when the mesh is refined.
     """
-    _check_steps(steps)
+    check_steps(steps)
     if mesh is None:
         mesh = cattaneo_mindlin_mesh_3d(
             comm, h_contact=h_contact, h=h, refine_radius=refine_radius, radius=radius)
-    return _shear_path(mesh, 3, mu=mu, nu=nu, steps=steps, press=press, shear=shear, E=E,
+    return shear_path(mesh, 3, mu=mu, nu=nu, steps=steps, press=press, shear=shear, E=E,
                        radius=radius, fixed={CM_SYMMETRY_Y: (None, 0.0, None)})
 
 
@@ -328,7 +323,7 @@ def gather_contact_patch(sol: Any) -> ContactPatch | None:
     area = np.full(n, np.nan)
     area[owned] = sol.system.M.array[:n_q][dofs[owned]]
     areas = sub.comm.gather(area, root=0)
-    facets = _gather_facets(sol)
+    facets = gather_facets(sol)
     if facets is None:
         return None
     x, lam, lam_t, active, stick, slip = facets
@@ -356,17 +351,32 @@ def _triangle_rule(x: np.ndarray, points: int) -> tuple[np.ndarray, np.ndarray]:
     return pts, weights
 
 
-def _measure_on_root_3d(
+def measure_contact_patch(
     patch: ContactPatch, mu: float, E: float, nu: float, radius: float, points: int,
     half: bool | None,
 ) -> CMMeasure:
-    """:func:`~dwr_signorini.examples.measure_cattaneo_mindlin` on the facets of a 3D solution."""
+    """Measure the gathered facets of a 3D solution against Hertz and Mindlin (module docstring).
+
+    Args:
+        patch: The facets of :func:`gather_contact_patch` (rank 0).
+        mu: Coulomb's friction coefficient of the path.
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        radius: The radius R.
+        points: Gauss-Legendre points per direction of the collapsed rule on each triangle.
+        half: The mesh is the half y >= 0 of a body symmetric about y = 0 (forces and areas
+            doubled); None: if no contact facet reaches below y = 0.
+
+    Returns:
+        The :class:`~dwr_signorini.cases.measurement.CMMeasure` of
+        :func:`~dwr_signorini.cases.measure_cattaneo_mindlin`.
+    """
     if half is None:
         half = bool(patch.x[..., 1].min() > -1e-9 * radius)
     factor = 2.0 if half else 1.0
     P = factor * float(np.sum(patch.lam * patch.area))
     Q = factor * float(np.sum(patch.lam_t[:, 0] * patch.area))
-    theory = _theory(P, Q, mu, hertz_radius(P, radius, E, nu), stick_radius)
+    theory = theory_fields(P, Q, mu, hertz_radius(P, radius, E, nu), stick_radius)
     a, p0, c = theory["a"], theory["p0"], theory["c"]
 
     def disc_radius(mask: np.ndarray) -> float:
@@ -396,11 +406,12 @@ def _measure_on_root_3d(
     rc = np.maximum(patch.r, 1e-300)
     radial = (cx * patch.lam_t[:, 0] + patch.centroid[:, 1] * patch.lam_t[:, 1]) / rc
     normal = mu * float(np.sum(patch.lam * patch.area))
-    return _cm_measure(
+    return cm_measure(
         theory, a_h, c_h, center, h_facet, patch.stick, patch.slip,
-        l2_lam_t=_rel(err_t, norm_q), l2_best=_rel(err_b, norm_q), l2_lam=_rel(err_n, norm_p),
+        l2_lam_t=relative_l2(err_t, norm_q), l2_best=relative_l2(err_b, norm_q),
+        l2_lam=relative_l2(err_n, norm_p),
         max_lam_t=float(mag.max() / (mu * p0)) if p0 > 0 else math.nan,
-        rms_lam_t=_rel(float(np.sum(patch.area * mag**2)), mu**2 * norm_p),
+        rms_lam_t=relative_l2(float(np.sum(patch.area * mag**2)), mu**2 * norm_p),
         coupling=float(np.sum(radial * patch.area)) / normal if normal > 0 else math.nan,
-        dim=3, l2_lam_ty=_rel(ty, norm_q),
+        dim=3, l2_lam_ty=relative_l2(ty, norm_q),
     )

@@ -28,7 +28,7 @@ beta = (1 - 2 nu) / (2 (1 - nu)) vanishes (:func:`dundurs_beta`). With nu = 0.49
 nu = 1/2 itself is not admissible in the displacement formulation) beta = 0.0196, and the press
 alone leaves an odd tangential traction (Poisson's ratio draws the contact surface inwards and
 friction resists it;
-:attr:`~dwr_signorini.examples.cattaneo_mindlin_measure.CMMeasure.coupling`). Measured at the
+:attr:`~dwr_signorini.cases.CMMeasure.coupling`). Measured at the
 defaults (mu = 0.3, macro facets of 0.02 to 0.0025 at the contact): the mean friction on either
 half of the contact is within 3.5 % of its Coulomb limit, with a sign that changes with the
 mesh, while lambda_t oscillates from facet to facet (rms 0.10-0.18 of mu p, up to 0.4 mu p0 at
@@ -37,9 +37,9 @@ displacement's response to nu = 0.49 (lambda / mu = 49, near-incompressible), se
 too, and it also rides on lambda_t in the shear steps (about +-0.08 mu p0 in the stick zone).
 
 The measurements against this theory (and that of the sphere) are in
-:mod:`~dwr_signorini.examples.cattaneo_mindlin_measure`. The 3D path of
-:mod:`~dwr_signorini.examples.cattaneo_mindlin_3d` (a sphere) imports the pieces the two
-dimensions share from here (the tags, the gmsh reader, the load path).
+:mod:`~dwr_signorini.cases.cattaneo_mindlin_measure`. The 3D path of
+:mod:`~dwr_signorini.cases.cattaneo_mindlin_3d` (a sphere) shares the tags, the gmsh reader
+and the load path with it (:mod:`~dwr_signorini.cases.load_path`).
 
 The mesh builder reads the gmsh script ``meshes/cattaneo_2d.py``, found through the package
 (:mod:`dwr_signorini.meshes`, the checkout's ``meshes/`` installed with it), so it works from the
@@ -49,11 +49,7 @@ script's tags to use another mesh.
 
 from __future__ import annotations
 
-import importlib.resources
-import importlib.util
 import math
-from pathlib import Path
-from typing import Any
 
 from mpi4py import MPI
 
@@ -61,15 +57,11 @@ import numpy as np
 import numpy.typing as npt
 from dolfinx import mesh as dmesh
 
-from ..laws import Coulomb
-from ..mesh_io import read_mesh
-from ..obstacles import Plane
 from ..problem import SignoriniProblem
+from .load_path import MESHES, check_steps, gmsh_mesh, shear_path
 
 __all__ = [
-    "CM_CONTACT",
     "CM_DEFAULTS",
-    "CM_TOP",
     "cattaneo_mindlin_mesh",
     "cattaneo_mindlin_path",
     "cm_traction",
@@ -79,10 +71,6 @@ __all__ = [
     "stick_half_width",
 ]
 
-#: Facet tags of ``meshes/cattaneo_2d.py`` (and of ``meshes/hertz_3d.py``): the arc Gamma_C
-#: and the top.
-CM_CONTACT, CM_TOP = 1, 2
-
 #: The data of :func:`cattaneo_mindlin_path`: geometry, material, friction, the top's
 #: displacements, load steps and the gmsh mesh sizes. ``press`` gives a / R = 0.094 and
 #: ``shear`` a final Q / (mu P) of 0.69 (c / a = 0.56), in four shear steps.
@@ -91,10 +79,8 @@ CM_DEFAULTS: dict[str, float] = {
     "steps": 4, "h": 0.2, "h_contact": 0.01, "refine_radius": 0.15,
 }
 
-# The gmsh scripts: the checkout's meshes/, installed with the package as dwr_signorini.meshes
-# (found through the package, wherever it is imported from).
-_MESHES = Path(str(importlib.resources.files("dwr_signorini.meshes")))
-_MESH_SCRIPT = _MESHES / "cattaneo_2d.py"
+#: The gmsh script of the half-disc (:data:`~dwr_signorini.cases.load_path.MESHES`).
+_MESH_SCRIPT = MESHES / "cattaneo_2d.py"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -136,7 +122,7 @@ def hertz_half_width(P: float, radius: float, E: float, nu: float) -> tuple[floa
 def hertz_pressure(x: npt.ArrayLike, a: float, p0: float) -> np.ndarray:
     """Hertz's pressure p(x) = p0 sqrt(1 - x^2 / a^2) on ``|x| <= a``, 0 outside, eq. (H3).
 
-    Also the sphere's p(r), eq. (H3') of :mod:`~dwr_signorini.examples.cattaneo_mindlin_3d`.
+    Also the sphere's p(r), eq. (H3') of :mod:`~dwr_signorini.cases.cattaneo_mindlin_3d`.
 
     Args:
         x: Positions along the flat (distances r in 3D), from the first contact point.
@@ -200,21 +186,6 @@ def cm_traction(x: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> n
 # --------------------------------------------------------------------------------------------------
 
 
-def _mesh_script(script: Path = _MESH_SCRIPT) -> Any:
-    """The module ``dwr_signorini/meshes/cattaneo_2d.py`` (or ``script``) of the package."""
-    if not script.is_file():
-        raise FileNotFoundError(
-            f"the Cattaneo-Mindlin mesh builders read the gmsh script {script}, which is missing "
-            "(a package installed without its meshes/): pass mesh=(msh, cell_tags, facet_tags)"
-        )
-    spec = importlib.util.spec_from_file_location(f"meshes_{script.stem}", script)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    if (module.CONTACT, module.TOP) != (CM_CONTACT, CM_TOP):
-        raise RuntimeError(f"{script}: tags differ from CM_CONTACT, CM_TOP")
-    return module
-
-
 def cattaneo_mindlin_mesh(
     comm: MPI.Comm,
     h_contact: float = CM_DEFAULTS["h_contact"],
@@ -235,98 +206,12 @@ def cattaneo_mindlin_mesh(
         radius: The radius R.
 
     Returns:
-        ``(mesh, cell_tags, facet_tags)`` with the facet tags :data:`CM_CONTACT`, :data:`CM_TOP`.
+        ``(mesh, cell_tags, facet_tags)`` with the facet tags
+        :data:`~dwr_signorini.cases.CM_CONTACT`,
+        :data:`~dwr_signorini.cases.CM_TOP`.
     """
-    return _gmsh_mesh(comm, _MESH_SCRIPT, radius=radius, h=h, h_contact=h_contact,
-                      refine_radius=refine_radius)
-
-
-def _gmsh_mesh(
-    comm: MPI.Comm, script_path: Path, **kwargs: Any
-) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
-    """The mesh of a gmsh script's ``build(model, **kwargs)``, made on rank 0 and distributed."""
-    import gmsh
-
-    script = _mesh_script(script_path)
-    started = not gmsh.isInitialized()
-    if started:
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        if comm.rank == 0:
-            gmsh.model.add(script_path.stem)
-            script.build(gmsh.model, **kwargs)
-        return read_mesh(gmsh.model, comm)
-    finally:
-        if started:
-            gmsh.finalize()
-        elif comm.rank == 0:
-            gmsh.model.remove()
-
-
-def _check_steps(steps: int) -> None:
-    """Raise a ValueError unless ``steps`` is a positive integer."""
-    if int(steps) != steps or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
-
-
-def _shear_path(
-    mesh: tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags],
-    dim: int,
-    *,
-    mu: float,
-    nu: float,
-    steps: int,
-    press: float,
-    shear: float,
-    E: float,
-    radius: float,
-    fixed: dict[int, tuple[float | None, ...]] | None = None,
-) -> list[SignoriniProblem]:
-    """The press step and the ``steps`` shear steps of a cylinder (2D) or sphere (3D).
-
-    The body of radius ``radius`` centred at ``radius e_dim`` touches the rigid flat
-    x_dim <= 0 at the origin (Coulomb friction ``mu``); its top :data:`CM_TOP` is displaced by
-    ``-press e_dim + (k shear / steps) e_x`` in step k = 0, ..., ``steps``, and
-    :data:`CM_CONTACT` is projected onto the circle (sphere) when the mesh is refined.
-
-    Args:
-        mesh: ``(msh, cell_tags, facet_tags)``.
-        dim: 2 (plane strain) or 3.
-        mu: Coulomb's friction coefficient.
-        nu: Poisson's ratio.
-        steps: The number of shear steps.
-        press: The top's displacement towards the flat.
-        shear: The top's final displacement along x.
-        E: Young's modulus.
-        radius: The radius R.
-        fixed: Further Dirichlet conditions of every step, ``{tag: components}``.
-
-    Returns:
-        ``steps + 1`` problems on ``mesh``.
-    """
-    msh, cell_tags, facet_tags = mesh
-    flat = Plane((0.0,) * dim, (0.0,) * (dim - 1) + (-1.0,))
-    center = np.zeros(3)
-    center[dim - 1] = radius
-    center = center[:, None]
-
-    def onto_surface(x: np.ndarray) -> np.ndarray:
-        d = x - center
-        d[dim:] = 0.0
-        return center + radius * d / np.linalg.norm(d, axis=0)
-
-    law = Coulomb(mu)
-    model = "plane_strain" if dim == 2 else "3d"
-    return [
-        SignoriniProblem(
-            msh, facet_tags, contact=CM_CONTACT,
-            dirichlet={CM_TOP: (k * shear / steps, *(0.0,) * (dim - 2), -press), **(fixed or {})},
-            E=E, nu=nu, model=model, gap=flat, friction=law, cell_tags=cell_tags,
-            boundary_projection={CM_CONTACT: onto_surface},
-        )
-        for k in range(int(steps) + 1)
-    ]
+    return gmsh_mesh(comm, _MESH_SCRIPT, radius=radius, h=h, h_contact=h_contact,
+                     refine_radius=refine_radius)
 
 
 def cattaneo_mindlin_path(
@@ -361,7 +246,8 @@ def cattaneo_mindlin_path(
         h: Mesh size away from the contact.
         refine_radius: Radius (relative to R) of the zone of size ``h_contact``.
         mesh: ``(msh, cell_tags, facet_tags)`` to use instead of building one (tags
-            :data:`CM_CONTACT`, :data:`CM_TOP`).
+            :data:`~dwr_signorini.cases.CM_CONTACT`,
+            :data:`~dwr_signorini.cases.CM_TOP`).
 
     Returns:
         ``steps + 1`` problems: the press ``(0, -press)``, then ``(k shear / steps, -press)``.
@@ -369,9 +255,9 @@ def cattaneo_mindlin_path(
     Raises:
         ValueError: If ``steps`` is not a positive integer.
     """
-    _check_steps(steps)
+    check_steps(steps)
     if mesh is None:
         mesh = cattaneo_mindlin_mesh(
             comm, h_contact=h_contact, h=h, refine_radius=refine_radius, radius=radius)
-    return _shear_path(mesh, 2, mu=mu, nu=nu, steps=steps, press=press, shear=shear, E=E,
-                       radius=radius)
+    return shear_path(mesh, 2, mu=mu, nu=nu, steps=steps, press=press, shear=shear, E=E,
+                      radius=radius)

@@ -1,0 +1,77 @@
+"""Benchmark cases beside the paper's examples: problems the demos, tests and benchmarks measure.
+
+Not in the paper, with gmsh meshes (:mod:`dwr_signorini.meshes`), tags and load paths of their own:
+
+* Cattaneo-Mindlin with Coulomb friction: a cylinder
+  (:mod:`~dwr_signorini.cases.cattaneo_mindlin_2d`) or a sphere
+  (:mod:`~dwr_signorini.cases.cattaneo_mindlin_3d`) pressed onto a rigid flat and sheared in
+  steps (the meshes and the load path they share: :mod:`~dwr_signorini.cases.load_path`),
+  measured against the theory (:mod:`~dwr_signorini.cases.cattaneo_mindlin_measure`, with
+  :mod:`~dwr_signorini.cases.measurement`);
+* :mod:`~dwr_signorini.cases.indentation_3d`: a sphere pressed into a block, the goal the total
+  contact force (the benchmarks' 3D problem).
+
+They build on :mod:`dwr_signorini.examples` (its boundary tags, material record and goal
+interface) and are installed with the package, so they work outside the checkout.
+"""
+
+from .cattaneo_mindlin_2d import (
+    CM_DEFAULTS,
+    cattaneo_mindlin_mesh,
+    cattaneo_mindlin_path,
+    cm_traction,
+    dundurs_beta,
+    hertz_half_width,
+    hertz_pressure,
+    stick_half_width,
+)
+from .cattaneo_mindlin_3d import (
+    CM_DEFAULTS_3D,
+    CM_SYMMETRY_Y,
+    ContactPatch,
+    cattaneo_mindlin_mesh_3d,
+    cattaneo_mindlin_path_3d,
+    cm_traction_3d,
+    gather_contact_patch,
+    hertz_radius,
+    measure_contact_patch,
+    stick_radius,
+)
+from .cattaneo_mindlin_measure import (
+    ContactProfile,
+    gather_contact_profile,
+    measure_cattaneo_mindlin,
+)
+from .indentation_3d import INDENTATION_MATERIAL, goal_total_force, indentation_problem
+from .load_path import CM_CONTACT, CM_TOP
+from .measurement import CMMeasure
+
+__all__ = [
+    "CM_CONTACT",
+    "CM_DEFAULTS",
+    "CM_DEFAULTS_3D",
+    "CM_SYMMETRY_Y",
+    "CM_TOP",
+    "INDENTATION_MATERIAL",
+    "CMMeasure",
+    "ContactPatch",
+    "ContactProfile",
+    "cattaneo_mindlin_mesh",
+    "cattaneo_mindlin_mesh_3d",
+    "cattaneo_mindlin_path",
+    "cattaneo_mindlin_path_3d",
+    "cm_traction",
+    "cm_traction_3d",
+    "dundurs_beta",
+    "gather_contact_patch",
+    "gather_contact_profile",
+    "goal_total_force",
+    "hertz_half_width",
+    "hertz_pressure",
+    "hertz_radius",
+    "indentation_problem",
+    "measure_cattaneo_mindlin",
+    "measure_contact_patch",
+    "stick_half_width",
+    "stick_radius",
+]
