@@ -198,6 +198,11 @@ def plot_convergence(
         r"cells $M_\Omega$ of $T_h$" if x == "num_cells" else "cumulative wall-clock time [s]"
     )
     ax.set_ylabel("relative error / estimate")
+    return _finish(fig, ax, path, title)
+
+
+def _finish(fig: Any, ax: Any, path: str | os.PathLike, title: str | None) -> Path | None:
+    """Grid, title and legend of a log-scale figure; write it to ``path``."""
     ax.grid(True, which="both", alpha=0.3)
     if title:
         ax.set_title(title)
@@ -346,11 +351,7 @@ def plot_interval(
     ax.set_xscale("log")
     ax.set_xlabel(r"cells $M_\Omega$ of $T_h$")
     ax.set_ylabel(r"$J$")
-    ax.grid(True, which="both", alpha=0.3)
-    if title:
-        ax.set_title(title)
-    ax.legend(fontsize="small")
-    return save_figure(fig, path)
+    return _finish(fig, ax, path, title)
 
 
 def plot_effectivity(
