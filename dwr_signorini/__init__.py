@@ -14,6 +14,7 @@ from .estimator import Estimate, estimate
 from .laws import Coulomb, Frictionless, Tresca
 from .mesh_io import read_mesh
 from .newton import Solution, solve
+from .pairs import ContactPair
 from .path import PathResult, StepRecord, solve_path
 from .problem import SignoriniProblem
 from .report import AdaptiveResult, LevelRecord
@@ -32,6 +33,7 @@ __all__ = [
     "WEIGHTS",
     "AdaptiveResult",
     "CollectiveError",
+    "ContactPair",
     "ConvergenceError",
     "Coulomb",
     "Discretization",

@@ -144,9 +144,17 @@ class ContactAlgebra:
                 with_quadrature_degrees(fields.gap(m.x, m.n) * mu * m.ds_contact, degree)
             ),
         }
+        self.trace = disc.master_trace(V)
+        if self.trace is not None:  # the master side: B_W of (mu, w . e_k), w in W
+            w = ufl.TrialFunction(self.trace.W)
+            forms["B"] = [
+                form(ufl.inner(mu, ufl.dot(w, comp.direction(m.n))) * m.ds_contact)
+                for comp in self.components
+            ]
         if disc.u_old is not None:  # the slip increment of a load step: g_k = B_k u_old
+            u_old = disc.relative(disc.u_old)
             forms["u_old"] = [
-                form(ufl.dot(disc.u_old, comp.direction(m.n)) * mu * m.ds_contact)
+                form(ufl.dot(u_old, comp.direction(m.n)) * mu * m.ds_contact)
                 for comp in self.components[1:]
             ]
         bound = problem.law.bound_expr(fields, m.x)
@@ -195,6 +203,8 @@ class ContactAlgebra:
             M_owned = M.array.copy()
             self.M = self._stacked_vector([M] * len(self.components))
             self.g = self._stacked_vector(g)
+            if self.trace is not None:
+                self._couple_master([self._matrix_free(f) for f in forms["B"]], lift)
             self.bounds: list[np.ndarray | None] = [None] * len(self.components)
             if "bound" in forms:
                 b = self._vector(forms["bound"])
@@ -209,6 +219,45 @@ class ContactAlgebra:
         else:
             c_n = np.full(len(M_owned), self.ncp_scale)
         self.c_n = np.tile(c_n, len(self.components))
+
+    def _couple_master(self, B: list[PETSc.Mat], lift: bool) -> None:
+        """N <- N (I - P) and N^T its transpose, g <- g + B_W P u_D (:mod:`~.pairs`).
+
+        B_W (the components' rows stacked) maps the trace space W to the multiplier rows; P
+        projects the master trace onto W. The columns of the Dirichlet dofs are dropped from
+        P as from N; with prescribed values the master part of the lifting enters g.
+        """
+        B_W = self._stacked(B, rows=True)
+        P = self.trace.P
+        if lift:
+            u_D = self.f.duplicate()
+            u_D.set(0.0)
+            self.set_prescribed(u_D.array_w)
+            w, lifted = P.createVecLeft(), B_W.createVecLeft()
+            P.mult(u_D, w)
+            B_W.mult(w, lifted)
+            self.g.axpy(1.0, lifted)
+            for obj in (u_D, w, lifted):
+                obj.destroy()
+        mask = self.f.duplicate()
+        mask.set(1.0)
+        for bc in self.bcs:
+            bc.set(mask.array_w)
+        free = P.copy()
+        free.diagonalScale(R=mask)
+        coupling = B_W.matMult(free)
+        self.N.axpy(-1.0, coupling, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        self.NT.destroy()
+        self.NT = PETSc.Mat()
+        self.N.transpose(self.NT)  # into a new matrix (without one, in place)
+        for obj in (B_W, free, coupling, mask):
+            obj.destroy()
+
+    def _matrix_free(self, form: fem.Form) -> PETSc.Mat:
+        """A matrix of ``form`` without Dirichlet rows or columns (its spaces have none)."""
+        A = fem_petsc.assemble_matrix(form)
+        A.assemble()
+        return A
 
     def _offset(
         self, layout: fem.Form, lifting: fem.Form | None, u_old: fem.Form | None = None

@@ -181,6 +181,28 @@ def _assemble_indicators(
     return out
 
 
+def _master_share(
+    disc: Any, form: ufl.Form, weight: Any, DG0: fem.FunctionSpace, degree: int | None
+) -> np.ndarray:
+    """The cell indicators of ``form`` moved from the slave to the master cells (:mod:`.pairs`).
+
+    The part of ``form`` linear in the master trace P v of the displacement weight v, which the
+    localisation put on the slave cells, goes to the master cells its points project into:
+    the returned array is added to the indicators (zero without contact pairs).
+    """
+    out = np.zeros(DG0.dofmap.index_map.size_local + DG0.dofmap.index_map.num_ghosts)
+    functions = weight.ufl_operands if isinstance(weight, ufl.algebra.Sum) else (weight,)
+    for v in functions:
+        trace = disc.master_trace(v.function_space) if isinstance(v, fem.Function) else None
+        image = None if trace is None else trace.image(v)
+        if image is None:
+            continue
+        part = ufl.derivative(form, image, image)  # the form is linear in P v
+        (slave,) = _assemble_indicators(disc, [part], DG0, degree)
+        out += trace.share(slave, DG0) - slave
+    return out
+
+
 def _higher_order_solutions(
     sol: Solution, goal: GoalForms, rec: Reconstructor, primal: bool, petsc_options: Any
 ) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
@@ -313,7 +335,11 @@ def _terms(
     if want_eta:
         w_lam = tuple(p - f for p, f in zip(lam_plus, sol.multipliers, strict=True))
         forms.append(dual_residual(sol, inp.goal_forms, z, w_u, w_lam, c))
-    ind_rho, ind_c, ind_a, *rest = _assemble_indicators(disc, forms, DG0, quadrature_degree)
+    indicators = _assemble_indicators(disc, forms, DG0, quadrature_degree)
+    weighted = [(0, w_y), (3, w_u)] if want_eta else [(0, w_y)]
+    for k, weight in weighted:  # the master traces' terms to the master cells
+        indicators[k] += _master_share(disc, forms[k], weight, DG0, quadrature_degree)
+    ind_rho, ind_c, ind_a, *rest = indicators
     ind_star = rest[0] if want_eta else None
 
     def total(a: np.ndarray) -> float:

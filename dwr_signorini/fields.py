@@ -112,6 +112,8 @@ class MeshFields:
             by a material given per cell tag.
         contact_indicators: ``{contact tag: function of Lambda_H}``, 1 on that tag's macro
             facets, needed by data given per contact tag (with several contact tags).
+        pair_gap: With contact pairs, returns the gap of the pairs on this mesh (the
+            projected gap of its master trace, :mod:`~dwr_signorini.pairs`).
 
     Attributes:
         problem: The problem.
@@ -126,8 +128,10 @@ class MeshFields:
         mesh: dmesh.Mesh,
         cell_tags: dmesh.MeshTags | None = None,
         contact_indicators: Mapping[int, fem.Function] | None = None,
+        pair_gap: Callable[[], fem.Function] | None = None,
     ) -> None:
         self.problem = problem
+        self.pair_gap = pair_gap
         self.mesh = mesh
         self.cell_tags = cell_tags
         self.contact_indicators = (
@@ -232,12 +236,32 @@ class MeshFields:
             ValueError: A gap that differs between contact tags, and no contact indicators.
         """
         miss = self.problem.miss_gap
-        return self.contact_expr(
-            self.problem.gap, x, "gap", lambda g: gap_value(g, x, n, miss)
-        )
+
+        def value(g: Any) -> Any:
+            return gap_value(g, x, n, miss)
+
+        problem = self.problem
+        if not problem.pairs:
+            return self.contact_expr(problem.gap, x, "gap", value)
+        if self.pair_gap is None:
+            raise ValueError(
+                "the gap of a ContactPair is measured on a discretisation's mesh: use its "
+                "fields, disc.fields.gap(m.x)"
+            )
+        pairs = self.pair_gap()
+        if not problem.rigid_tags:
+            return pairs
+        chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)
+        rigid = self.contact_expr(problem.gap, x, "gap", value, problem.rigid_tags)
+        return chi * rigid + (1.0 - chi) * pairs
 
     def contact_expr(
-        self, data: Any, x: Any, name: str, value: Callable[[Any], Any] | None = None
+        self,
+        data: Any,
+        x: Any,
+        name: str,
+        value: Callable[[Any], Any] | None = None,
+        tags: tuple[int, ...] | None = None,
     ) -> ufl.core.expr.Expr:
         """Data on Gamma_C (the gap, a friction threshold) as UFL on this mesh.
 
@@ -250,6 +274,7 @@ class MeshFields:
             x: The spatial coordinate of this mesh.
             name: The argument's name, for errors.
             value: One value's expression (default: a callable is called with ``x``).
+            tags: The contact tags the data is for (default: all).
 
         Returns:
             The data as a UFL scalar expression.
@@ -271,4 +296,5 @@ class MeshFields:
                 f"{name} is given per contact tag: its expression needs the contact-tag "
                 "indicators of a discretisation (use disc.fields, e.g. disc.fields.gap(m.x))"
             )
-        return sum(indicators[t] * ufl.as_ufl(values[t]) for t in self.problem.contact_tags)
+        tags = self.problem.contact_tags if tags is None else tags
+        return sum(indicators[t] * ufl.as_ufl(values[t]) for t in tags)

@@ -24,6 +24,7 @@ from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
 from .mesh_validation import check_cell_tags, check_mesh, check_tags
 from .obstacles import Obstacle
+from .pairs import ContactPair, check_contact_pairs, check_pair_bodies, check_pair_gap
 from .quadrature import DATA_QUADRATURE_DEGREE
 from .validation import (
     MODELS,
@@ -57,7 +58,10 @@ class SignoriniProblem:
             runs). The displacement lives on its uniform refinement T_h, the contact force on its
             contact facets (P0, so H = 2h).
         facet_tags: Facet tags of ``mesh``.
-        contact: Tag, or tags, of the possible contact boundary Gamma_C.
+        contact: Tag, or tags, of the possible contact boundary Gamma_C with the rigid
+            obstacle, and :class:`~dwr_signorini.pairs.ContactPair` ``(slave=, master=)``
+            entries: facets of one body that may touch facets of another body of the mesh
+            (Gamma_C is then the slave side; a list may mix pairs and tags).
         dirichlet: Gamma_D: tags clamped (u = 0), or ``{tag: value}`` with ``value`` a number
             (every component equals it, e.g. ``0.0``), a tuple of ``gdim`` numbers or ``None``
             (``None`` = that component free: ``(0.0, None)`` is a roller / symmetry plane
@@ -76,7 +80,8 @@ class SignoriniProblem:
             components; contact faces carry none.
         gap: The gap g of the linearised contact condition u_n <= g on Gamma_C (eq. 2): a finite
             float, a callable ``x -> UFL scalar``, an obstacle of :mod:`dwr_signorini.obstacles`
-            (the distance along the outward normal), or ``{contact tag: any of these}``.
+            (the distance along the outward normal), or ``{contact tag: any of these}``; for
+            the rigid contact tags only (a pair's gap is measured from the meshes).
         cell_tags: Cell tags of ``mesh``, needed when ``E`` or ``nu`` is a dict.
         boundary_projection: ``{facet tag: callable}``: the callable maps points (an array of
             shape (3, n)) onto the true (curved) surface of that boundary; after each refinement
@@ -109,7 +114,7 @@ class SignoriniProblem:
         self,
         mesh: dmesh.Mesh,
         facet_tags: dmesh.MeshTags,
-        contact: int | Iterable[int],
+        contact: int | ContactPair | Iterable[int | ContactPair],
         dirichlet: Iterable[int] | Mapping[int, DirichletData] = (),
         E: MaterialData = 1.0,
         nu: MaterialData = 0.3,
@@ -130,24 +135,32 @@ class SignoriniProblem:
         self.cell_tags = check_cell_tags(cell_tags, mesh, E, nu)
         self.E = check_material(E, "E", mesh, self.cell_tags)
         self.nu = check_material(nu, "nu", mesh, self.cell_tags)
-        self.contact_tags = check_contact(contact)
+        tags, self.pairs = check_contact_pairs(contact)
+        self.contact_tags = check_contact(tags)
         self.contact: int | tuple[int, ...] = (
             self.contact_tags[0] if len(self.contact_tags) == 1 else self.contact_tags
         )
-        self.dirichlet_values = check_dirichlet(dirichlet, mesh, self.contact_tags)
+        self.master_tags = tuple(p.master for p in self.pairs)
+        slaves = {p.slave for p in self.pairs}
+        self.rigid_tags = tuple(t for t in self.contact_tags if t not in slaves)
+        sides = self.contact_tags + self.master_tags
+        self.dirichlet_values = check_dirichlet(dirichlet, mesh, sides)
         self.dirichlet = tuple(self.dirichlet_values)
         self.body_force, self.traction = check_loads(
-            body_force, traction, mesh, self.contact_tags, self.dirichlet_values
+            body_force, traction, mesh, sides, self.dirichlet_values
         )
-        self.gap = check_gap(gap, mesh, facet_tags, self.contact_tags)
+        self.gap = check_pair_gap(gap, self.pairs, self.rigid_tags) if self.pairs else gap
+        self.gap = check_gap(self.gap, mesh, facet_tags, self.rigid_tags or self.contact_tags)
         self.boundary_projection = check_projection(boundary_projection)
         used = (
             [("contact", t) for t in self.contact_tags]
+            + [("ContactPair master", t) for t in self.master_tags]
             + [("dirichlet", t) for t in self.dirichlet]
             + [("traction", t) for t in self.traction]
             + [("boundary_projection", t) for t in self.boundary_projection]
         )
-        check_tags(mesh, facet_tags, used, self.contact_tags)
+        check_tags(mesh, facet_tags, used, sides)
+        check_pair_bodies(mesh, facet_tags, self.pairs)
         self.law = check_law(friction, self)
         self.friction = self.law if self.law.frictional else None
         self._miss = _miss_gap(mesh, self.gap)  # collective: computed once, here
@@ -162,6 +175,13 @@ class SignoriniProblem:
     def __delattr__(self, name: str) -> NoReturn:
         """The problem is frozen: no attribute can be deleted."""
         _frozen_error(name)
+
+    @property
+    def contact_entries(self) -> int | tuple[Any, ...]:
+        """``contact`` as given: the tags, with each pair's slave tag replaced by the pair."""
+        by_slave = {p.slave: p for p in self.pairs}
+        entries = tuple(by_slave.get(t, t) for t in self.contact_tags)
+        return entries[0] if len(entries) == 1 and not self.pairs else entries
 
     @property
     def homogeneous_dirichlet(self) -> bool:
@@ -310,7 +330,7 @@ class SignoriniProblem:
         return SignoriniProblem(
             mesh,
             facet_tags,
-            self.contact_tags if len(self.contact_tags) > 1 else self.contact_tags[0],
+            self.contact_entries,
             self.dirichlet_values,
             self.E,
             self.nu,

@@ -137,8 +137,9 @@ def ncp_terms(sol: Any, u: Any, lams: Any, c: Any) -> list:
     """Each component's (x_k, P_k(x_k), P_k'(x_k)) at (u, lams) (:mod:`~dwr_signorini.laws`)."""
     disc = sol.disc
     m, fields = disc.m, disc.fields
+    u_old = None if disc.u_old is None else disc.relative(disc.u_old)
     return disc.problem.law.ncp_arguments(
-        u, _tuple(lams), fields.gap(m.x), m.n, c, fields, disc.u_old
+        disc.relative(u), _tuple(lams), fields.gap(m.x), m.n, c, fields, u_old
     )
 
 
@@ -172,8 +173,9 @@ def primal_residual(sol: Any, v: Any, mu: Any, c: Any) -> ufl.Form:
     m = disc.m
     components = disc.problem.law.components(m.mesh.topology.dim)
     form = disc.load_form(v) - disc.fields.elastic_form(sol.u, v, m.dx)
+    v_rel = disc.relative(v)
     for comp, lam in zip(components, sol.multipliers, strict=True):
-        form -= lam * ufl.dot(v, comp.direction(m.n)) * m.ds_contact
+        form -= lam * ufl.dot(v_rel, comp.direction(m.n)) * m.ds_contact
     return form - contact_term(sol, mu, c)
 
 
@@ -195,16 +197,17 @@ def dual_residual(
     terms = ncp_terms(sol, sol.u, sol.multipliers, c)
     mus = _tuple(mu)
     directions = [comp.direction(m.n) for comp in components]
+    v_rel, y_rel = disc.relative(v), disc.relative(z.y)
     form = -disc.fields.elastic_form(v, z.y, m.dx)
     for k, ((_, _, J_k), xi, mu_k) in enumerate(zip(terms, z.multipliers, mus, strict=True)):
         # b_k(xi, v) = (c xi_k, sum_l J_kl v . e_l), c_k(xi, mu) = (xi_k, mu_k - sum_l J_kl mu_l)
         chi = J_k[k]
-        form += c * xi * chi * ufl.dot(v, directions[k]) * m.ds_contact
-        form -= mu_k * ufl.dot(z.y, directions[k]) * m.ds_contact
+        form += c * xi * chi * ufl.dot(v_rel, directions[k]) * m.ds_contact
+        form -= mu_k * ufl.dot(y_rel, directions[k]) * m.ds_contact
         form -= xi * (1.0 - chi) * mu_k * m.ds_contact
         for j, (J_kj, e_j, mu_j) in enumerate(zip(J_k, directions, mus, strict=True)):
             if j != k and _nonzero(J_kj):  # the coupling of a projection onto a ball
-                form += (c * xi * J_kj * ufl.dot(v, e_j) + xi * J_kj * mu_j) * m.ds_contact
+                form += (c * xi * J_kj * ufl.dot(v_rel, e_j) + xi * J_kj * mu_j) * m.ds_contact
     dJ = goal.directional(v, *mus)
     return form if dJ is None else dJ + form
 
@@ -226,12 +229,14 @@ def active_set_remainder(
         xi_plus: The reconstructed dual multiplier, or one per component (a tuple).
         c: The scale of the NCP.
     """
-    m = sol.disc.m
-    gap = sol.disc.fields.gap(m.x)
-    arg_h = ncp_argument(sol.u, sol.lam, gap, m.n, c)
-    chi_h = active_indicator(sol.u, sol.lam, gap, m.n, c)
+    disc = sol.disc
+    m = disc.m
+    gap = disc.fields.gap(m.x)
+    u_h = disc.relative(sol.u)
+    arg_h = ncp_argument(u_h, sol.lam, gap, m.n, c)
+    chi_h = active_indicator(u_h, sol.lam, gap, m.n, c)
     lam_plus, xi_plus = _tuple(lam_plus), _tuple(xi_plus)
-    chi_plus = active_indicator(u_plus, lam_plus[0], gap, m.n, c)
+    chi_plus = active_indicator(disc.relative(u_plus), lam_plus[0], gap, m.n, c)
     form = xi_plus[0] * (chi_plus - chi_h) * arg_h * m.ds_contact
     if len(xi_plus) == 1:
         return form

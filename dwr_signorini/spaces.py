@@ -28,6 +28,7 @@ from dolfinx import mesh as dmesh
 from . import compat
 from .collective import shadow
 from .fields import MeshFields
+from .pairs import MasterTrace
 from .problem import SignoriniProblem
 from .quadrature import expand_integer_powers, is_polynomial
 from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
@@ -158,8 +159,18 @@ class Discretization:
         fine_to_sub[fine_contact] = macro_to_sub[to_macro[fine_contact]]
         if np.any(fine_to_sub[fine_contact] < 0):
             raise RuntimeError("a fine contact facet has no parent macro contact facet")
+        maps = {sub: fine_to_sub}
+        self.slave_mesh: dmesh.Mesh | None = None
+        if problem.pairs:  # Sigma_h: the fine contact facets, where the master trace lives
+            slave, slave_to_fine, _, _ = compat.create_submesh(fine, fdim, fine_contact)
+            self.slave_mesh = slave
+            self.slave_to_fine = np.asarray(slave_to_fine, dtype=np.int32)
+            fine_to_slave = np.full(len(to_macro), -1, dtype=np.int32)
+            fine_to_slave[self.slave_to_fine] = np.arange(len(self.slave_to_fine), dtype=np.int32)
+            maps[slave] = fine_to_slave
+        self._traces: dict[int, MasterTrace] = {}
         # Many-to-one (2 or 4 fine facets per macro facet), built once per mesh pair.
-        self.entity_maps = compat.entity_maps(fine, {sub: fine_to_sub})
+        self.entity_maps = compat.entity_maps(fine, maps)
         self.macro_entity_maps = compat.entity_maps(macro, {sub: macro_to_sub})
 
         gdim = fine.geometry.dim
@@ -226,6 +237,42 @@ class Discretization:
         out.m = dataclasses.replace(self.m, problem=problem, fields=out.fields)
         return out
 
+    def master_trace(self, V: fem.FunctionSpace | None = None) -> MasterTrace | None:
+        """The master trace of the contact pairs for V (default ``self.V``), None without pairs.
+
+        Built once per space and kept (collective on first use).
+        """
+        if self.slave_mesh is None:
+            return None
+        V = self.V if V is None else V
+        if id(V) not in self._traces:
+            self._traces[id(V)] = MasterTrace(self, V)
+        return self._traces[id(V)]
+
+    def relative(self, v: Any) -> Any:
+        """The relative displacement v - P v on Gamma_C (:mod:`~dwr_signorini.pairs`).
+
+        ``v`` itself on the rigid-obstacle contact (no pairs).
+
+        Args:
+            v: A displacement on T_h (a Function of a vector Lagrange space, or a sum of
+                them).
+
+        Raises:
+            TypeError: ``v`` is not a Function (with pairs, its trace is computed from its
+                values).
+        """
+        if self.slave_mesh is None:
+            return v
+        if isinstance(v, ufl.algebra.Sum):  # u_h + (A u_h - u_h), a reconstruction
+            a, b = v.ufl_operands
+            return self.relative(a) + self.relative(b)
+        if not isinstance(v, fem.Function):
+            raise TypeError(
+                f"relative: the master trace is taken of a Function, got {type(v).__name__}"
+            )
+        return v - self.master_trace(v.function_space).apply(v)
+
     def set_u_old(self, u_old: fem.Function | None) -> None:
         """Measure the slip of this discretisation's solves from ``u_old`` (a load step's start).
 
@@ -276,7 +323,8 @@ class Discretization:
                 chi.x.array[cell_dof] = (sub_tag == t).astype(float)
                 chi.x.scatter_forward()
                 indicators[t] = chi
-        self.fields = MeshFields(problem, self.mesh, fine_tags, indicators)
+        pair_gap = None if self.slave_mesh is None else (lambda: self.master_trace().gap)
+        self.fields = MeshFields(problem, self.mesh, fine_tags, indicators, pair_gap)
         self.macro_fields = MeshFields(problem, self.macro_mesh, problem.cell_tags, indicators)
 
     def load_form(self, v: Any) -> ufl.Form:

@@ -20,6 +20,7 @@ __all__ = ["PHASES", "snapshot", "timed", "trace"]
 PHASES = (
     "discretize",
     "assemble",
+    "master trace",
     "factorize",
     "newton solve",
     "dual solve",
