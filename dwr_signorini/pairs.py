@@ -221,8 +221,8 @@ class MasterTrace:
         vertices = x[compat.geometry_dofmap(sub)[:num]]
         f2c = fine.topology.connectivity(tdim - 1, tdim)
         cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        inside = fine.geometry.x[dmesh.entities_to_geometry(fine, tdim, cells)].mean(axis=1)
-        normals = facet_normals(vertices, inside[:, :sub.geometry.dim])
+        inside = _entity_points(fine, tdim, cells).mean(axis=1)
+        normals = facet_normals(vertices, inside)
         glob = fine.topology.index_map(tdim).local_to_global(cells)
         tag = _facet_tag(disc.facet_tags, facets)
         return vertices, normals, glob, tag
@@ -236,12 +236,9 @@ class MasterTrace:
         facets = facets[facets < n_own].astype(np.int32)
         f2c = fine.topology.connectivity(tdim - 1, tdim)
         cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        x = fine.geometry.x[:, :gdim]
-        vertices = x[dmesh.entities_to_geometry(fine, tdim - 1, facets)] if len(facets) else (
-            np.zeros((0, tdim, gdim)))
-        geometry = x[compat.geometry_dofmap(fine)[cells]]
-        normals = facet_normals(vertices, geometry.mean(axis=1)) if len(facets) else (
-            np.zeros((0, gdim)))
+        vertices = _entity_points(fine, tdim - 1, facets)
+        geometry = fine.geometry.x[compat.geometry_dofmap(fine)[cells]][:, :, :gdim]
+        normals = facet_normals(vertices, geometry.mean(axis=1))
         index_map = V.dofmap.index_map
         local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32)
         dofs = index_map.local_to_global(local.ravel()).reshape(local.shape) if len(cells) else (
@@ -430,6 +427,15 @@ def _master_basis(
         X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), master.geometry[g])
         out[at] = _tabulate(element, X)
     return out
+
+
+def _entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """The geometry nodes of ``entities`` of dimension ``dim``, shape (m, nodes, gdim)."""
+    gdim = msh.geometry.dim
+    if len(entities) == 0:  # (entities_to_geometry divides by the count)
+        nodes = msh.topology.dim + 1 if dim == msh.topology.dim else dim + 1
+        return np.zeros((0, nodes, gdim))
+    return msh.geometry.x[dmesh.entities_to_geometry(msh, dim, entities)][:, :, :gdim]
 
 
 def _tabulate(element: Any, X: np.ndarray) -> np.ndarray:

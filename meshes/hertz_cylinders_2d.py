@@ -1,0 +1,78 @@
+"""2D Hertz contact of two elastic cylinders: two quarter discs touching at the origin.
+
+The lower body is the quarter x >= 0, y >= -R1 of the disc of radius R1 centred at (0, -R1) (its
+arc ends at the origin, cells 1), the upper body the quarter x >= 0, y <= R2 of the disc of
+radius R2 centred at (0, R2) (cells 2); x = 0 is a symmetry plane of both. The two are separate
+gmsh surfaces (no shared node at the origin), refined around the contact point. Tags: 1
+``lower_arc``, 2 ``upper_arc`` (the possible contact), 3 ``lower_flat`` (y = -R1), 4
+``upper_flat`` (y = R2, pressed down), 5 ``lower_symmetry``, 6 ``upper_symmetry``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _common import add_groups, boundary_of, main, refine_near
+
+LOWER_ARC, UPPER_ARC, LOWER_FLAT, UPPER_FLAT, LOWER_SYMMETRY, UPPER_SYMMETRY = 1, 2, 3, 4, 5, 6
+LOWER, UPPER = 1, 2
+
+
+def build(
+    model: Any, r_lower: float = 1.0, r_upper: float = 1.5, h: float = 0.15,
+    h_contact: float = 0.01, refine_radius: float = 0.15,
+) -> None:
+    """The two quarter discs, their physical groups and a triangle mesh in ``model`` (OCC)."""
+    occ = model.occ
+    bodies = []
+    for sign, radius in ((-1.0, r_lower), (1.0, r_upper)):
+        disc = occ.addDisk(0.0, sign * radius, 0.0, radius, radius)
+        box = occ.addRectangle(0.0, min(0.0, sign * radius), 0.0, radius, radius)
+        surface, _ = occ.intersect([(2, disc)], [(2, box)])
+        bodies.append(surface)
+    occ.synchronize()
+    eps = 1e-9
+    for surface, radius, sign, (arc, flat, sym) in (
+        (bodies[0], r_lower, -1.0, (LOWER_ARC, LOWER_FLAT, LOWER_SYMMETRY)),
+        (bodies[1], r_upper, 1.0, (UPPER_ARC, UPPER_FLAT, UPPER_SYMMETRY)),
+    ):
+        side = "lower" if sign < 0 else "upper"
+        add_groups(model, 1, {
+            flat: (f"{side}_flat", lambda c, r=radius, s=sign: abs(c[1] - s * r) < eps * r),
+            sym: (f"{side}_symmetry", lambda c, r=radius: abs(c[0]) < eps * r),
+            arc: (f"{side}_arc", lambda c: True),
+        }, boundary_of(model, surface))
+    model.addPhysicalGroup(2, [e for _, e in bodies[0]], LOWER, name="lower")
+    model.addPhysicalGroup(2, [e for _, e in bodies[1]], UPPER, name="upper")
+    origin = [p for _, p in model.getEntities(0)
+              if np.linalg.norm(model.getValue(0, p, [])) < eps]
+    refine_near(model, origin, h_contact, h, refine_radius * min(r_lower, r_upper))
+    model.mesh.generate(2)
+
+
+def projections(
+    r_lower: float = 1.0, r_upper: float = 1.5
+) -> dict[int, Callable[[np.ndarray], np.ndarray]]:
+    """``{arc tag: points -> the nearest points of its circle}`` for ``boundary_projection``."""
+
+    def onto(center_y: float, radius: float) -> Callable[[np.ndarray], np.ndarray]:
+        center = np.array([0.0, center_y, 0.0])[:, None]
+
+        def project(x: np.ndarray) -> np.ndarray:
+            d = x - center
+            d[2] = 0.0
+            return center + radius * d / np.linalg.norm(d, axis=0)
+
+        return project
+
+    return {LOWER_ARC: onto(-r_lower, r_lower), UPPER_ARC: onto(r_upper, r_upper)}
+
+
+if __name__ == "__main__":
+    main("hertz_cylinders_2d", build, r_lower=1.0, r_upper=1.5, h=0.15, h_contact=0.01)
