@@ -345,7 +345,8 @@ def project_boundary(
     saved = x.copy()
     for tag, f in projection.items():
         facets = facet_tags.find(tag).astype(np.int32)
-        nodes = np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False))
+        nodes = (np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False)) if len(facets)
+                 else np.zeros(0, dtype=np.int32))  # (entities_to_geometry divides by the count)
         try:  # the user's f on this rank's points; its error, or a bad result, on every rank
             with collective(msh.comm, f"boundary_projection[{tag}]"):
                 if nodes.size:
