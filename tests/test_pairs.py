@@ -280,3 +280,71 @@ def owned_cells(tags):
     keep = tags.indices < num
     return [COMM.allreduce(int(np.sum(tags.values[keep] == t)), op=MPI.SUM)
             for t in (CYLINDERS.LOWER, CYLINDERS.UPPER)]
+
+
+# --------------------------------------------------------------------------------------------------
+# The error bar with goals on either body (slow: `make test-slow`)
+# --------------------------------------------------------------------------------------------------
+
+PIN = mesh_script("pin_plate_2d")
+
+
+@functools.cache
+def pin_plate(h_contact: float = 0.025):
+    return from_model(PIN.build, h_contact=h_contact)
+
+
+def pin_problem():
+    """The pin (E = 3) pushed 0.1 along x from its bore into the hole (clearance 0.05) of the
+    plate (E = 1), clamped at its edge; half model."""
+    msh, cells, facets = pin_plate()
+    return ds.SignoriniProblem(
+        msh, facets, contact=ds.ContactPair(slave=PIN.PIN_SURFACE, master=PIN.HOLE),
+        cell_tags=cells, E={PIN.PIN: 3.0, PIN.PLATE: 1.0}, nu=0.3,
+        dirichlet={PIN.PLATE_EDGE: (0.0, 0.0), PIN.PIN_BORE: (0.1, 0.0),
+                   PIN.PIN_SYMMETRY: (None, 0.0), PIN.PLATE_SYMMETRY: (None, 0.0)},
+    )
+
+
+def plate_stress(u, lam, m):
+    """sigma_xx in the plate (the master) beside the contact, 1 < x < 1.3, y < 0.3."""
+    window = ufl.conditional(ufl.And(ufl.gt(m.x[0], 1.0), ufl.lt(m.x[0], 1.3)), 1.0, 0.0)
+    return window * ufl.conditional(ufl.lt(m.x[1], 0.3), 1.0, 0.0) * m.sigma(u)[0, 0] * m.dx(
+        PIN.PLATE)
+
+
+def pin_displacement(u, lam, m):
+    """u_y integrated over the pin (the slave)."""
+    return u[1] * m.dx(PIN.PIN)
+
+
+def upper_displacement(u, lam, m):
+    """u_x integrated over the upper cylinder (the slave) near the contact."""
+    window = ufl.conditional(ufl.And(ufl.lt(m.x[0], 0.1), ufl.lt(m.x[1], 0.1)), 1.0, 0.0)
+    return window * u[0] * m.dx(CYLINDERS.UPPER)
+
+
+CASES = {
+    "hertz-force": (lambda: cylinders_problem(projection=False), contact_force, 9),
+    "hertz-master-stress": (lambda: cylinders_problem(projection=False), lower_stress, 9),
+    "hertz-slave-displacement": (lambda: cylinders_problem(projection=False),
+                                 upper_displacement, 9),
+    "pin-force": (pin_problem, contact_force, 7),
+    "pin-master-stress": (pin_problem, plate_stress, 7),
+    "pin-slave-displacement": (pin_problem, pin_displacement, 7),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+@pytest.mark.parametrize("case", list(CASES))
+def test_interval_contains_the_reference_for_goals_on_either_body(case):
+    """Adaptive runs on the polygonal Hertz pair and pin in plate: on every level the finest
+    J_h judges, the interval contains it."""
+    make, goal, levels = CASES[case]
+    with ds.solve_adaptive(make(), goal, max_levels=levels, verbose=False) as res:
+        records = res.levels
+    reference, uncertainty, judged = judged_levels(records)
+    assert len(judged) >= 2, [r.J_h for r in records]
+    for r in judged:
+        assert r.J_low - uncertainty <= reference <= r.J_high + uncertainty, (r.level, reference)
