@@ -121,7 +121,8 @@ def _contact_obstacle(sol: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     disc = sol.disc
     msh = disc.mesh
     tags = disc.facet_tags
-    facets = np.concatenate([tags.find(t) for t in disc.problem.contact_tags])
+    # the rigid obstacle's facets (a contact pair's master is a body of the mesh, drawn as such)
+    facets = np.concatenate([tags.find(t) for t in disc.problem.rigid_tags] + [np.zeros(0, int)])
     facets = np.intersect1d(facets, _exterior_facets(msh)).astype(np.int32)
     facet_tag = tags.values[np.searchsorted(tags.indices, facets)]
     x = _cell_vertices(msh, msh.topology.dim - 1, facets)
