@@ -14,8 +14,11 @@ a = 2 sqrt(R_eff P / (pi E*_eff)) = sqrt(4 P R (1 - nu^2) / (pi E)) is
 Measured on macro contact facets of 0.05 (h_facet = 0.049, a = 0.693 at P = 10.36, 22,048 fine
 cells), in macro facets:
 
-* press: a_h - a = -0.08 facets, the peak lambda_n within 1.5 % of Hertz's p0, the relative
-  L2 error of lambda_n against Hertz's profile 0.042;
+* press: a = 0.6929 (P = 10.359), a_h - a = -0.08 facets (-0.6 %), the peak lambda_n 9.561
+  against Hertz's p0 = 9.518 (+0.45 %), the relative L2 error of lambda_n against Hertz's
+  profile 0.042. The press leaves an odd tangential traction (||lambda_t|| = 0.27 ||mu p||,
+  6 of 28 facets slipping at the ends of the contact) that beta = 0 does not have: the facet
+  oscillation of the P0 multipliers (as on the rigid flat), not tested;
 * shear, Q / (mu P) = 0.25, 0.50, 0.74, 0.96: c_h - c = -0.67, -0.47, +0.27, +0.00 facets (c from
   Cattaneo with the computed P and Q); the stick zone's centre is off by 1.5-2.5 facets towards
   +x (the clamped flats make the pressure slightly asymmetric under shear).
@@ -97,12 +100,12 @@ def run_path(h_contact=0.05):
 @pytest.mark.mpi
 def test_press_is_hertz_of_two_cylinders():
     """The press step: a_h within one facet of a = sqrt(4 P R (1 - nu^2) / (pi E)) (measured
-    -0.08), the peak pressure within 3 % of p0 = 2 P / (pi a), lambda_n within 10 % of Hertz's
-    profile (L2), no tangential force (|Q| < 1e-3 mu P)."""
+    -0.08), the peak pressure within 2 % of p0 = 2 P / (pi a) (+0.45 %), lambda_n within 10 % of
+    Hertz's profile (L2, 0.042), no tangential force (|Q| < 1e-3 mu P)."""
     m, peak, J_h = run_path()[0]
     assert 0.07 < m.a / R < 0.1
     assert abs(m.a_h - m.a) <= m.h_facet, (m.a_h, m.a, m.h_facet)
-    assert abs(peak / m.p0 - 1.0) < 0.03, (peak, m.p0)
+    assert abs(peak / m.p0 - 1.0) < 0.02, (peak, m.p0)
     assert m.l2_lam < 0.1
     assert abs(m.Q) < 1e-3 * MU * m.P
     assert J_h == pytest.approx(m.Q, rel=1e-10, abs=1e-12)
