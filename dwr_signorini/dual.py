@@ -26,6 +26,7 @@ by two solves with the factors of K and one with the Cholesky factor of S_AA = (
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -78,8 +79,13 @@ def dual_rhs(
         form = goal.dJ_u
         if V is not goal.u.function_space:
             form = ufl.replace(form, {form.arguments()[0]: ufl.TestFunction(V)})
-        b = fem_petsc.assemble_vector(disc.form(with_quadrature_degrees(form, degree)))
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        if goal._has_u_direct:
+            b = fem_petsc.assemble_vector(disc.form(with_quadrature_degrees(form, degree)))
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        else:  # J depends on u through its master trace only
+            b = fem.Function(V).x.petsc_vec.copy()
+        if goal.dJ_trace is not None:
+            _add_master_trace_part(disc, goal, V, degree, b)
         fem_petsc.set_bc(b, system.bcs)
         arr[: system.n_u] = b.array
         b.destroy()
@@ -92,6 +98,21 @@ def dual_rhs(
             rows[k][:] = b.array
             b.destroy()
     return out
+
+
+def _add_master_trace_part(
+    disc: Any, goal: GoalForms, V: fem.FunctionSpace, degree: int | None, b: PETSc.Vec
+) -> None:
+    """Add P^T J'_{Pu} to b: the part of J'_u that reaches u through its master trace P u."""
+    trace = disc.master_trace(V)
+    form = ufl.replace(goal.dJ_trace, {goal.dJ_trace.arguments()[0]: ufl.TestFunction(trace.W)})
+    b_w = fem_petsc.assemble_vector(disc.form(with_quadrature_degrees(form, degree)))
+    b_w.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    moved = trace.P.createVecRight()
+    trace.P.multTranspose(b_w, moved)
+    b.array_w[:] += moved.array_r
+    for vec in (b_w, moved):
+        vec.destroy()
 
 
 def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:

@@ -152,6 +152,9 @@ class GoalForms:
         self.disc = disc
         v = ufl.TestFunction(u.function_space)
         self.dJ_u = ufl.derivative(J, u, v)
+        #: The master trace P u_h in J (contact pairs), and J' in its direction (a test function
+        #: of the trace's space W), or None: J'_u(v) = dJ_u(v) + dJ_trace(P v).
+        self.u_trace, self.dJ_trace = _master_trace_part(J, u, disc)
         derivatives = [
             ufl.derivative(J, f, ufl.TestFunction(f.function_space)) for f in multipliers
         ]
@@ -159,8 +162,13 @@ class GoalForms:
         self.dJ_multipliers = [None if _is_empty(d) else d for d in derivatives]
         self.dJ_lam = derivatives[0]
         self.has_lam = self.dJ_multipliers[0] is not None
-        self.has_u = not _is_empty(self.dJ_u)
+        self._has_u_direct = not _is_empty(self.dJ_u)
+        self.has_u = self._has_u_direct or self.dJ_trace is not None
         second = [ufl.derivative(self.dJ_u, f) for f in (u, *multipliers)]
+        if self.dJ_trace is not None:
+            unknowns = (u, self.u_trace, *multipliers)
+            second += [ufl.derivative(self.dJ_u, self.u_trace)]
+            second += [ufl.derivative(self.dJ_trace, f) for f in unknowns]
         for d in self.dJ_multipliers:
             if d is not None:
                 second += [ufl.derivative(d, f) for f in (u, *multipliers)]
@@ -179,12 +187,55 @@ class GoalForms:
 
     def directional(self, du: Any, *dlams: Any) -> ufl.Form:
         """J'(w_h)(du, dlam[, dlam_t]) as a scalar form (any UFL functions on T_h)."""
-        form = ufl.replace(self.dJ_u, {self.dJ_u.arguments()[0]: du}) if self.has_u else None
+        form = (ufl.replace(self.dJ_u, {self.dJ_u.arguments()[0]: du})
+                if self._has_u_direct else None)
+        if self.dJ_trace is not None:  # the master trace's part, J'_{Pu}(P du)
+            part = ufl.replace(self.dJ_trace, {self.dJ_trace.arguments()[0]: self._trace(du)})
+            form = part if form is None else form + part
         for dJ, d in zip(self.dJ_multipliers, dlams, strict=False):
             if dJ is not None:
                 part = ufl.replace(dJ, {dJ.arguments()[0]: d})
                 form = part if form is None else form + part
         return form
+
+
+    def _trace(self, du: Any) -> Any:
+        """P du (UFL) for a Function or a sum of Functions: the image the residuals use.
+
+        The image already taken of ``du`` (:meth:`~dwr_signorini.pairs.MasterTrace.image`, by
+        :meth:`~dwr_signorini.spaces.Discretization.relative` in the residual) is reused, so
+        that the estimator moves the whole trace part of a weight to the master cells.
+        """
+        if isinstance(du, ufl.algebra.Sum):
+            a, b = du.ufl_operands
+            return self._trace(a) + self._trace(b)
+        if not isinstance(du, fem.Function):
+            raise TypeError(
+                "GoalForms.directional: a goal with the master trace of u takes a direction "
+                f"that is a Function (or a sum of them), got {type(du).__name__}"
+            )
+        trace = self.disc.master_trace(du.function_space)
+        image = trace.image(du)
+        return trace.apply(du) if image is None else image
+
+
+def _master_trace_part(
+    J: ufl.Form, u: fem.Function, disc: Discretization
+) -> tuple[fem.Function | None, ufl.Form | None]:
+    """The master trace P u of u in J, and J' in its direction (None, None without one).
+
+    With contact pairs, a goal written with the relative displacement u - P u
+    (:meth:`~dwr_signorini.spaces.Discretization.relative`, as the history goal of a load path)
+    holds P u as a function of its own; ``ufl.derivative(J, u)`` does not see it.
+    """
+    if getattr(disc, "slave_mesh", None) is None:
+        return None, None
+    trace = disc.master_trace(u.function_space)
+    image = trace.image(u)
+    if image is None or image not in ufl.algorithms.extract_coefficients(J):
+        return None, None
+    dJ = ufl.derivative(J, image, ufl.TestFunction(image.function_space))
+    return (None, None) if _is_empty(dJ) else (image, dJ)
 
 
 def _requires_four(goal: Goal) -> bool:
@@ -237,6 +288,8 @@ def _check_domains(
     """
     allowed = [disc.mesh.ufl_domain()]
     allowed += [f.function_space.mesh.ufl_domain() for f in multipliers]
+    if getattr(disc, "slave_mesh", None) is not None:  # the master trace of contact pairs
+        allowed.append(disc.slave_mesh.ufl_domain())
     for domain in ufl.domain.extract_domains(itg.integrand()):
         if domain not in allowed:
             what = "the macro mesh T_H (problem.mesh)" if domain == disc.problem.mesh.ufl_domain() \

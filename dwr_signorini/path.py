@@ -380,6 +380,9 @@ def history_goal(sol: Solution, est: Estimate) -> Goal:
         J(w(u_old + v)) - J(w(u_old)) = L(v) = - sum_l (w_l, v . e_l)_GC,
         w_l = z_l on the constrained rows, c_f sum_k z_k J_kl on the coupled ones,
 
+    (with contact pairs, v is the relative displacement v - P v of :mod:`~dwr_signorini.pairs`,
+    and :class:`~dwr_signorini.goal.GoalForms` adds the master trace's part -P^T to L')
+
     exactly for the discrete problem while the sets hold (w_l is P0 on the macro facets). Its
     error at the previous step, L(u - u_h), is the part of the step's error that the history
     carries (module docstring).
@@ -397,13 +400,15 @@ def history_goal(sol: Solution, est: Estimate) -> Goal:
     parts = algebra.components_of(w)
     weights = [sol.multiplier_function(part, f"history_weight_{k}")
                for k, part in enumerate(parts[1:], start=1)]
-    m = sol.disc.m
+    disc = sol.disc
+    m = disc.m
     directions = [comp.direction(m.n) for comp in algebra.components[1:]]
 
     def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> Any:
         form = None
+        u_rel = disc.relative(u)  # u - P u with contact pairs (GoalForms differentiates P u)
         for w_l, e_l in zip(weights, directions, strict=True):
-            term = -w_l * ufl.dot(u, e_l) * m.ds_contact
+            term = -w_l * ufl.dot(u_rel, e_l) * m.ds_contact
             form = term if form is None else form + term
         return form
 
