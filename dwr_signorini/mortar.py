@@ -96,10 +96,24 @@ def mortar_rule(
     pieces = _pieces_2d if gdim == 2 else _pieces_3d
     rule = _reference_rule(gdim - 1, degree)
     out: list[list[np.ndarray]] = [[], [], [], [], []]
+    # bounding spheres: a master facet whose sphere's shadow along n misses F's cannot meet F
+    centres = master.mean(axis=1)
+    reach = np.linalg.norm(master - centres[:, None], axis=2).max(axis=1) if len(master) else (
+        np.zeros(0))
+    slave_centres = slave.mean(axis=1)
+    slave_reach = np.linalg.norm(slave - slave_centres[:, None], axis=2).max(axis=1)
     for i in range(len(slave)):
-        for x, w, g in pieces(slave[i], slave_normals[i], master, master_normals, rule):
+        n = slave_normals[i]
+        d = centres - slave_centres[i]
+        lateral = np.linalg.norm(d - np.outer(d @ n, n), axis=1)
+        near = np.flatnonzero(
+            (master_normals @ n < 0.0) & (lateral <= (1.0 + 1e-9) * (reach + slave_reach[i]))
+        )
+        if len(near) == 0:
+            continue
+        for x, w, c in pieces(slave[i], n, master[near], master_normals[near], rule):
+            g = int(near[c])
             k = len(w)
-            n = slave_normals[i]
             out[0].append(np.full(k, i, dtype=np.int64))
             out[1].append(x)
             out[2].append(w)
@@ -205,20 +219,23 @@ def _pieces_3d(
     for (piece, g, _), ok in zip(found, near, strict=True):
         if not ok:
             continue
-        for k in range(1, len(piece) - 1):  # a fan of triangles
-            tri = piece[[0, k, k + 1]]
-            area = _area(tri)
-            if area <= _PIECE_TOL * area_F:
-                continue
-            xy = tri[0] + points @ np.stack([tri[1] - tri[0], tri[2] - tri[0]])
-            out.append((origin + xy @ frame, weights * 2.0 * area, g))
+        # a fan of triangles (piece[0], piece[k], piece[k + 1]), all at once
+        b, c = piece[1:-1] - piece[0], piece[2:] - piece[0]
+        area = 0.5 * (b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0])
+        keep = area > _PIECE_TOL * area_F
+        if not np.any(keep):
+            continue
+        b, c, area = b[keep], c[keep], area[keep]
+        xy = piece[0] + points[None, :, :1] * b[:, None] + points[None, :, 1:] * c[:, None]
+        w = (2.0 * area)[:, None] * weights[None]
+        out.append((origin + xy.reshape(-1, 2) @ frame, w.ravel(), g))
     return out
 
 
 def _area(polygon: np.ndarray) -> float:
     """The signed area of a planar polygon (positive counter-clockwise)."""
     x, y = polygon[:, 0], polygon[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    return 0.5 * float(x[:-1] @ y[1:] - y[:-1] @ x[1:] + x[-1] * y[0] - y[-1] * x[0])
 
 
 def _ccw(polygon: np.ndarray) -> np.ndarray:
@@ -228,20 +245,21 @@ def _ccw(polygon: np.ndarray) -> np.ndarray:
 
 def _clip(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
     """Sutherland-Hodgman: the convex ``subject`` clipped by the convex ``clip`` (both ccw)."""
-    out = subject
-    for i in range(len(clip)):
-        if len(out) == 0:
+    out = [(float(x), float(y)) for x, y in subject]  # a few vertices: plain floats are faster
+    corners = [(float(x), float(y)) for x, y in clip]
+    for i, (ax, ay) in enumerate(corners):
+        if not out:
             break
-        a, b = clip[i], clip[(i + 1) % len(clip)]
-        edge = b - a
-        side = edge[0] * (out[:, 1] - a[1]) - edge[1] * (out[:, 0] - a[0])
+        bx, by = corners[(i + 1) % len(corners)]
+        ex, ey = bx - ax, by - ay
+        side = [ex * (y - ay) - ey * (x - ax) for x, y in out]
         new = []
-        for j in range(len(out)):
-            p, q = out[j], out[(j + 1) % len(out)]
-            sp, sq = side[j], side[(j + 1) % len(out)]
+        for j, (p, sp) in enumerate(zip(out, side, strict=True)):
+            q, sq = out[(j + 1) % len(out)], side[(j + 1) % len(out)]
             if sp >= 0.0:
                 new.append(p)
             if (sp >= 0.0) != (sq >= 0.0):
-                new.append(p + (q - p) * (sp / (sp - sq)))
-        out = np.array(new) if new else np.zeros((0, 2))
-    return out
+                t = sp / (sp - sq)
+                new.append((p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t))
+        out = new
+    return np.array(out) if out else np.zeros((0, 2))
