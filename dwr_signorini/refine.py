@@ -345,7 +345,9 @@ def project_boundary(
     saved = x.copy()
     for tag, f in projection.items():
         facets = facet_tags.find(tag).astype(np.int32)
-        nodes = np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False))
+        # dolfinx 0.9's entities_to_geometry divides by the number of entities: none here
+        nodes = (np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False)) if facets.size
+                 else np.zeros(0, dtype=np.int32))
         try:  # the user's f on this rank's points; its error, or a bad result, on every rank
             with collective(msh.comm, f"boundary_projection[{tag}]"):
                 if nodes.size:
