@@ -216,7 +216,8 @@ def measure(sol: ds.Solution) -> dict[str, float]:
 # ## The adaptive run
 #
 # `ds.solve_adaptive` with the goal; the callback records a row per level and keeps a drawing
-# of the first and of the last mesh (`viz.snapshot_mesh` is collective; it gathers on rank 0).
+# of the first and of the last macro mesh (`viz.snapshot_mesh` is collective; it gathers on
+# rank 0).
 
 # +
 with ds.solve(pair_problem()):  # loads the compiled forms (JIT cache): times compare
@@ -235,7 +236,7 @@ def on_level(record, sol, est):
            "J_best": record.J_best, "estimate": record.estimate, "num_active": record.num_active,
            **measure(sol), "time_cumulative": time.perf_counter() - tic}
     table.append(row)
-    snap = viz.snapshot_mesh(sol.disc.mesh)
+    snap = viz.snapshot_mesh(sol.disc.macro_mesh)
     meshes.setdefault(0, snap)
     meshes[1] = snap
     print0(f"{record.level:2d} {row['cells_lower']:11d} {row['cells_upper']:11d} "
@@ -260,8 +261,8 @@ if comm.rank == 0:
 
 # ## Pictures
 #
-# The first and the last mesh, both bodies (lower body blue, upper body orange), in full and
-# near the contact; the pressure along the interface of the last level against Hertz's
+# The first and the last macro mesh $T_H$, both bodies (lower body blue, upper body orange),
+# in full and near the contact; the pressure along the interface of the last level against Hertz's
 # profile; $J_h$ and its interval per level.
 
 # +
@@ -284,8 +285,9 @@ if not args.no_plots and comm.rank == 0:
             ax.set_xlim(0.0, half)
             ax.set_ylim(-half / 2 if zoom else -R1, half / 2 if zoom else R2)
             ax.set_aspect("equal")
-            ax.set_title(f"{label}: {len(polys)} cells" + (" (near the contact)" if zoom else ""))
-    save_figure(fig, out / "meshes.png", dpi=200)
+            where = ", near the contact" if zoom else ""
+            ax.set_title(f"{label}: {len(polys)} macro cells{where}", fontsize="medium")
+    save_figure(fig, out / "meshes.png", dpi=150)
 
     x, lam, _ = gathered
     mid = np.abs(x.mean(axis=1)[:, 0])

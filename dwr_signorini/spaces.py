@@ -185,7 +185,7 @@ class Discretization:
         self.prescribed_bcs = self.dirichlet_bcs(self.V, homogeneous=False)
         self._make_fields()
 
-        dx = ufl.Measure("dx", domain=fine)
+        dx = ufl.Measure("dx", domain=fine, subdomain_data=self.cell_tags)
         ds = ufl.Measure("ds", domain=fine, subdomain_data=self.facet_tags)
         self._body_force: tuple[Any, ufl.Measure] | None = None
         self.m = Measures(
