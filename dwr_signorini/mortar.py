@@ -1,10 +1,11 @@
 r"""Where the master surface lies along each slave facet's normal: the mortar rule of a pair.
 
-Two bodies in contact, small sliding in the reference configuration (:class:`~dwr_signorini.pairs.
-ContactPair`). A slave point x of a facet F with outward unit normal n_F meets the master surface
-at Pi(x) = x + g(x) n_F, the intersection of the line through x along n_F with the master facets
-that face F (n_m . n_F < 0) of smallest |g|: g is the gap of x (negative where the bodies
-overlap), Pi(x) the master point whose displacement the slave point is compared with.
+Two bodies in contact, small sliding in the reference configuration
+(:class:`~dwr_signorini.pairs.ContactPair`). A slave point x of a facet F with outward unit
+normal n_F meets the master surface at Pi(x) = x + g(x) n_F, the intersection of the line through
+x along n_F with the master facets that face F (n_m . n_F < 0) of smallest ``|g|``: g is the
+gap of x (negative where the bodies overlap), Pi(x) the master point whose displacement the
+slave point is compared with.
 
 On a piece of F whose points land in one master facet G, Pi is affine (both facets are flat), so a
 master function of degree k composed with Pi is a polynomial of degree k there. The rule cuts F
