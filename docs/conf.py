@@ -97,6 +97,12 @@ demo_pages = {
         ("hertz_pressure_profile.png", "2D: the contact force of the last level, and Hertz's."),
         ("hertz_errors_dofs.png", "2D: the estimate and the errors against Hertz's formulas."),
     ],
+    "two_bodies": [
+        ("two_bodies_meshes.png", "The first and the last adaptive macro mesh of both bodies."),
+        ("two_bodies_pressure_profile.png",
+         "The contact force of the last level along the interface, and Hertz's."),
+        ("two_bodies_interval.png", "J_h and its interval [J_low, J_high] per level."),
+    ],
     "friction": [
         ("friction_tractions.png", "lambda_n and lambda_t along Gamma_C, stick and slip zones."),
         ("friction_interval.png", "The friction force and its interval per level."),

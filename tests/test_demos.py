@@ -486,3 +486,65 @@ def test_cattaneo_mindlin_3d(tmp_path, monkeypatch):
     assert len(rows) == 2 and all(r["dim"] == 3 for r in rows)
     assert all(abs(r["a_error_facets"]) < 1 for r in rows)
     assert rows[1]["num_stick"] > 0 and rows[1]["num_slip"] > 0
+
+
+# --------------------------------------------------------------------------------------------------
+# Two elastic bodies: a contact pair in one mesh
+# --------------------------------------------------------------------------------------------------
+
+SMALL_ARGS["two_bodies"] = ["--levels", "2"]
+
+
+def _two_bodies_problem():
+    """The demo's problem (meshes/hertz_cylinders_2d.py, the upper arc the slave side)."""
+    from .problems import from_model, mesh_script
+
+    mod = mesh_script("hertz_cylinders_2d")
+    msh, cells, facets = from_model(mod.build, h_contact=0.01)
+    return ds.SignoriniProblem(
+        msh, facets, contact=ds.ContactPair(slave=mod.UPPER_ARC, master=mod.LOWER_ARC),
+        dirichlet={mod.LOWER_FLAT: (None, 0.0), mod.UPPER_FLAT: (None, -0.004),
+                   mod.LOWER_SYMMETRY: (0.0, None), mod.UPPER_SYMMETRY: (0.0, None)},
+        E={mod.LOWER: 1.0, mod.UPPER: 2.5}, nu={mod.LOWER: 0.3, mod.UPPER: 0.25},
+        cell_tags=cells, boundary_projection=mod.projections(1.0, 1.5))
+
+
+def test_two_bodies_serial(runs):
+    """The files; the rows are the library's for the same problem and goal; Hertz's a and p0
+    of the computed force are those of the formulas, and the computed ones are close."""
+    out = runs("two_bodies", 1)
+    _check_files(out, ["meshes.png", "pressure_profile.png", "interval.png"], ["adaptive"])
+    table = _csv(out / "two_bodies.csv")
+    assert [r["level"] for r in table] == [0, 1]
+    e_star = 1 / ((1 - 0.3**2) / 1.0 + (1 - 0.25**2) / 2.5)
+    r_eff = 1 / (1 / 1.0 + 1 / 1.5)
+    for r in table:
+        a = 2 * math.sqrt(r_eff * r["F"] / (math.pi * e_star))
+        assert _close(r["a_hertz"], a, 1e-12)
+        assert _close(r["p0_hertz"], 2 * r["F"] / (math.pi * a), 1e-12)
+        assert r["cells_lower"] + r["cells_upper"] == r["num_cells"]
+        assert abs(r["err_a"]) < 0.03 and abs(r["err_p0"]) < 0.01
+        assert r["J_low"] < r["J_high"] and abs(r["J_high"] - r["J_low"]) < 0.03 * r["J_h"]
+
+    def centre(u, lam, m):
+        import ufl
+
+        return ufl.exp(-(m.x[0] ** 2) / (0.033 / 2) ** 2) * lam * m.ds_contact
+
+    with ds.solve_adaptive(_two_bodies_problem(), centre, max_levels=2, fraction=0.2,
+                           weights="patch", verbose=False) as res:
+        _compare_rows(_csv(out / "adaptive" / "adaptive.csv"), res.levels, 1e-10,
+                      "two bodies adaptive")
+
+
+def test_two_bodies_parallel(runs):
+    serial, parallel = runs("two_bodies", 1), runs("two_bodies", 2)
+    _check_files(parallel, ["meshes.png", "pressure_profile.png"], ["adaptive"])
+    _compare_rows(_csv(parallel / "adaptive" / "adaptive.csv"),
+                  _csv(serial / "adaptive" / "adaptive.csv"), 1e-9,
+                  "two bodies 2 processes vs serial")
+    for a, b in zip(_csv(parallel / "two_bodies.csv"), _csv(serial / "two_bodies.csv"),
+                    strict=True):
+        assert (a["cells_lower"], a["cells_upper"]) == (b["cells_lower"], b["cells_upper"])
+        for key in ("J_low", "J_high", "F", "a_h", "peak"):
+            assert _close(a[key], b[key], 1e-8), (key, a[key], b[key])
