@@ -273,13 +273,21 @@ class MasterTrace:
         self._share = self._share_matrix(slave_cells, master)
 
     def _projection(self, basis: _FacetBasis, phi: np.ndarray, master: _Master) -> PETSc.Mat:
-        """P = M_F^{-1} sum_q w_q theta(x_q) phi(Pi(x_q))^T per facet and component."""
+        """P = M_F^{-1} sum_q w_q theta(x_q) phi(Pi(x_q))^T per facet and component.
+
+        On a facet the master covers in part, the projection onto constants instead (as the
+        gap, :meth:`_gap`).
+        """
         rule, W, V = self.rule, self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
         inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
         # per point: the facet's rows (a) times the master cell's columns (j)
         local = np.einsum("qab,qb->qa", inv[rule.facet], basis.theta) * rule.weights[:, None]
+        # a facet the master covers in part: the mean of the trace (no polynomial through the
+        # master's end); its integral against a constant is the same
+        part = basis.partial[rule.facet]
+        local[part] = (rule.weights[part] / basis.measure[rule.facet[part]])[:, None]
         w_dofs = wmap.local_to_global(
             np.array([W.dofmap.cell_dofs(int(f)) for f in range(len(basis.mass))],
                      dtype=np.int32).ravel()
@@ -298,14 +306,22 @@ class MasterTrace:
                      vmap.size_global * V.dofmap.index_map_bs))
 
     def _gap(self, basis: _FacetBasis) -> fem.Function:
-        """The gap g projected per facet, the problem's miss_gap where no master facet is met."""
+        """The gap g projected per facet, the problem's miss_gap where no master facet is met.
+
+        On a facet that the master covers in part, the projection onto constants: a polynomial
+        through the jump from the gaps met to miss_gap would dip below them (a false contact).
+        """
         miss = self.disc.problem.miss_gap
         rule, Ws = self.rule, self.Ws
         gap = fem.Function(Ws, name="gap")
         rhs = miss * basis.integrals.copy()
         np.add.at(rhs, rule.facet, basis.theta * (rule.weights * (rule.gap - miss))[:, None])
         for f in range(len(basis.mass)):
-            gap.x.array[Ws.dofmap.cell_dofs(f)] = np.linalg.solve(basis.mass[f], rhs[f])
+            if basis.partial[f]:  # the mean, between the gaps met and miss_gap
+                value = rhs[f].sum() / basis.measure[f]
+            else:
+                value = np.linalg.solve(basis.mass[f], rhs[f])
+            gap.x.array[Ws.dofmap.cell_dofs(f)] = value
         gap.x.scatter_forward()
         return gap
 
@@ -408,6 +424,11 @@ class _FacetBasis:
         jac = np.sqrt(np.abs(np.linalg.det(gram))) if num else np.zeros(0)
         self.mass = np.einsum("q,qa,qb->ab", weights, ref, ref)[None] * jac[:, None, None]
         self.integrals = (weights @ ref)[None] * jac[:, None]
+        #: |F|, and whether the master covers F in part only (not at all, or not all of it)
+        self.measure = self.integrals.sum(axis=1)
+        covered = np.zeros(num)
+        np.add.at(covered, rule.facet, rule.weights)
+        self.partial = covered < (1.0 - 1e-9) * self.measure
 
 
 def _master_basis(
