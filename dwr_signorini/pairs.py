@@ -354,6 +354,12 @@ class MasterTrace:
 
         The image is remembered for :meth:`image` (the estimator moves the terms of a weight's
         trace to the master cells).
+
+        Args:
+            f: A function of this trace's space V.
+
+        Returns:
+            A new function of W holding P f.
         """
         out = fem.Function(self.W, name=f"P_{f.name}")
         vec = f.x.petsc_vec
@@ -363,7 +369,14 @@ class MasterTrace:
         return out
 
     def image(self, f: fem.Function) -> fem.Function | None:
-        """The last :meth:`apply` of ``f``, or None."""
+        """The last :meth:`apply` of ``f``.
+
+        Args:
+            f: A function of V.
+
+        Returns:
+            The function of W that :meth:`apply` returned for ``f`` last, or None.
+        """
         found = self._images.get(id(f))
         return found[1] if found is not None and found[0] is f else None
 

@@ -238,9 +238,15 @@ class Discretization:
         return out
 
     def master_trace(self, V: fem.FunctionSpace | None = None) -> MasterTrace | None:
-        """The master trace of the contact pairs for V (default ``self.V``), None without pairs.
+        """The master trace of the contact pairs for a displacement space.
 
         Built once per space and kept (collective on first use).
+
+        Args:
+            V: A vector Lagrange space on T_h (default ``self.V``; the P2 space of the weights).
+
+        Returns:
+            The :class:`~dwr_signorini.pairs.MasterTrace`, or None without contact pairs.
         """
         if self.slave_mesh is None:
             return None
@@ -257,6 +263,9 @@ class Discretization:
         Args:
             v: A displacement on T_h (a Function of a vector Lagrange space, or a sum of
                 them).
+
+        Returns:
+            The UFL expression v - P v (``v`` without pairs).
 
         Raises:
             TypeError: ``v`` is not a Function (with pairs, its trace is computed from its
