@@ -122,28 +122,7 @@ class GoalForms:
             )
         multipliers = (lam, *tangential)
         for itg in J.integrals():
-            if itg.ufl_domain() != disc.mesh.ufl_domain():
-                raise ValueError(
-                    "goal uses a measure of another mesh: build it from the measures in `m` "
-                    "(m.dx, m.ds_contact, m.ds(tag)) of the current mesh"
-                )
-            _check_measure(itg)
-            _check_domains(itg, disc, multipliers)
-            _check_tags_exist(itg, disc)
-            used = ufl.algorithms.extract_coefficients(itg.integrand())
-            for name, f in zip(("lam", "lam_t", "lam_t"), multipliers, strict=False):
-                if f in used:
-                    contact = disc.problem.contact_tags
-                    ids = itg.subdomain_id()
-                    ids = ids if isinstance(ids, tuple) else (ids,)
-                    if itg.integral_type() != "exterior_facet" or any(
-                        i not in contact for i in ids
-                    ):
-                        raise ValueError(
-                            f"goal integrates {name} outside Gamma_C: the contact tractions "
-                            "live on the contact boundary only, use them in integrals over "
-                            "m.ds_contact"
-                        )
+            _check_integral(itg, disc, multipliers)
         self.goal = goal
         self.J = J
         self.u = u
@@ -198,7 +177,6 @@ class GoalForms:
                 form = part if form is None else form + part
         return form
 
-
     def _trace(self, du: Any) -> Any:
         """P du (UFL) for a Function or a sum of Functions: the image the residuals use.
 
@@ -236,6 +214,36 @@ def _master_trace_part(
         return None, None
     dJ = ufl.derivative(J, image, ufl.TestFunction(image.function_space))
     return (None, None) if _is_empty(dJ) else (image, dJ)
+
+
+def _check_integral(
+    itg: ufl.Integral, disc: Discretization, multipliers: tuple[fem.Function, ...]
+) -> None:
+    """One integral of a goal: on T_h, with the tags of T_h, the tractions on Gamma_C only.
+
+    Raises:
+        ValueError: Naming the mistake (see :class:`GoalForms`).
+    """
+    if itg.ufl_domain() != disc.mesh.ufl_domain():
+        raise ValueError(
+            "goal uses a measure of another mesh: build it from the measures in `m` "
+            "(m.dx, m.ds_contact, m.ds(tag)) of the current mesh"
+        )
+    _check_measure(itg)
+    _check_domains(itg, disc, multipliers)
+    _check_tags_exist(itg, disc)
+    used = ufl.algorithms.extract_coefficients(itg.integrand())
+    for name, f in zip(("lam", "lam_t", "lam_t"), multipliers, strict=False):
+        if f in used:
+            contact = disc.problem.contact_tags
+            ids = itg.subdomain_id()
+            ids = ids if isinstance(ids, tuple) else (ids,)
+            if itg.integral_type() != "exterior_facet" or any(i not in contact for i in ids):
+                raise ValueError(
+                    f"goal integrates {name} outside Gamma_C: the contact tractions "
+                    "live on the contact boundary only, use them in integrals over "
+                    "m.ds_contact"
+                )
 
 
 def _requires_four(goal: Goal) -> bool:
