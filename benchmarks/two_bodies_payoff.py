@@ -96,8 +96,8 @@ def lower_stress(u: Any, lam: Any, m: Any) -> Any:
 
 CASES = {
     # name: (problem, goal, cell tags of the bodies, uniform levels, adaptive levels, reference)
-    "hertz-force": (lambda: hertz(0.1), force, (CYL.LOWER, CYL.UPPER), 4, 9, 10),
-    "hertz-stress": (lambda: hertz(0.1), lower_stress, (CYL.LOWER, CYL.UPPER), 4, 9, 10),
+    "hertz-force": (lambda: hertz(0.1), force, (CYL.LOWER, CYL.UPPER), 6, 9, 10),
+    "hertz-stress": (lambda: hertz(0.1), lower_stress, (CYL.LOWER, CYL.UPPER), 6, 9, 10),
     "pin-force": (lambda: pin(0.3), force, (PIN.PIN, PIN.PLATE), 3, 6, 7),
 }
 
