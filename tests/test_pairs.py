@@ -290,7 +290,7 @@ PIN = mesh_script("pin_plate_2d")
 
 
 @functools.cache
-def pin_plate(h_contact: float = 0.0125):
+def pin_plate(h_contact: float = 0.025):
     return from_model(PIN.build, h_contact=h_contact)
 
 
