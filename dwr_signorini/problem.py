@@ -20,6 +20,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
+from .agreement import check_same_on_ranks
 from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
 from .mesh_validation import check_cell_tags, check_mesh, check_tags
@@ -128,6 +129,17 @@ class SignoriniProblem:
         quadrature_degree: int = DATA_QUADRATURE_DEGREE,
     ) -> None:
         check_mesh(mesh, facet_tags)
+        check_same_on_ranks(
+            mesh,
+            "SignoriniProblem",
+            {
+                "contact": contact, "dirichlet": dirichlet, "E": E, "nu": nu, "model": model,
+                "body_force": body_force, "traction": traction, "gap": gap,
+                "cell_tags": cell_tags is None, "boundary_projection": boundary_projection,
+                "friction": friction, "quadrature_degree": quadrature_degree,
+            },
+            numeric=("boundary_projection",),
+        )
         self.mesh = mesh
         self.facet_tags = facet_tags
         self.model = check_model(model, mesh.topology.dim)
