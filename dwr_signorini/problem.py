@@ -23,7 +23,7 @@ from ufl.domain import extract_unique_domain
 from .agreement import check_same_on_ranks
 from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
-from .mesh_validation import check_cell_tags, check_mesh, check_tags
+from .mesh_validation import check_cell_tags, check_mesh, check_projection_fits, check_tags
 from .obstacles import Obstacle
 from .pairs import ContactPair, check_contact_pairs, check_pair_bodies, check_pair_gap
 from .quadrature import DATA_QUADRATURE_DEGREE
@@ -172,6 +172,7 @@ class SignoriniProblem:
             + [("boundary_projection", t) for t in self.boundary_projection]
         )
         check_tags(mesh, facet_tags, used, sides)
+        check_projection_fits(mesh, facet_tags, self.boundary_projection)
         check_pair_bodies(mesh, facet_tags, self.pairs)
         self.law = check_law(friction, self)
         self.friction = self.law if self.law.frictional else None
