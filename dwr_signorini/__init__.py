@@ -21,6 +21,7 @@ from .report import AdaptiveResult, LevelRecord
 from .semismooth import ConvergenceError
 from .settings import ESTIMATORS, WEIGHTS
 from .spaces import Discretization, Measures, discretize
+from .stress import stress_fields
 from .summary import ContactSummary, contact_summary
 
 # Each FFCx JIT module is loaded from the disk cache once per process, for every form compiled
@@ -57,4 +58,5 @@ __all__ = [
     "solve",
     "solve_adaptive",
     "solve_path",
+    "stress_fields",
 ]

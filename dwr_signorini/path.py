@@ -241,7 +241,7 @@ def solve_path(
             "strategy": None if marking is None else marking.strategy,
             "max_growth": None if marking is None else marking.max_growth, "history": history,
             "num_processes": comm.size, "law": repr(problems[0].law)}
-    reporter = Reporter(comm, "path", meta, output_dir, callback, verbose)
+    reporter = Reporter(comm, "path", meta, output_dir, callback, verbose, series=True)
     return _steps(problems, goals, settings, adaptive, history, initial_guess, reporter)
 
 
