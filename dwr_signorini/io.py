@@ -227,7 +227,9 @@ class OutputDirectory:
         known = self._meshes.get(stem)
         new_file = known is None
         new_mesh = new_file or known[0] is not key
-        name = f"mesh_{level}" if new_mesh else known[1]
+        # the first mesh of a file under its own name (read_mesh() finds it), later ones
+        # (a refined mesh in a time series) under <name>_<level>
+        name = msh.name if new_file else f"{msh.name}_{level}" if new_mesh else known[1]
         with io.XDMFFile(self.comm, path, "w" if new_file else "a") as xdmf:
             if new_mesh:
                 old, msh.name = msh.name, name
