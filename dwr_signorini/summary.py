@@ -189,10 +189,7 @@ def _check(sol: Any, centre: Any) -> np.ndarray | None:
 def contact_summary(sol: Solution, centre: Any = None) -> ContactSummary:
     """The force, contact area and radius, pressures and friction of a solution (collective).
 
-    Module docstring for the definitions. For a 2D cylinder of radius R pressed on a rigid flat
-    by the force P per unit length, Hertz gives the half-width ``a = sqrt(4 P R / (pi E*))`` and
-    the peak ``p0 = 2 P / (pi a)``, ``E* = E / (1 - nu^2)``; :attr:`ContactSummary.radius` and
-    :attr:`~ContactSummary.normal_force` are the numbers to compare with them.
+    Definitions in the module docstring; Hertz's half-width compares with ``radius``.
 
     Args:
         sol: A solution of :func:`~dwr_signorini.solve` (or of a run's level or step).
