@@ -29,6 +29,7 @@ renumbers meshes and coefficients, so it is the same on every rank for the same 
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from collections.abc import Callable, Mapping
@@ -41,7 +42,13 @@ import ufl
 
 from .collective import shadow
 
-__all__ = ["check_form_on_ranks", "check_same_on_ranks", "fingerprint", "probe_points"]
+__all__ = [
+    "check_form_on_ranks",
+    "check_options_on_ranks",
+    "check_same_on_ranks",
+    "fingerprint",
+    "probe_points",
+]
 
 #: The text of a callable that raised: not compared (the checks of the data raise its error on
 #: every rank, naming the rank it was raised on, :mod:`dwr_signorini.collective`).
@@ -244,3 +251,22 @@ def check_form_on_ranks(comm: MPI.Comm, where: str, name: str, form: ufl.Form) -
     except Exception as err:  # a form UFL cannot sign (on two meshes): the checks name it next
         signature = f"no signature: {type(err).__name__}"
     _compare(comm, where, {name: signature})
+
+
+def check_options_on_ranks(mesh: Any, where: str, options: Any, **more: Any) -> None:
+    """:func:`check_same_on_ranks` for the fields of an options dataclass (and ``more``).
+
+    Collective.
+
+    Args:
+        mesh: The mesh whose ranks must agree.
+        where: The function the options are of (``"solve"``, ``"estimate"``).
+        options: A dataclass (:class:`~dwr_signorini.settings.SolverOptions`, ...): each field
+            is compared as the argument of its name.
+        more: Further arguments by name.
+
+    Raises:
+        ValueError: On every rank, naming each field or argument that differs and the ranks.
+    """
+    fields = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)}
+    check_same_on_ranks(mesh, where, {**fields, **more})

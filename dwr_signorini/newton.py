@@ -81,6 +81,7 @@ import numpy as np
 import ufl
 from dolfinx import fem, la
 
+from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
@@ -281,6 +282,7 @@ def solve(
             "options must be a SolverOptions, given instead of the solver's keyword arguments"
         )
     _check_initial_guess(disc, initial_guess)
+    check_options_on_ranks(disc.mesh, "solve", options, initial_guess=initial_guess is None)
     tic = time.perf_counter()
     sol = _solve(disc, initial_guess, options)
     _log_solution(sol, time.perf_counter() - tic)

@@ -130,3 +130,14 @@ def test_fingerprints():
     assert not same(ds.ContactPair(slave=3, master=4), ds.ContactPair(slave=4, master=3))
     assert same({4: lambda p: 2 * p}, {4: lambda p: p + p}, numeric=True)
     assert not same({4: lambda p: 2 * p}, {4: lambda p: 3 * p}, numeric=True)
+
+
+@pytest.mark.mpi
+@pytest.mark.skipif(COMM.size == 1, reason="needs ranks that differ")
+def test_solver_and_estimate_options_differing_between_ranks():
+    problem = _problem()
+    with pytest.raises(ValueError, match=r"solve: max_iterations \(rank 0 \| rank 1\) differs"):
+        ds.solve(problem, max_iterations=20 + RANK)
+    with ds.solve(problem) as sol:
+        with pytest.raises(ValueError, match=r"estimate: estimator \(rank 0 \| rank 1\)"):
+            ds.estimate(sol, ex.goal_a(0.5), estimator="eta" if RANK == 0 else "eta_p")
