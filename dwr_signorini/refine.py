@@ -28,7 +28,7 @@ from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
 from . import compat
-from .collective import collective
+from .collective import collective, shadow
 from .mesh_validation import check_projection_moves, projected_points, projection_nodes
 from .problem import SignoriniProblem
 
@@ -348,13 +348,32 @@ def project_boundary(
         bad = (np.sign(after) != np.sign(before)) | (np.abs(after) < 1e-10 * np.abs(before))
         count = msh.comm.allreduce(int(bad.any(axis=1).sum()), op=MPI.SUM)
         if count:
+            distance, vertex = _largest_move(msh, bad.any(axis=1), saved)
             x[:] = saved
             raise RuntimeError(
                 f"boundary_projection[{tag}]: moving the new vertices onto the surface would "
-                f"invert or flatten {count} cell(s) of the refined macro mesh, so no vertex was "
-                "moved. Start from a finer mesh near that boundary (its facets must be small "
-                "against the radius of curvature) or refine less there"
+                f"invert or flatten {count} cell(s) of the refined macro mesh (the vertex at "
+                f"{vertex} would move by {distance:.6g}), so no vertex was moved. Start from a "
+                "finer mesh near that boundary (its facets must be small against the radius of "
+                "curvature) or refine less there"
             )
+
+
+def _largest_move(
+    msh: dmesh.Mesh, bad_cells: np.ndarray, saved: np.ndarray
+) -> tuple[float, tuple[float, ...]]:
+    """The largest move of a vertex of the ``bad_cells`` (``saved``: the old coordinates).
+
+    Collective (one ``allgather``): the same vertex and distance on every rank.
+    """
+    gdim = msh.geometry.dim
+    nodes = np.unique(compat.geometry_dofmap(msh)[bad_cells])
+    moves = np.linalg.norm(msh.geometry.x[nodes] - saved[nodes], axis=1)
+    local = (0.0, ())
+    if nodes.size:
+        k = int(np.argmax(moves))
+        local = (float(moves[k]), tuple(float(c) for c in saved[nodes[k], :gdim]))
+    return max(shadow(msh.comm).allgather(local), key=lambda m: m[0])
 
 
 #: Which edges of the marked cells are refined (``rule`` of :func:`refine_marked`).

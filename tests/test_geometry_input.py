@@ -4,7 +4,8 @@
   refused when the problem is built, naming the tag, the vertex and the distance; so is a move
   of the new vertices after a refinement (:func:`dwr_signorini.refine.project_boundary`), the
   mesh then unchanged; the right radius passes, its moves being round-off.
-* A projection undefined at a vertex (the circle's centre on the contact face) names the vertex.
+* A projection undefined at a vertex (the circle's centre on the contact face) names the vertex;
+  one that inverts a cell names the vertex that moves most and its distance.
 * ``ds.read_mesh`` of a gmsh model without physical groups gives the documented ValueError.
 """
 
@@ -100,3 +101,16 @@ def _unit_square(model, groups):
 def test_read_mesh_without_physical_groups(groups, missing):
     with pytest.raises(ValueError, match=rf"the mesh has no physical groups of {missing}"):
         from_model(_unit_square, groups=groups)
+
+
+def test_projection_inverting_a_cell_names_the_vertex():
+    """Flat cells (1 x 1/16): lifting the bottom by 0.1 < half their size inverts the bottom row."""
+    msh = mesh.create_rectangle(MPI.COMM_WORLD, [(0.0, 0.0), (2.0, 1.0)], [2, 16],
+                                ghost_mode=mesh.GhostMode.none)
+    tags = top_clamped_tags(msh, 1.0)
+    before = msh.geometry.x.copy()
+    lift = np.array([[0.0], [0.1], [0.0]])
+    with pytest.raises(RuntimeError, match=r"invert or flatten \d+ cell\(s\) .*\(the vertex at "
+                       r"\([0-9.]+, 0\.0\) would move by 0\.1\)"):
+        project_boundary(msh, tags, {ex.CONTACT: lambda p: p + lift})
+    assert np.array_equal(msh.geometry.x, before)
