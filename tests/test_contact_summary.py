@@ -5,7 +5,8 @@
   p times the area, the mean and peak pressure are p, the centre is the face's centre and the
   second moment that of a uniform pressure (2D: p b^3 2 / 3 for the half-width b; 3D:
   p / 6 on the unit square), to round-off; 2D and 3D. With Tresca's s < the shear the block
-  slides: the friction force is -s times the area (against the slip), every facet slips.
+  slides: the friction force is -s times the area (against the slip), every facet slips (2D
+  and 3D, the sides carrying the uniform shear stress s).
 * Hertz (2D, the data of a peer code's demo: R = 8, E = 200, nu = 0.3, a load of 10 per unit
   length): a quarter disc pressed by a traction on its top and held vertically only by the
   contact. The force equals the applied load by equilibrium (to round-off), the radius from the
@@ -61,7 +62,8 @@ def pressed_block(dim, friction=None):
         load = {TOP: (0.0, -P), **({SIDES: side_shear} if friction is not None else {})}
     else:
         msh = mesh.create_unit_cube(COMM, 3, 3, 3, ghost_mode=mesh.GhostMode.none)
-        top, load = (0.0, 0.0, None), {TOP: (0.0, 0.0, -P)}
+        top = (D, 0.0, None) if friction is not None else (0.0, 0.0, None)
+        load = {TOP: (0.0, 0.0, -P), **({SIDES: side_shear_3d} if friction is not None else {})}
     problem = ds.SignoriniProblem(
         msh, _tags(msh, 1.0), contact=BOTTOM, dirichlet={TOP: top}, E=E, nu=0.0,
         traction=load, gap=0.0, friction=friction,
@@ -69,12 +71,20 @@ def pressed_block(dim, friction=None):
     disc = ds.discretize(problem)
     guess = [fem.Function(disc.Q) for _ in sol_components(problem)]
     guess[0].x.array[:] = 1.0  # contact active from the start: nothing else holds the block up
-    return ds.solve(disc, initial_guess=(fem.Function(disc.V), *guess))
+    # rtol 1e-12: the 3D slip direction (a nonlinear equation) to round-off, not to 1e-8
+    return ds.solve(disc, initial_guess=(fem.Function(disc.V), *guess), rtol=1e-12)
 
 
 def side_shear(x):
     """sigma n = (0, -+s) on the sides x = 0 and x = 2 of the sliding block (sigma_xy = s)."""
     return ufl.as_vector((0.0, ufl.conditional(ufl.lt(x[0], 1.0), -S, S)))
+
+
+def side_shear_3d(x):
+    """sigma n = (0, 0, -+s) on the sides x = 0 and x = 1 of the sliding cube, 0 on y = 0, 1."""
+    shear = ufl.conditional(ufl.lt(x[0], 1e-8), -S, ufl.conditional(ufl.gt(x[0], 1 - 1e-8), S,
+                                                                    0.0))
+    return ufl.as_vector((0.0, 0.0, shear))
 
 
 def sol_components(problem):
@@ -113,13 +123,17 @@ def test_uniformly_pressed_block(dim):
     same_on_every_rank(s)
 
 
-def test_sliding_block_friction_force():
+@pytest.mark.parametrize("dim", [2, 3])
+def test_sliding_block_friction_force(dim):
     """Tresca's s < the shear: the block slides in +x, friction -s per unit area, all slip."""
-    with pressed_block(2, ds.Tresca(S)) as sol:
+    with pressed_block(dim, ds.Tresca(S)) as sol:
         s = ds.contact_summary(sol)
-    assert np.allclose(s.friction_force, (-S * 2.0, 0.0), atol=1e-12)
-    assert np.allclose(s.force, (-S * 2.0, P * 2.0), atol=1e-12)
-    assert s.slip_area == pytest.approx(2.0, rel=1e-12)
+    area = 2.0 if dim == 2 else 1.0
+    friction = np.zeros(dim)
+    friction[0] = -S * area
+    assert np.allclose(s.friction_force, friction, atol=1e-12)
+    assert np.allclose(s.force, friction + np.eye(dim)[-1] * P * area, atol=1e-12)
+    assert s.slip_area == pytest.approx(area, rel=1e-12)
     assert s.stick_area == 0.0
     same_on_every_rank(s)
 
