@@ -67,9 +67,10 @@ class ContactSummary:
         mean_pressure: ``P / area`` (0 without contact).
         peak_pressure: ``max lambda_H``. A P0 multiplier's maximum does not converge where the
             surface is a polygon (a curved face meshed by facets): at the kinks lambda_H
-            overshoots the pressure (measured on Hertz's cylinder without
-            ``boundary_projection``: +16 %, +33 % on finer meshes), and on locally refined
-            curved faces in 3D by 9-32 %. Read the pressure through its means
+            overshoots the pressure (Hertz's cylinder without ``boundary_projection``: +16 %,
+            then +33 % on a finer mesh; Hertz's ball on gmsh meshes without it: +22 %, +50 %,
+            +43 % at contact facets of 0.03, 0.02, 0.015 of R), and on locally refined curved
+            faces in 3D by 9-32 %. Read the pressure through its means
             (:attr:`mean_pressure`, :attr:`radius`, a goal over a patch), not its maximum.
         centre: The point the moments are taken about: the centre of pressure
             ``int lambda x ds / P`` or the ``centre`` given (gdim components; NaN without
