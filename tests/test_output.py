@@ -100,6 +100,12 @@ def _times(path, grid):
     raise AssertionError(f"no time series {grid} in {path}")
 
 
+def _bp_steps(path):
+    """The number of steps of a BP4 file: its index md.idx has a 64-byte header and 64 bytes
+    per step (ADIOS2's BP4 format)."""
+    return ((path / "md.idx").stat().st_size - 64) // 64
+
+
 def _strip(comm, nx=8):
     msh = mesh.create_rectangle(comm, [(0.0, 0.0), (2.0, 1.0)], [nx, 4],
                                 ghost_mode=mesh.GhostMode.none)
@@ -136,8 +142,13 @@ def test_load_path_is_one_time_series(mpi_tmp_path, adaptive):
     else:
         assert len(set(meshes)) == 1
     if compat.has_vtx():
-        assert (out / "path_p1.bp").is_dir() and (out / "path_dg0.bp").is_dir()
-        assert (out / "path_contact_dg0.bp").is_dir()
+        if adaptive:  # a new file from each refined mesh on
+            names = ["path_p1.bp", "path_p1_01.bp", "path_p1_02.bp", "path_contact_dg0_02.bp"]
+            steps = [1, 1, 1, 1]
+        else:  # one file per element, the three steps in it
+            names = ["path_p1.bp", "path_dg0.bp", "path_contact_dg0.bp"]
+            steps = [3, 3, 3]
+        assert [_bp_steps(out / n) for n in names] == steps
 
 
 def test_adaptive_levels_hold_the_stress(mpi_tmp_path):
