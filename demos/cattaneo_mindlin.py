@@ -175,11 +175,14 @@ print0(f"Cattaneo-Mindlin in {dim}D on {comm.size} process(es): mu = {args.mu}, 
 # theory while its solution is alive and keeps the facets' tractions (numpy arrays, gathered on
 # rank 0) and, for the adaptive path in 2D, a snapshot of the macro mesh. In 3D the radii
 # $a_h$, $c_h$ are those of the discs of the areas in contact and sticking (the half body's
-# areas doubled), and `dc/h` counts in mean edges of the contact facets.
+# areas doubled), and `dc/h` counts in mean edges of the contact facets. `cS/a` is the stick
+# zone's half-width (radius) from the measure of the sticking facets that
+# `ds.contact_summary(sol)` returns (its `stick_area`; the 2D zone's extent 2c, the 3D half
+# disc's area pi c^2 / 2), beside `c_h/a` from the outermost sticking facets.
 
 # +
 HEADER = (f"{'step':>4} {'cells':>7} {'Q/muP':>6} {'a_h/a':>6} {'c/a':>6} {'c_h/a':>6} "
-          f"{'dc/h':>6} {'L2 q':>6} {'best':>6} {'L2 p':>6} {'coupl':>7} {'stick':>5} "
+          f"{'cS/a':>6} {'dc/h':>6} {'L2 q':>6} {'best':>6} {'L2 p':>6} {'coupl':>7} {'stick':>5} "
           f"{'slip':>5} {'J_h':>11} {'[J_low, J_high]':>25} {'it':>3} {'time':>6}")
 rows: list[dict] = []
 profiles: dict[str, list] = {}
@@ -196,6 +199,9 @@ def run(name: str, h_contact: float, adaptive: bool) -> None:
 
     def on_step(record: ds.StepRecord, sol: ds.Solution, est: ds.Estimate) -> None:
         m = cases.measure_cattaneo_mindlin(sol, **data)
+        summary = ds.contact_summary(sol)  # the stick zone's extent from its facets' measure
+        c_summary = (summary.stick_area / 2 if dim == 2
+                     else math.sqrt(2 * summary.stick_area / math.pi))  # the half body's
         profiles[name].append(cases.gather_contact_profile(sol) if dim == 2
                               else cm.gather_contact_patch(sol))
         if adaptive and dim == 2 and not args.no_plots:
@@ -205,10 +211,13 @@ def run(name: str, h_contact: float, adaptive: bool) -> None:
                "num_dofs": record.num_dofs, "M_C": record.num_contact_elements,
                "J_h": record.J_h, "J_low": record.J_low, "J_high": record.J_high,
                "eta": record.eta, "newton_iterations": record.newton_iterations,
-               **m.as_dict(), "time_cumulative": time.perf_counter() - tic}
+               **m.as_dict(), "P_summary": summary.normal_force,
+               "Q_summary": summary.friction_force[0], "c_summary": c_summary,
+               "time_cumulative": time.perf_counter() - tic}
         rows.append(row)
         print0(f"{record.step:4d} {record.num_cells:7d} {m.ratio:6.3f} {m.a_h / m.a:6.3f} "
-               f"{m.c / m.a:6.3f} {m.c_h / m.a:6.3f} {m.c_error_facets:+6.2f} "
+               f"{m.c / m.a:6.3f} {m.c_h / m.a:6.3f} {c_summary / m.a:6.3f} "
+               f"{m.c_error_facets:+6.2f} "
                f"{m.l2_lam_t:6.3f} {m.l2_best:6.3f} {m.l2_lam:6.3f} {m.coupling:+7.4f} "
                f"{m.num_stick:5d} {m.num_slip:5d} {record.J_h:11.4e} "
                f"[{record.J_low:.4e}, {record.J_high:.4e}] {record.newton_iterations:3d} "

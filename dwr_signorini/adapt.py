@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate
 from .goal import Goal
@@ -118,6 +119,18 @@ def solve_adaptive(
         RuntimeError: As :func:`~dwr_signorini.estimate`.
     """
     _check_problem_and_goal(problem, goal, refinement)
+    check_same_on_ranks(
+        problem.mesh,
+        "solve_adaptive",
+        {
+            "refinement": refinement, "fraction": fraction, "strategy": strategy,
+            "max_levels": max_levels, "max_cells": max_cells, "tol": tol,
+            "estimator": estimator, "weights": weights, "exact": exact,
+            "output_dir": None if output_dir is None else str(output_dir),
+            "callback": callback is None, "petsc_options": petsc_options, "method": method,
+            "ncp_scale": ncp_scale, "refinement_rule": refinement_rule, "growth": growth,
+        },
+    )
     marking = (  # a uniform run records what it was given
         marking_defaults(problem, fraction, growth, strategy)
         if refinement == "adaptive"

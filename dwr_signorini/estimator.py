@@ -26,6 +26,7 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
@@ -456,6 +457,7 @@ def estimate(
             "sol has been destroyed (Solution.destroy(), or the end of its `with` block): "
             "estimate a Solution before releasing it"
         )
+    check_options_on_ranks(sol.disc.mesh, "estimate", options)
     goal_forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.tangential or None)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)

@@ -20,6 +20,7 @@ import ufl
 from dolfinx import fem
 from ufl.algorithms import expand_derivatives
 
+from .agreement import check_form_on_ranks
 from .collective import call_collectively, shadow
 from .laws import tangent_basis
 from .quadrature import with_quadrature_degrees
@@ -120,6 +121,7 @@ class GoalForms:
                 "goal(u, lam, m) must return a scalar functional (a form without test or trial "
                 f"functions); it has {len(J.arguments())} argument(s)"
             )
+        check_form_on_ranks(disc.comm, "estimate", "goal", J)
         multipliers = (lam, *tangential)
         for itg in J.integrals():
             _check_integral(itg, disc, multipliers)

@@ -71,6 +71,7 @@ initial guess against the gap, and the iterates from a zero initial guess do not
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -80,6 +81,7 @@ import numpy as np
 import ufl
 from dolfinx import fem, la
 
+from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
@@ -280,7 +282,26 @@ def solve(
             "options must be a SolverOptions, given instead of the solver's keyword arguments"
         )
     _check_initial_guess(disc, initial_guess)
-    return _solve(disc, initial_guess, options)
+    check_options_on_ranks(disc.mesh, "solve", options, initial_guess=initial_guess is None)
+    tic = time.perf_counter()
+    sol = _solve(disc, initial_guess, options)
+    _log_solution(sol, time.perf_counter() - tic)
+    return sol
+
+
+def _log_solution(sol: Solution, seconds: float) -> None:
+    """One INFO line on rank 0 for a finished solve (the logger ``dwr_signorini.newton``).
+
+    Collective with friction (the stick and slip counts are reduced on every rank).
+    """
+    friction = "" if sol.stick is None else f", stick {sol.num_stick}, slip {sol.num_slip}"
+    if sol.disc.comm.rank != 0:
+        return
+    logger.info(
+        "solve: %d DoFs, %d contact elements: %d Newton steps (%s), %d active%s, %.2f s",
+        sol.disc.num_dofs, sol.disc.num_contact_elements, sol.newton_iterations, sol.method,
+        sol.num_active, friction, seconds,
+    )
 
 
 def _discretization(problem_or_disc: Any) -> Discretization:

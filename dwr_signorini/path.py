@@ -37,6 +37,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate, estimate
 from .goal import Goal
@@ -209,6 +210,17 @@ def solve_path(
         ConvergenceError: As :func:`~dwr_signorini.solve`, on any step.
     """
     problems = _check_problems(problems)
+    check_same_on_ranks(
+        problems[0].mesh,
+        "solve_path",
+        {
+            "problems": len(problems), "goal": callable(goal), "adaptive": adaptive,
+            "estimator": estimator, "weights": weights, "fraction": fraction,
+            "growth": growth, "output_dir": None if output_dir is None else str(output_dir),
+            "callback": callback is None, "petsc_options": petsc_options, "method": method,
+            "ncp_scale": ncp_scale, "initial_guess": initial_guess is None, "history": history,
+        },
+    )
     goals = _goals(goal, len(problems))
     settings = _path_settings(problems[0], adaptive, fraction, growth, estimator, weights,
                               petsc_options, method, ncp_scale)
@@ -229,7 +241,7 @@ def solve_path(
             "strategy": None if marking is None else marking.strategy,
             "max_growth": None if marking is None else marking.max_growth, "history": history,
             "num_processes": comm.size, "law": repr(problems[0].law)}
-    reporter = Reporter(comm, "path", meta, output_dir, callback, verbose)
+    reporter = Reporter(comm, "path", meta, output_dir, callback, verbose, series=True)
     return _steps(problems, goals, settings, adaptive, history, initial_guess, reporter)
 
 

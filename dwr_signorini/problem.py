@@ -20,9 +20,10 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
+from .agreement import check_same_on_ranks
 from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
-from .mesh_validation import check_cell_tags, check_mesh, check_tags
+from .mesh_validation import check_cell_tags, check_mesh, check_projection_fits, check_tags
 from .obstacles import Obstacle
 from .pairs import ContactPair, check_contact_pairs, check_pair_bodies, check_pair_gap
 from .quadrature import DATA_QUADRATURE_DEGREE
@@ -128,6 +129,17 @@ class SignoriniProblem:
         quadrature_degree: int = DATA_QUADRATURE_DEGREE,
     ) -> None:
         check_mesh(mesh, facet_tags)
+        check_same_on_ranks(
+            mesh,
+            "SignoriniProblem",
+            {
+                "contact": contact, "dirichlet": dirichlet, "E": E, "nu": nu, "model": model,
+                "body_force": body_force, "traction": traction, "gap": gap,
+                "cell_tags": cell_tags is None, "boundary_projection": boundary_projection,
+                "friction": friction, "quadrature_degree": quadrature_degree,
+            },
+            numeric=("boundary_projection",),
+        )
         self.mesh = mesh
         self.facet_tags = facet_tags
         self.model = check_model(model, mesh.topology.dim)
@@ -160,6 +172,7 @@ class SignoriniProblem:
             + [("boundary_projection", t) for t in self.boundary_projection]
         )
         check_tags(mesh, facet_tags, used, sides)
+        check_projection_fits(mesh, facet_tags, self.boundary_projection)
         check_pair_bodies(mesh, facet_tags, self.pairs)
         self.law = check_law(friction, self)
         self.friction = self.law if self.law.frictional else None

@@ -35,6 +35,7 @@ from .io import OutputDirectory, write_csv, write_json
 from .lifetime import Releasable
 from .newton import Solution
 from .problem import SignoriniProblem
+from .stress import stress_fields
 from .timing import timed
 
 __all__ = ["AdaptiveResult", "LevelRecord", "Reporter", "level_record", "progress_line"]
@@ -308,6 +309,8 @@ class Reporter:
             every rank; an exception it raises on any rank is raised on every rank
             (:mod:`dwr_signorini.collective`).
         verbose: Show a progress line per level on rank 0.
+        series: Write the fields as one time series (a load path,
+            :meth:`~dwr_signorini.io.OutputDirectory.write_fields`), not one file per level.
 
     Raises:
         TypeError: A ``callback``, ``verbose`` or ``output_dir`` of the wrong type.
@@ -323,6 +326,7 @@ class Reporter:
         output_dir: str | os.PathLike | None = None,
         callback: Callable[..., None] | None = None,
         verbose: bool = True,
+        series: bool = False,
     ) -> None:
         if callback is not None and not callable(callback):
             raise TypeError(f"callback must be callable or None, got {callback!r}")
@@ -333,6 +337,7 @@ class Reporter:
                 f"output_dir must be a path (str or pathlib.Path) or None, got {output_dir!r}"
             )
         self.comm, self.meta, self.callback, self.verbose = comm, meta, callback, verbose
+        self.series = series
         self.out = None if output_dir is None else OutputDirectory(output_dir, comm, name=name)
         self._stdout = _on_stdout(verbose and comm.rank == 0)
 
@@ -341,6 +346,8 @@ class Reporter:
         return self
 
     def __exit__(self, *exc: object) -> None:
+        if self.out is not None:
+            self.out.close()
         self._stdout.__exit__(*exc)
 
     def report(
@@ -362,8 +369,9 @@ class Reporter:
         """
         if self.out is not None:
             with timed("output"):  # the fields first: a level in the table has its fields
-                fields = [sol.u, est.indicators, est.dual.y]
-                self.out.write_fields(index, fields, [*sol.multipliers, *est.dual.multipliers])
+                fields = [sol.u, est.indicators, est.dual.y, *stress_fields(sol)]
+                self.out.write_fields(index, fields, [*sol.multipliers, *est.dual.multipliers],
+                                      series=self.series)
                 self.out.append(record.as_dict(), self.meta)
         self.say(progress_line(record, label))
         if self.callback is not None:
