@@ -58,7 +58,11 @@ class Component:
         return self.direction(frame)
 
     def offset_in(self, gap: Any, n: Any, frame: Any) -> Any:
-        """g_k in the contact frame of normal ``frame`` (``gap`` is measured along ``n``)."""
+        """g_k in the contact frame of normal ``frame`` (``gap`` is measured along ``n``).
+
+        0 for a tangential component; the normal one compares with g (n . n_c), the component
+        of the gap vector g n along n_c.
+        """
         return self.offset(gap)
 
     def offset(self, gap: Any) -> Any:
@@ -242,8 +246,9 @@ class ContactLaw:
             c: The scale of the NCP.
             fields: The :class:`~dwr_signorini.fields.MeshFields` of the mesh (the threshold).
             u_old: The displacement of the previous load step, or None (zero).
-            frame: The normal of the contact frame of the tangential components
-                (:meth:`Component.direction_in`); None takes ``n``.
+            frame: The normal n_c of the contact frame the components are measured in
+                (:meth:`Component.direction_in`, :meth:`Component.offset_in`); None takes
+                ``n`` (the paper's condition (2)).
 
         Returns:
             One tuple per component, normal first.
