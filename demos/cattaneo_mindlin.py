@@ -248,7 +248,9 @@ wall = time.perf_counter() - tic
 #
 # In 3D ($h_C = 0.03, 0.02$) the contact radius comes out within half a facet of Hertz's
 # ($-0.36$, $-0.43$ facets) and the stick radius small by about one facet ($-0.74$ and
-# $-1.23$ facets at the last step): $\lambda_n$ oscillates from facet to facet by about
+# $-1.23$ facets at the last step, measured with the slip along each slave facet's tangent; in
+# the flat's frame the finite sphere shows as the half-disc does, $-1.54$ facets at the second
+# shear step on $h_C = 0.03$): $\lambda_n$ oscillates from facet to facet by about
 # $\pm 0.3\,p_0$ (rms; half that at $\nu = 0.3$), a sticking facet with a low $\lambda_n$
 # reaches its Coulomb limit and slips, and $\lambda_t = \mu \lambda_n$ on the slipping facets
 # carries the oscillation: `L2 q` is about 0.67 on both meshes, against 0.18 and 0.15 for the
