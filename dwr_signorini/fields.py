@@ -262,13 +262,12 @@ class MeshFields:
     def frame_normal(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
         """The normal of the contact frame: the tangential slip is measured normal to it.
 
-        The normal of the flatter surface, the direction the two approach along: a rigid
-        obstacle's (:meth:`~dwr_signorini.obstacles.Obstacle.frame_normal`: a plane's own
-        normal, the body's normal ``n`` against a curved obstacle); ``n`` where the gap is a
-        number or a function; for a contact pair the bisector of the slave normal and the
-        master's opposite normal (``pair_frame``, :mod:`~dwr_signorini.pairs`). So the normal
-        approach of a curved surface is not read as slip (``docs/theory.md``, the contact
-        frame).
+        A rigid obstacle's own normal where the body's normal ray enters it
+        (:meth:`~dwr_signorini.obstacles.Obstacle.surface_normal`); the body's normal ``n``
+        where the gap is a number or a function (no surface to take a normal of); for a
+        contact pair the normalised mean of the slave normal and the master's opposite normal
+        (``pair_frame``, :mod:`~dwr_signorini.pairs`). So the normal approach of a curved
+        surface is not read as slip (``docs/theory.md``, the contact frame).
 
         Args:
             x: The spatial coordinate of this mesh.
@@ -281,7 +280,7 @@ class MeshFields:
         miss = self.problem.miss_gap
 
         def value(g: Any) -> Any:
-            return g.frame_normal(x, n, miss) if isinstance(g, Obstacle) else n
+            return g.surface_normal(x, n, miss) if isinstance(g, Obstacle) else n
 
         problem = self.problem
         if not problem.pairs:

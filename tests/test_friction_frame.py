@@ -11,8 +11,10 @@ the slave side. Measured on the press step (``benchmarks/friction_frame.py``):
 is centred (to round-off, 0.17 a off centre before) and the L2 error of lambda_t against
 Cattaneo falls with h.
 
-The obstacles' frame normals: a plane's own normal, a curved obstacle's the body's.
+The obstacles' frame normals against their closed forms at a few points.
 """
+
+import itertools
 
 from mpi4py import MPI
 
@@ -114,15 +116,40 @@ def _coordinate(dim):
     return ufl.SpatialCoordinate(ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(dim,))))
 
 
-@pytest.mark.parametrize("normal", [(0.6, -0.8), (-0.6, -0.8), (1.0, 0.0)])
-def test_obstacle_frame_normals(normal):
-    """A plane's frame is its own normal where the body faces it (the body's normal where it
-    faces away); a curved obstacle's is the body's normal (the flatter surface of an
-    indentation)."""
+@pytest.mark.parametrize("point, normal", [((0.3, 0.4), (0.6, -0.8)), ((0.3, 0.4), (-0.6, -0.8)),
+                                           ((0.0, 1.0), (1.0, 0.0))])
+def test_obstacle_frame_normals_2d(point, normal):
+    """Plane: its own normal; Sphere: from the ray's entry point towards the centre; the body's
+    normal where the ray misses."""
     x = _coordinate(2)
     n = ufl.as_vector(normal)
+    miss = 10.0
     plane = ds.obstacles.Plane((0.0, -1.0), (0.0, -1.0))
-    got = _evaluate(plane.frame_normal(x, n, 10.0), (0.3, 0.4))
-    assert np.allclose(got, (0.0, -1.0) if normal[1] < 0 else normal)
+    got = _evaluate(plane.surface_normal(x, n, miss), point)
+    expected = (0.0, -1.0) if normal[1] < 0 else normal
+    assert np.allclose(got, expected)
     sphere = ds.obstacles.Sphere((0.0, -2.0), 1.5)
-    assert np.allclose(_evaluate(sphere.frame_normal(x, n, 10.0), (0.3, 0.4)), normal)
+    got = _evaluate(sphere.surface_normal(x, n, miss), point)
+    t = float(sphere.gap(x, n, miss)(point))
+    expected = normal
+    if t < miss:
+        y = np.array(point) + t * np.array(normal)
+        expected = (np.array((0.0, -2.0)) - y) / 1.5
+    assert np.allclose(got, expected), (got, expected, t)
+
+
+def test_cylinder_frame_normal():
+    """Cylinder: the entry point's normal, normal to the axis, towards the axis."""
+    x = _coordinate(3)
+    axis, point = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0), np.array([0.0, 0.0, -2.0])
+    cylinder = ds.obstacles.Cylinder(point, axis, 1.0)
+    for p, normal in itertools.product([(0.2, -0.1, 0.0), (1.0, 0.5, -0.5)],
+                                       [(0.0, 0.0, -1.0), (0.1, 0.2, -0.97)]):
+        nn = np.array(normal) / np.linalg.norm(normal)
+        n = ufl.as_vector(nn)
+        got = _evaluate(cylinder.surface_normal(x, n, 10.0), p)
+        y = np.array(p) + float(cylinder.gap(x, n, 10.0)(p)) * nn
+        d = point - y
+        d -= (d @ axis) * axis
+        assert np.allclose(got, d / np.linalg.norm(d)), (got, d)
+        assert np.linalg.norm(d) == pytest.approx(1.0)
