@@ -135,6 +135,9 @@ class Obstacle:
 
         Returns:
             A UFL unit vector.
+
+        Raises:
+            NotImplementedError: On the base class; every obstacle defines it.
         """
         raise NotImplementedError
 
