@@ -130,10 +130,8 @@ class ContactAlgebra:
         a = fields.elastic_form(u, v, m.dx)
         if callable(problem.E) or callable(problem.nu):
             a = with_quadrature_degrees(a, degree)
-        couplings = [
-            ufl.inner(mu, ufl.dot(u, comp.direction(m.n))) * m.ds_contact
-            for comp in self.components
-        ]
+        directions = disc.directions(self.components)  # in the contact frame
+        couplings = [ufl.inner(mu, ufl.dot(u, e)) * m.ds_contact for e in directions]
         forms = {
             "a": form(a),
             "L": form(with_quadrature_degrees(disc.load_form(v), degree)),
@@ -141,21 +139,21 @@ class ContactAlgebra:
             "NT": [form(ufl.adjoint(c)) for c in couplings],
             "M": form(mu * m.ds_contact),
             "g": form(
-                with_quadrature_degrees(fields.gap(m.x, m.n) * mu * m.ds_contact, degree)
+                with_quadrature_degrees(
+                    disc.normal_gap(self.components, fields.gap(m.x, m.n)) * mu * m.ds_contact,
+                    degree)
             ),
         }
         self.trace = disc.master_trace(V)
         if self.trace is not None:  # the master side: B_W of (mu, w . e_k), w in W
             w = ufl.TrialFunction(self.trace.W)
             forms["B"] = [
-                form(ufl.inner(mu, ufl.dot(w, comp.direction(m.n))) * m.ds_contact)
-                for comp in self.components
+                form(ufl.inner(mu, ufl.dot(w, e)) * m.ds_contact) for e in directions
             ]
         if disc.u_old is not None:  # the slip increment of a load step: g_k = B_k u_old
             u_old = disc.relative(disc.u_old)
             forms["u_old"] = [
-                form(ufl.dot(u_old, comp.direction(m.n)) * mu * m.ds_contact)
-                for comp in self.components[1:]
+                form(ufl.dot(u_old, e) * mu * m.ds_contact) for e in directions[1:]
             ]
         bound = problem.law.bound_expr(fields, m.x)
         if bound is not None:

@@ -114,6 +114,8 @@ class MeshFields:
             facets, needed by data given per contact tag (with several contact tags).
         pair_gap: With contact pairs, returns the gap of the pairs on this mesh (the
             projected gap of its master trace, :mod:`~dwr_signorini.pairs`).
+        pair_frame: With contact pairs, returns the normal of their contact frame on this
+            mesh (of the master trace, :attr:`~dwr_signorini.pairs.MasterTrace.frame`).
 
     Attributes:
         problem: The problem.
@@ -129,9 +131,11 @@ class MeshFields:
         cell_tags: dmesh.MeshTags | None = None,
         contact_indicators: Mapping[int, fem.Function] | None = None,
         pair_gap: Callable[[], fem.Function] | None = None,
+        pair_frame: Callable[[], fem.Function] | None = None,
     ) -> None:
         self.problem = problem
         self.pair_gap = pair_gap
+        self.pair_frame = pair_frame
         self.mesh = mesh
         self.cell_tags = cell_tags
         self.contact_indicators = (
@@ -249,6 +253,39 @@ class MeshFields:
                 "fields, disc.fields.gap(m.x)"
             )
         pairs = self.pair_gap()
+        if not problem.rigid_tags:
+            return pairs
+        chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)
+        rigid = self.contact_expr(problem.gap, x, "gap", value, problem.rigid_tags)
+        return chi * rigid + (1.0 - chi) * pairs
+
+    def frame_normal(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
+        """The normal of the contact frame: the tangential slip is measured normal to it.
+
+        A rigid obstacle's own normal where the body's normal ray enters it
+        (:meth:`~dwr_signorini.obstacles.Obstacle.surface_normal`); the body's normal ``n``
+        where the gap is a number or a function (no surface to take a normal of); for a
+        contact pair the normalised mean of the slave normal and the master's opposite normal
+        (``pair_frame``, :mod:`~dwr_signorini.pairs`). So the normal approach of a curved
+        surface is not read as slip (``docs/theory.md``, the contact frame).
+
+        Args:
+            x: The spatial coordinate of this mesh.
+            n: The outward unit normal; ``None`` takes the ``ufl.FacetNormal`` of the mesh.
+
+        Returns:
+            A UFL unit vector on Gamma_C.
+        """
+        n = ufl.FacetNormal(extract_unique_domain(x)) if n is None else n
+        miss = self.problem.miss_gap
+
+        def value(g: Any) -> Any:
+            return g.surface_normal(x, n, miss) if isinstance(g, Obstacle) else n
+
+        problem = self.problem
+        if not problem.pairs:
+            return self.contact_expr(problem.gap, x, "gap", value)
+        pairs = self.pair_frame()
         if not problem.rigid_tags:
             return pairs
         chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)

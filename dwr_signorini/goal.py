@@ -108,7 +108,8 @@ class GoalForms:
         elif len(tangential) == 1:
             lam_t = tangential[0]
         else:  # 3D: the traction vector from its coordinates in the tangent basis
-            lam_t = sum(f * t for f, t in zip(tangential, tangent_basis(disc.m.n), strict=True))
+            basis = tangent_basis(disc.contact_frame())
+            lam_t = sum(f * t for f, t in zip(tangential, basis, strict=True))
         args = (u, lam, disc.m, lam_t) if lam_t is not None and four else (u, lam, disc.m)
         J = call_collectively(disc.comm, "goal", goal, *args)
         if not isinstance(J, ufl.Form):

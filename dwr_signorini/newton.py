@@ -564,7 +564,7 @@ def traction_vector(disc: Discretization, tangential: list[fem.Function]) -> fem
     m = disc.m
     Qv = fem.functionspace(disc.Q.mesh, ("DG", 0, (disc.mesh.geometry.dim,)))
     mu = ufl.TestFunction(Qv)
-    t = tangent_basis(m.n)
+    t = tangent_basis(disc.contact_frame())
     traction = sum(f * t_k for f, t_k in zip(tangential, t, strict=True))
     b = fem.assemble_vector(disc.form(ufl.inner(traction, mu) * m.ds_contact))
     M = fem.assemble_vector(disc.form(ufl.inner(ufl.as_vector([1.0] * Qv.num_sub_spaces), mu)

@@ -120,6 +120,37 @@ class Obstacle:
         """
         raise NotImplementedError
 
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:
+        """The obstacle's unit normal where the ray ``x + t n`` enters it, as UFL.
+
+        It points into the obstacle (the way the body's outward normal faces it): the normal
+        of the contact frame in which the tangential slip against the obstacle is measured
+        (:meth:`~dwr_signorini.spaces.Discretization.contact_frame`). Where the ray misses,
+        ``n`` itself.
+
+        Args:
+            x: The boundary point.
+            n: The body's outward unit normal at ``x``.
+            miss: The finite gap where the ray misses the obstacle.
+
+        Returns:
+            A UFL unit vector.
+
+        Raises:
+            NotImplementedError: On the base class; every obstacle defines it.
+        """
+        raise NotImplementedError
+
+    def _towards(self, point: Expr, x: Expr, n: Expr, miss: float) -> Expr:
+        """The unit vector from the ray's entry point to ``point`` (n where the ray misses)."""
+        g = self.gap(x, n, miss)
+        d = [p - (xi + g * ni) for p, xi, ni in zip(
+            point, _components(x, self.dim), _components(n, self.dim), strict=True)]
+        length = ufl.sqrt(_dot(d, d))
+        safe = ufl.conditional(ufl.gt(length, 0.0), length, 1.0)
+        hit = ufl.And(ufl.lt(g, miss), ufl.gt(length, 0.0))
+        return ufl.conditional(hit, ufl.as_vector([di / safe for di in d]), n)
+
 
 class Plane(Obstacle):
     """The rigid half-space ``{y : (y - point) . normal >= 0}`` (the body on the other side).
@@ -155,6 +186,11 @@ class Plane(Obstacle):
         safe = ufl.conditional(ufl.gt(n_dot, 0.0), n_dot, 1.0)
         t = ufl.max_value(ufl.min_value(dist / safe, miss), -miss)
         return ufl.conditional(ufl.gt(n_dot, 0.0), t, miss)
+
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        n_dot = _dot(_components(n, self.dim), [float(c) for c in self.normal])
+        normal = ufl.as_vector([float(c) for c in self.normal])
+        return ufl.conditional(ufl.gt(n_dot, 0.0), normal, n)
 
     def __repr__(self) -> str:
         return f"Plane(point={self.point.tolist()}, normal={self.normal.tolist()})"
@@ -193,6 +229,9 @@ class Sphere(Obstacle):
         d = [xi - float(c) for xi, c in zip(_components(x, self.dim), self.center, strict=True)]
         nn = _components(n, self.dim)
         return _ray_quadric(_dot(nn, nn), _dot(nn, d), _dot(d, d) - self.radius**2, miss)
+
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        return self._towards([float(c) for c in self.center], x, n, miss)
 
     def __repr__(self) -> str:
         return f"Sphere(center={self.center.tolist()}, radius={self.radius})"
@@ -240,6 +279,15 @@ class Cylinder(Obstacle):
         n_perp = [ni - n_a * ai for ni, ai in zip(nn, a, strict=True)]
         A = _dot(n_perp, n_perp)
         return _ray_quadric(A, _dot(n_perp, d_perp), _dot(d_perp, d_perp) - self.radius**2, miss)
+
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        # the point of the axis level with the entry point y: p + ((y - p) . a) a
+        a = [float(c) for c in self.axis]
+        y = [xi + self.gap(x, n, miss) * ni
+             for xi, ni in zip(_components(x, 3), _components(n, 3), strict=True)]
+        along = _dot([yi - float(p) for yi, p in zip(y, self.point, strict=True)], a)
+        foot = [float(p) + along * ai for p, ai in zip(self.point, a, strict=True)]
+        return self._towards(foot, x, n, miss)
 
     def __repr__(self) -> str:
         return (
@@ -290,6 +338,15 @@ class Graph(Obstacle):
         g = (ufl.as_ufl(self.psi(x)) - x[axis]) * n_axis
         g = ufl.max_value(ufl.min_value(g, miss), -miss)
         return ufl.conditional(ufl.gt(n_axis, 0.0), g, miss)
+
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        # the graph's upward normal (e_axis - grad psi) / |.| at x, to first order in the gap
+        # as the gap itself (psi does not depend on x[axis])
+        dim = ufl.shape(x)[0]
+        axis = self.axis % dim
+        grad = ufl.grad(ufl.as_ufl(self.psi(x)) + 0.0 * x[axis])
+        up = ufl.as_vector([1.0 if i == axis else -grad[i] for i in range(dim)])
+        return ufl.conditional(ufl.gt(n[axis], 0.0), up / ufl.sqrt(ufl.dot(up, up)), n)
 
     def __repr__(self) -> str:
         return f"Graph(psi={self.psi!r}, axis={self.axis})"

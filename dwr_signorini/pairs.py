@@ -197,6 +197,8 @@ class MasterTrace:
         gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` where no
             master facet is met).
         rule: The mortar rule of this rank's slave facets.
+        frame: The normal of the contact frame on the fine slave facets (vector DG0,
+            :meth:`_frame`), in which the tangential slip is measured.
     """
 
     def __init__(self, disc: Any, V: fem.FunctionSpace) -> None:
@@ -270,6 +272,7 @@ class MasterTrace:
         phi = _master_basis(disc.mesh, V, master, self.rule.master, projected)
         self.P = self._projection(basis, phi, master)
         self.gap = self._gap(basis)
+        self.frame = self._frame(normals, master.normals[self.rule.master])
         self._share = self._share_matrix(slave_cells, master)
 
     def _projection(self, basis: _FacetBasis, phi: np.ndarray, master: _Master) -> PETSc.Mat:
@@ -324,6 +327,38 @@ class MasterTrace:
             gap.x.array[Ws.dofmap.cell_dofs(f)] = value
         gap.x.scatter_forward()
         return gap
+
+    def _frame(self, slave: np.ndarray, master: np.ndarray) -> fem.Function:
+        """The normal of the contact frame per fine slave facet (vector DG0 on Sigma_h).
+
+        n_c = (n_s - <n_m>) / |n_s - <n_m>|, <n_m> the mean of the master normals over the
+        part of the facet the master covers (weights of the rule): the bisector of the two
+        surfaces, which does not change when the bodies swap sides (up to its sign). Where
+        no master facet is met, or the surfaces do not face each other (n_s . <n_m> >= 0), the
+        slave normal n_s.
+
+        Args:
+            slave: The outward normals of this rank's slave facets.
+            master: The outward normal of the master facet of each point of the rule.
+        """
+        rule = self.rule
+        mean = np.zeros_like(slave)
+        np.add.at(mean, rule.facet, master * rule.weights[:, None])
+        covered = np.zeros(len(slave))
+        np.add.at(covered, rule.facet, rule.weights)
+        mean /= np.where(covered > 0.0, covered, 1.0)[:, None]
+        bisector = slave - mean
+        length = np.linalg.norm(bisector, axis=1)
+        facing = (covered > 0.0) & (np.einsum("fi,fi->f", slave, mean) < 0.0)
+        frame = np.where(facing[:, None], bisector / np.where(facing, length, 1.0)[:, None],
+                         slave)
+        gdim = slave.shape[1]
+        V0 = fem.functionspace(self.W.mesh, ("DG", 0, (gdim,)))
+        out = fem.Function(V0, name="contact_frame")
+        cells = np.array([V0.dofmap.cell_dofs(f)[0] for f in range(len(slave))], dtype=np.int64)
+        out.x.array[(cells[:, None] * gdim + np.arange(gdim)).ravel()] = frame.ravel()
+        out.x.scatter_forward()
+        return out
 
     def _share_matrix(self, slave_cells: np.ndarray, master: _Master) -> PETSc.Mat:
         """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K."""

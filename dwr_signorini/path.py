@@ -413,8 +413,7 @@ def history_goal(sol: Solution, est: Estimate) -> Goal:
     weights = [sol.multiplier_function(part, f"history_weight_{k}")
                for k, part in enumerate(parts[1:], start=1)]
     disc = sol.disc
-    m = disc.m
-    directions = [comp.direction(m.n) for comp in algebra.components[1:]]
+    directions = disc.directions(algebra.components)[1:]
 
     def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> Any:
         form = None
