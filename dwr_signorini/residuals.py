@@ -140,7 +140,7 @@ def ncp_terms(sol: Any, u: Any, lams: Any, c: Any) -> list:
     u_old = None if disc.u_old is None else disc.relative(disc.u_old)
     return disc.problem.law.ncp_arguments(
         disc.relative(u), _tuple(lams), fields.gap(m.x), m.n, c, fields, u_old,
-        frame=disc.frame(disc.problem.law.components(m.mesh.topology.dim)),
+        frame=disc.contact_frame(),
     )
 
 

@@ -269,18 +269,6 @@ class Discretization:
         """
         return self.fields.frame_normal(self.m.x, self.m.n)
 
-    def frame(self, components: Any) -> Any:
-        """The frame normal of a law of ``components`` (normal first).
-
-        Args:
-            components: The law's components (:meth:`~dwr_signorini.laws.ContactLaw.components`).
-
-        Returns:
-            :meth:`contact_frame` with friction; without, the body's normal ``m.n`` itself (the
-            paper's condition (2)).
-        """
-        return self.contact_frame() if len(components) > 1 else self.m.n
-
     def directions(self, components: Any) -> list[Any]:
         """The directions of a law's components in its contact frame.
 
@@ -290,7 +278,7 @@ class Discretization:
         Returns:
             e_k of each component (:meth:`~dwr_signorini.laws.Component.direction_in`), UFL.
         """
-        n, frame = self.m.n, self.frame(components)
+        n, frame = self.m.n, self.contact_frame()
         return [comp.direction_in(n, frame) for comp in components]
 
     def normal_gap(self, components: Any, gap: Any) -> Any:
@@ -301,9 +289,9 @@ class Discretization:
             gap: The gap g along the body's normal n (UFL).
 
         Returns:
-            g (n . n_c) with friction, g without (:meth:`frame`).
+            g (n . n_c) (:meth:`contact_frame`).
         """
-        return components[0].offset_in(gap, self.m.n, self.frame(components))
+        return components[0].offset_in(gap, self.m.n, self.contact_frame())
 
     def relative(self, v: Any) -> Any:
         """The relative displacement v - P v on Gamma_C (:mod:`~dwr_signorini.pairs`).
