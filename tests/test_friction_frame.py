@@ -194,3 +194,51 @@ def test_cylinder_frame_normal():
         d -= (d @ axis) * axis
         assert np.allclose(got, d / np.linalg.norm(d)), (got, d)
         assert np.linalg.norm(d) == pytest.approx(1.0)
+
+
+@pytest.mark.mpi
+def test_coulomb_without_friction_is_the_frictionless_law():
+    """mu = 0 makes Coulomb's law the frictionless one: every law measures in one contact frame.
+
+    A block pressed onto a rigid ball (a curved obstacle, whose normal differs from the
+    block's) and the two discs of the pairs (a curved pair): the normal force's total and the
+    multiplier agree to round-off. Before every law used one frame, the frictionless law
+    measured along the body's normal and Coulomb's along the obstacle's: the ball's total force
+    differed by 1.2 % (0.17346 against 0.17561 on 16 x 8 macro cells).
+    """
+    from dolfinx import mesh
+
+    from dwr_signorini import examples as ex
+
+    msh = mesh.create_rectangle(COMM, [(0.0, 0.0), (1.0, 0.5)], [16, 8],
+                                mesh.CellType.triangle, ghost_mode=mesh.GhostMode.none)
+
+    def classify(x):
+        tags = np.full(x.shape[1], ex.NEUMANN)
+        tags[np.isclose(x[1], 0.5)] = ex.DIRICHLET
+        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
+        return tags
+
+    tags = ex.tag_exterior_facets(msh, classify)
+    ball = ds.obstacles.Sphere((0.5, -0.98), 1.0)
+    block = [ds.SignoriniProblem(msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,),
+                                 E=10.0, nu=0.3, gap=ball, friction=law)
+             for law in (None, ds.Coulomb(0.0))]
+    dmsh, cells, facets = cylinders(0.08)
+    discs = [ds.SignoriniProblem(
+        dmsh, facets, contact=ds.ContactPair(slave=MOD.UPPER_ARC, master=MOD.LOWER_ARC),
+        dirichlet={MOD.LOWER_FLAT: (0.0, 0.0), MOD.UPPER_FLAT: (0.0, -PRESS)}, E=E, nu=NU,
+        cell_tags=cells, friction=law, boundary_projection=MOD.projections(R, R))
+        for law in (None, ds.Coulomb(0.0))]
+    for problems in (block, discs):
+        forces, lams = [], []
+        for problem in problems:
+            with ds.solve(problem) as sol:
+                force = ds.estimate(sol, lambda u, lam, m: lam * m.ds_contact,
+                                    weights="patch").J_h
+                forces.append(force)
+                lams.append(sol.lam.x.array.copy())
+        assert forces[0] > 0.0
+        assert abs(forces[1] - forces[0]) <= 1e-10 * forces[0]
+        scale = COMM.allreduce(np.abs(lams[0]).max(initial=0.0), op=MPI.MAX)
+        assert np.abs(lams[1] - lams[0]).max(initial=0.0) <= 1e-10 * scale
