@@ -31,7 +31,8 @@ from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
 from .lifetime import Releasable
-from .model_error import ModelError, check_richer, model_error as model_error_estimate
+from .model_error import ModelError, check_richer
+from .model_error import model_error as model_error_estimate
 from .newton import Solution
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor

@@ -285,7 +285,9 @@ def _step_value(system: Any, goal: Goal, at: GoalForms, disc: Any, algebra: Any)
     return step.value() - at.value()
 
 
-def _num_slip(couplings: list, wanted: np.ndarray, free: np.ndarray, algebra: Any, comm: Any) -> int:
+def _num_slip(
+    couplings: list, wanted: np.ndarray, free: np.ndarray, algebra: Any, comm: Any
+) -> int:
     """The facets that slip in the richer law's sets at w_s^* (coupled or free with +-s)."""
     parts = algebra.components_of(wanted)
     moving = np.zeros(algebra.n_q, dtype=bool)
