@@ -49,7 +49,6 @@ from dolfinx import fem
 
 from .dual import solve_dual
 from .goal import Goal, GoalForms
-from .interval import SATURATION_UNRESOLVED, error_interval
 from .laws import multiplier_names
 from .linalg import system_class
 
@@ -83,6 +82,9 @@ class ModelError:
         newton_step: J(w^1) - J(w_s^*), w^1 the richer law's Newton iterate from w_s^*;
             equal to ``value`` for a goal linear in w (module docstring).
         num_slip: The slipping facets of the richer law's sets at w_s^* (global).
+        num_changed: The multiplier rows whose set the richer law's set test changes at w^1
+            (global). 0: w^1 is the richer discrete solution where the law is piecewise linear
+            on its sets (2D), and (M1) is exact for a linear goal.
     """
 
     value: float
@@ -92,16 +94,33 @@ class ModelError:
     law: Any = None
     newton_step: float = math.nan
     num_slip: int = 0
+    num_changed: int = -1
 
 
-def model_interval(value: float, roundoff: float = 0.0) -> tuple[float, float]:
-    """The interval of J(richer) - J(simpler): the saturation rule of :mod:`.interval`.
+def model_interval(
+    value: float, step: float, changed: int, roundoff: float = 0.0
+) -> tuple[float, float]:
+    """The interval of J(richer) - J(simpler) (theory, after eq. (M1)).
 
-    ``value x [1/(1 + b), 1/(1 - b)]`` with b = 1/2, the rule of a level whose contact set is
-    not resolved (the richer law's sets at w_s^* are those of one Newton step, not its final
-    ones), widened by the round-off.
+    With r = ``|step - value|`` (the goal's nonlinearity over the Newton step) plus the
+    round-off: ``value +- r`` where the richer law's sets settle at w^1 (``changed`` = 0: w^1
+    is the richer solution); where they do not, the sign of ``value`` and at most twice it,
+    ``hull(0, 2 value) +- r``: the step is a linearisation that can overshoot (a body that sticks
+    under the richer law slips under its set test at the simpler state) but has the right sign.
+
+    Args:
+        value: eta_M of (M1).
+        step: J(w^1) - J(w_s^*).
+        changed: :attr:`ModelError.num_changed`.
+        roundoff: The round-off of J.
+
+    Returns:
+        ``(low, high)``.
     """
-    return error_interval(0.0, None, value, 0.0, resolved=False, roundoff=roundoff)
+    r = abs(step - value) + abs(roundoff)
+    if changed == 0:
+        return value - r, value + r
+    return min(0.0, 2.0 * value) - r, max(0.0, 2.0 * value) + r
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -263,26 +282,55 @@ def _model_error(
     n_local = cells.function_space.dofmap.index_map.size_local
     cells.x.array[:n_local] = localize(density * disc.m.ds_contact)[:n_local]
     cells.x.scatter_forward()
+    step, changed = _step(system, goal, goal_forms, disc, algebra, (wanted, free, couplings))
     return ModelError(
         value=value,
-        interval=model_interval(value, roundoff),
+        interval=model_interval(value, step, changed, roundoff),
         indicators=cells,
         facet_indicators=facet_f,
         law=disc.problem.law,
-        newton_step=_step_value(system, goal, goal_forms, disc, algebra),
+        newton_step=step,
         num_slip=_num_slip(couplings, wanted, free, algebra, comm),
+        num_changed=changed,
     )
 
 
-def _step_value(system: Any, goal: Goal, at: GoalForms, disc: Any, algebra: Any) -> float:
-    """J(w^1) - J(w_s^*): the goal at the richer law's Newton iterate from w_s^*."""
+def _step(
+    system: Any, goal: Goal, at: GoalForms, disc: Any, algebra: Any, sets: tuple
+) -> tuple[float, int]:
+    """J(w^1) - J(w_s^*) and the rows whose set test at w^1 differs from ``sets``.
+
+    w^1 is the richer law's Newton iterate from w_s^* (in :attr:`system.x`); ``sets`` are the
+    ``(constrained, free, couplings)`` of that step.
+    """
     u_arr, lam_arr = system.split(system.x)
     u1 = fem.Function(disc.V)
     u1.x.array[: system.n_u] = u_arr
     u1.x.scatter_forward()
     lams = _functions(disc, algebra, lam_arr, "lambda1")
     step = GoalForms(goal, u1, lams[0], disc, tuple(lams[1:]) or None)
-    return step.value() - at.value()
+    comm = disc.comm
+    u_max = comm.allreduce(float(np.max(np.abs(u1.x.array), initial=0.0)), op=MPI.MAX)
+    lam1 = _owned(lams, algebra.n_q)
+    wanted, free, _, _, couplings = algebra.newton_sets(u1.x.petsc_vec, lam1, u_max)
+    couplings = [c.restricted(~wanted[c.rows].all(axis=1)) for c in couplings]
+    old, new = (sets[0], sets[1], sets[2]), (wanted, free, couplings)
+    masks = [_coupled(c, len(wanted)) for c in (old[2], new[2])]
+    changed = (
+        (new[0] != old[0])
+        | (~new[0] & (np.sign(new[1]) != np.sign(old[1])))
+        | (masks[0] != masks[1])
+    )
+    num = comm.allreduce(int(changed.sum()), op=MPI.SUM)
+    return step.value() - at.value(), num
+
+
+def _coupled(couplings: list, n: int) -> np.ndarray:
+    """The rows of the coupled facets as a mask of ``n`` owned rows."""
+    out = np.zeros(n, dtype=bool)
+    for c in couplings:
+        out |= c.mask(n)
+    return out
 
 
 def _num_slip(
@@ -297,6 +345,3 @@ def _num_slip(
         moving |= ~parts[k] & (f != 0.0)
     return comm.allreduce(int(moving.sum()), op=MPI.SUM)
 
-
-#: The saturation constant of :func:`model_interval` (re-exported for the docs).
-B_MODEL = SATURATION_UNRESOLVED
