@@ -37,7 +37,8 @@ beside Gamma_C, :attr:`ModelError.indicators`); both sum to eta_M.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+import types
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -123,12 +124,34 @@ def model_interval(
     return min(0.0, 2.0 * value) - r, max(0.0, 2.0 * value) + r
 
 
-def _same(a: Any, b: Any) -> bool:
-    """Whether two data of a problem are the same (equal, or the same object)."""
+def _same(a: Any, b: Any, depth: int = 0) -> bool:
+    """Whether two data of a problem are the same: equal, or built alike.
+
+    Problems built twice from the same code hold distinct but equal objects (an obstacle, a
+    lambda): objects of one type compare by their attributes, functions by their code and the
+    values they close over, containers item by item.
+    """
     if a is b:
         return True
+    if type(a) is not type(b) or depth > 8:
+        return False
+    if isinstance(a, np.ndarray):
+        return a.shape == b.shape and bool(np.all(a == b))
+    if isinstance(a, Mapping):
+        return a.keys() == b.keys() and all(_same(a[k], b[k], depth + 1) for k in a)
+    if isinstance(a, (tuple, list)):
+        return len(a) == len(b) and all(
+            _same(x, y, depth + 1) for x, y in zip(a, b, strict=True)
+        )
+    if isinstance(a, types.FunctionType):
+        if a.__code__ != b.__code__:
+            return False
+        cells = zip(a.__closure__ or (), b.__closure__ or (), strict=True)
+        return all(_same(c.cell_contents, d.cell_contents, depth + 1) for c, d in cells)
+    if hasattr(a, "__dict__") and not isinstance(a, type):
+        return _same(vars(a), vars(b), depth + 1)
     try:
-        return bool(np.all(a == b))
+        return bool(a == b)
     except (TypeError, ValueError):
         return False
 
