@@ -23,6 +23,7 @@ from .driver import LevelSettings, check_simplex
 from .estimator import Estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
+from .model_error import check_richer
 from .newton import Solution
 from .problem import SignoriniProblem
 from .refine import RULES, fine_cells
@@ -76,6 +77,7 @@ def solve_adaptive(
     ncp_scale: str | float = "physical",
     refinement_rule: str = "edges",
     growth: float | None = None,
+    model_error: SignoriniProblem | None = None,
 ) -> AdaptiveResult:
     """Goal-oriented adaptive (or uniform) refinement for Signorini's problem.
 
@@ -106,6 +108,10 @@ def solve_adaptive(
             ``"longest_edge"`` (:func:`~dwr_signorini.refine.marked_edges`).
         growth: Instead of ``fraction``, the wanted ratio of macro cells from one level to the
             next (> 1, :func:`~dwr_signorini.marking.mark_for_growth`).
+        model_error: ``problem`` with a richer contact law (as for
+            :func:`~dwr_signorini.estimate`): every level also estimates the change of J from
+            the law of ``problem`` to that one (``LevelRecord.model_error`` and its interval);
+            it does not drive the refinement.
 
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level (collective;
@@ -139,8 +145,12 @@ def solve_adaptive(
     stop = StopRule(max_levels, max_cells, tol)
     solver = SolverOptions(petsc_options, method, ncp_scale)
     estimate_options = EstimateOptions(estimator, weights, petsc_options)
-    settings = LevelSettings(solver, estimate_options, marking, refinement, refinement_rule, exact)
+    settings = LevelSettings(
+        solver, estimate_options, marking, refinement, refinement_rule, exact, model_error
+    )
     _check_refinement(problem, refinement, refinement_rule, exact)
+    if model_error is not None:
+        check_richer(problem, model_error)
     meta = {"refinement": refinement, "fraction": marking.fraction, "strategy": marking.strategy,
             "max_growth": marking.max_growth, "estimator": estimator, "weights": weights,
             "method": method, "ncp_scale": solver.ncp_scale, "refinement_rule": refinement_rule,

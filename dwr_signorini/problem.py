@@ -325,6 +325,7 @@ class SignoriniProblem:
         mesh: dmesh.Mesh,
         facet_tags: dmesh.MeshTags,
         cell_tags: dmesh.MeshTags | None = None,
+        law: Any = None,
     ) -> SignoriniProblem:
         """The same problem on another (refined) macro mesh.
 
@@ -333,6 +334,8 @@ class SignoriniProblem:
             facet_tags: Its facet tags.
             cell_tags: Its cell tags, needed when E or nu is given per cell tag (those of a
                 discretisation's T_h are ``disc.cell_tags``).
+            law: Another contact law for the new problem (``None``: this problem's), e.g. the
+                richer law of a model error estimate.
 
         Returns:
             A new :class:`SignoriniProblem` with this problem's data on ``mesh``.
@@ -353,7 +356,7 @@ class SignoriniProblem:
             self.gap,
             cell_tags=cell_tags,
             boundary_projection=self.boundary_projection or None,
-            friction=self.law,
+            friction=self.law if law is None else law,
             quadrature_degree=self.quadrature_degree,
         )
 

@@ -81,6 +81,10 @@ class LevelRecord:
         num_slip: With friction, macro contact facets in contact that slip, else None.
         method: The linear solver of the level's Newton steps (:attr:`Solution.method`:
             ``"block"``, ``"schur"`` or ``"krylov"``).
+        model_error: With ``solve_adaptive(..., model_error=richer)``: the estimate of
+            J(richer) - J(simpler) (:attr:`Estimate.model_error`), else ``None``.
+        model_error_low: The lower end of its interval, else ``None``.
+        model_error_high: Its upper end, else ``None``.
     """
 
     level: int
@@ -111,6 +115,9 @@ class LevelRecord:
     num_stick: int | None = None
     num_slip: int | None = None
     method: str = ""
+    model_error: float | None = None
+    model_error_low: float | None = None
+    model_error_high: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The record as a plain dict.
@@ -215,6 +222,7 @@ def level_record(
     values = ("J_h", "J_best", "eta_p", "eta", "contact_term", "active_set_remainder",
               "weights", "weights_fallback", "resolved")
     J_low, J_high = est.interval
+    model_low, model_high = est.model_error_interval or (None, None)
     record = LevelRecord(
         level=level,
         **{name: getattr(disc, name) for name in sizes},
@@ -227,6 +235,9 @@ def level_record(
         num_stick=sol.num_stick,
         num_slip=sol.num_slip,
         method=sol.method,
+        model_error=est.model_error,
+        model_error_low=model_low,
+        model_error_high=model_high,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
         time={
@@ -262,6 +273,11 @@ def progress_line(record: LevelRecord, label: str | None = None) -> str:
         else f"stick/slip {record.num_stick:d}/{record.num_slip:d}  "
     )
     contact = "no contact  " if record.no_contact else ""
+    if record.model_error is not None:
+        contact += (
+            f"model error {record.model_error: .3e} in [{record.model_error_low: .3e}, "
+            f"{record.model_error_high: .3e}]  "
+        )
     fallback = ", memory" if record.weights_fallback else ""
     label = f"level {record.level:2d}" if label is None else label
     return (
