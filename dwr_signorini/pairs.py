@@ -39,13 +39,12 @@ from typing import Any
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import basix
 import numpy as np
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from . import compat
-from .mortar import MortarRule, facet_normals, mortar_rule
+from .mortar import FacetMap, MortarRule, facet_normals, mortar_rule
 from .timing import timed
 
 __all__ = [
@@ -65,13 +64,21 @@ class ContactPair:
     multiplier lives on the slave side's macro facets (P0) and the gap of a slave point is its
     distance to the master surface along the slave normal (:mod:`~dwr_signorini.pairs`).
 
+    A slave point's partner is the first crossing of its normal ray with a master facet that
+    faces it, in front of the point or behind it by at most ``window`` (the penetration window,
+    :mod:`~dwr_signorini.mortar`): master facets on the far side of the master body, or farther
+    behind, are no partners.
+
     Args:
         slave: The facet tag of the slave side.
         master: The facet tag of the master side.
+        window: The penetration window, a length > 0; None (default): the diameter of each
+            slave macro facet (twice that of its fine facets).
     """
 
     slave: int
     master: int
+    window: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("slave", "master"):
@@ -79,6 +86,13 @@ class ContactPair:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise TypeError(f"ContactPair: {name} must be an integer facet tag, got {value!r}")
             object.__setattr__(self, name, int(value))
+        w = self.window
+        if w is not None:
+            if isinstance(w, bool) or not isinstance(w, (int, float, np.floating, np.integer)):
+                raise TypeError(f"ContactPair: window must be a number or None, got {w!r}")
+            if not (0.0 < float(w) < np.inf):
+                raise ValueError(f"ContactPair: window must be a finite length > 0, got {w!r}")
+            object.__setattr__(self, "window", float(w))
         if self.slave == self.master:
             raise ValueError(
                 f"ContactPair: slave and master must be different facet tags, got {self.slave} "
@@ -172,14 +186,19 @@ def check_pair_bodies(
 
 
 @dataclass
-class _Master:
-    """The master facets of a pair, gathered on every rank."""
+class _Side:
+    """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
 
     vertices: np.ndarray  # (m, nv, gdim)
     normals: np.ndarray  # (m, gdim)
     geometry: np.ndarray  # (m, nodes, gdim): the adjacent cell's geometry
     dofs: np.ndarray  # (m, ndofs): its global block dofs of V
     cell: np.ndarray  # (m,): its global cell index
+
+    @staticmethod
+    def fields() -> tuple[str, ...]:
+        """The attributes in order."""
+        return ("vertices", "normals", "geometry", "dofs", "cell")
 
 
 class MasterTrace:
@@ -194,8 +213,8 @@ class MasterTrace:
     Attributes:
         W: Vector DG of V's degree on Sigma_h; ``Ws`` the scalar one.
         P: The projection (PETSc Mat, W x V, the prescribed Dirichlet columns included).
-        gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` where no
-            master facet is met).
+        gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` on the
+            macro facets that no master facet covers).
         rule: The mortar rule of this rank's slave facets.
     """
 
@@ -211,8 +230,8 @@ class MasterTrace:
             self._build(disc, V, degree)
 
     # -- geometry ----------------------------------------------------------------------------
-    def _slave_facets(self, disc: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """This rank's slave facets: vertices, normals, slave cells (global), slave tag."""
+    def _slave_facets(self, disc: Any) -> tuple[np.ndarray, np.ndarray, _Side, np.ndarray]:
+        """This rank's slave facets: vertices, normals, their cells and the slave tag."""
         sub, fine = disc.slave_mesh, disc.mesh
         tdim = fine.topology.dim
         num = sub.topology.index_map(sub.topology.dim).size_local
@@ -221,117 +240,145 @@ class MasterTrace:
         vertices = x[compat.geometry_dofmap(sub)[:num]]
         f2c = fine.topology.connectivity(tdim - 1, tdim)
         cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        inside = _entity_points(fine, tdim, cells).mean(axis=1)
-        normals = facet_normals(vertices, inside)
-        glob = fine.topology.index_map(tdim).local_to_global(cells)
+        cell = _cells(fine, self.V, cells, vertices)
         tag = _facet_tag(disc.facet_tags, facets)
-        return vertices, normals, glob, tag
+        return vertices, cell.normals, cell, tag
 
-    def _master_facets(self, disc: Any, V: fem.FunctionSpace, tag: int) -> _Master:
+    def _master_facets(self, disc: Any, V: fem.FunctionSpace, tag: int) -> _Side:
         """The owned master facets of ``tag`` with their cells, gathered on every rank."""
         fine = disc.mesh
-        tdim, gdim = fine.topology.dim, fine.geometry.dim
+        tdim = fine.topology.dim
         n_own = fine.topology.index_map(tdim - 1).size_local
         facets = disc.facet_tags.find(tag)
         facets = facets[facets < n_own].astype(np.int32)
         f2c = fine.topology.connectivity(tdim - 1, tdim)
         cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        vertices = _entity_points(fine, tdim - 1, facets)
-        geometry = fine.geometry.x[compat.geometry_dofmap(fine)[cells]][:, :, :gdim]
-        normals = facet_normals(vertices, geometry.mean(axis=1))
-        index_map = V.dofmap.index_map
-        local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32)
-        dofs = index_map.local_to_global(local.ravel()).reshape(local.shape) if len(cells) else (
-            np.zeros((0, V.dofmap.dof_layout.num_dofs), dtype=np.int64))
-        cell = fine.topology.index_map(tdim).local_to_global(cells)
-        parts = disc.comm.allgather((vertices, normals, geometry, dofs, cell))
-        return _Master(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
+        mine = _cells(fine, V, cells, _entity_points(fine, tdim - 1, facets))
+        parts = disc.comm.allgather(tuple(getattr(mine, f) for f in _Side.fields()))
+        return _Side(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
+
+    @staticmethod
+    def _windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
+        """The pair's penetration window (default: each slave macro facet's diameter)."""
+        if pair.window is not None:
+            return pair.window
+        d = np.linalg.norm(vertices[:, :, None] - vertices[:, None], axis=3)
+        return 2.0 * d.max(axis=(1, 2)) if len(vertices) else np.zeros(0)
 
     # -- assembly ----------------------------------------------------------------------------
     def _build(self, disc: Any, V: fem.FunctionSpace, degree: int) -> None:
         """The rule, P, the gap and the share weights (one pass over the slave facets)."""
-        vertices, normals, slave_cells, slave_tag = self._slave_facets(disc)
+        vertices, normals, slave, slave_tag = self._slave_facets(disc)
         rules, masters = [], []
         offset = 0
         for pair in disc.problem.pairs:
             master = self._master_facets(disc, V, pair.master)
             on = np.flatnonzero(slave_tag == pair.slave)
             r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
-                            2 * degree)
+                            2 * degree, self._windows(pair, vertices[on]))
             rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset, r.gap))
             masters.append(master)
             offset += len(master.cell)
         self.rule = MortarRule(*(np.concatenate([getattr(r, f) for r in rules]) for f in (
             "facet", "points", "weights", "master", "gap")))
-        master = _Master(*(np.concatenate([getattr(m, f) for m in masters]) for f in (
-            "vertices", "normals", "geometry", "dofs", "cell")))
-        basis = _FacetBasis(self.Ws, vertices, self.rule)
+        master = _Side(*(np.concatenate([getattr(m, f) for m in masters])
+                           for f in _Side.fields()))
+        basis = _FacetBasis(self.Ws, FacetMap(vertices), self.rule)
         projected = self.rule.points + self.rule.gap[:, None] * normals[self.rule.facet]
-        phi = _master_basis(disc.mesh, V, master, self.rule.master, projected)
-        self.P = self._projection(basis, phi, master)
+        phi = _cell_basis(disc.mesh, V, master.geometry, self.rule.master, projected)
+        terms = [(self.rule.facet, self.rule.weights, basis.theta, phi,
+                  master.dofs[self.rule.master])]
+        terms += self._uncovered(basis, slave)
+        self.P = self._projection(basis, terms)
         self.gap = self._gap(basis)
-        self._share = self._share_matrix(slave_cells, master)
+        self._share = self._share_matrix(slave.cell, master, basis)
 
-    def _projection(self, basis: _FacetBasis, phi: np.ndarray, master: _Master) -> PETSc.Mat:
-        """P = M_F^{-1} sum_q w_q theta(x_q) phi(Pi(x_q))^T per facet and component.
+    def _uncovered(self, basis: _FacetBasis, slave: _Side) -> list[tuple[np.ndarray, ...]]:
+        """The slave's own trace on the uncovered part of each facet: + int_F, - int_covered.
 
-        On a facet the master covers in part, the projection onto constants instead (as the
-        gap, :meth:`_gap`).
+        P v = v o Pi where a master facet is met and v itself where none is, so that the
+        relative displacement v - P v vanishes where the master is not there.
         """
-        rule, W, V = self.rule, self.W, self.V
+        part = np.flatnonzero(basis.covered < (1.0 - 1e-12) * basis.measure)
+        if len(part) == 0:
+            return []
+        on = np.isin(basis.full_facet, part)
+        f_full = basis.full_facet[on]
+        at = np.isin(self.rule.facet, part)
+        f_rule = self.rule.facet[at]
+        facet = np.concatenate([f_full, f_rule])
+        x = np.concatenate([basis.full_points[on], self.rule.points[at]])
+        phi = _cell_basis(self.disc.mesh, self.V, slave.geometry, facet, x)
+        theta = np.concatenate([basis.full_theta[on], basis.theta[at]])
+        weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
+        return [(facet, weights, theta, phi, slave.dofs[facet])]
+
+    def _projection(self, basis: _FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
+        """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
+
+        Args:
+            basis: W's basis on the slave facets.
+            terms: (facet, weight, theta(x_q), phi(y_q), global dofs of phi's cell) per point:
+                the master points y_q = Pi(x_q) of the rule, and the slave's own points on the
+                uncovered parts (:meth:`_uncovered`).
+        """
+        W, V = self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
         inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
-        # per point: the facet's rows (a) times the master cell's columns (j)
-        local = np.einsum("qab,qb->qa", inv[rule.facet], basis.theta) * rule.weights[:, None]
-        # a facet the master covers in part: the mean of the trace (no polynomial through the
-        # master's end); its integral against a constant is the same
-        part = basis.partial[rule.facet]
-        local[part] = (rule.weights[part] / basis.measure[rule.facet[part]])[:, None]
         w_dofs = wmap.local_to_global(
             np.array([W.dofmap.cell_dofs(int(f)) for f in range(len(basis.mass))],
                      dtype=np.int32).ravel()
         ).reshape(len(basis.mass), -1) if len(basis.mass) else np.zeros((0, 1), np.int64)
         rows, cols, vals = [], [], []
-        r_q, c_q = w_dofs[rule.facet], master.dofs[rule.master]  # (q, a), (q, j)
-        v_q = np.einsum("qa,qj->qaj", local, phi)
-        shape = v_q.shape
-        for c in range(bs):
-            rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
-            cols.append(np.broadcast_to((c_q * bs + c)[:, None, :], shape).ravel())
-            vals.append(v_q.ravel())
+        for facet, weights, theta, phi, dofs in terms:
+            # per point: the facet's rows (a) times the cell's columns (j)
+            local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
+            r_q = w_dofs[facet]
+            v_q = np.einsum("qa,qj->qaj", local, phi)
+            shape = v_q.shape
+            for c in range(bs):
+                rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
+                cols.append(np.broadcast_to((dofs * bs + c)[:, None, :], shape).ravel())
+                vals.append(v_q.ravel())
         return _csr(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
                     (wmap.size_local * bs, wmap.size_global * bs),
                     (vmap.size_local * V.dofmap.index_map_bs,
                      vmap.size_global * V.dofmap.index_map_bs))
 
     def _gap(self, basis: _FacetBasis) -> fem.Function:
-        """The gap g projected per facet, the problem's miss_gap where no master facet is met.
+        """The gap g projected per facet from its covered part (zero elsewhere).
 
-        On a facet that the master covers in part, the projection onto constants: a polynomial
-        through the jump from the gaps met to miss_gap would dip below them (a false contact).
+        The uncovered part of a facet carries no gap (and no relative displacement,
+        :meth:`_uncovered`): the integrated gap of a macro facet is that of its covered part.
+        A macro facet that no master facet covers at all gets the problem's ``miss_gap``, which
+        keeps its multiplier zero.
         """
-        miss = self.disc.problem.miss_gap
         rule, Ws = self.rule, self.Ws
         gap = fem.Function(Ws, name="gap")
-        rhs = miss * basis.integrals.copy()
-        np.add.at(rhs, rule.facet, basis.theta * (rule.weights * (rule.gap - miss))[:, None])
-        for f in range(len(basis.mass)):
-            if basis.partial[f]:  # the mean, between the gaps met and miss_gap
-                value = rhs[f].sum() / basis.measure[f]
-            else:
-                value = np.linalg.solve(basis.mass[f], rhs[f])
-            gap.x.array[Ws.dofmap.cell_dofs(f)] = value
+        rhs = np.zeros_like(basis.integrals)
+        np.add.at(rhs, rule.facet, basis.theta * (rule.weights * rule.gap)[:, None])
+        value = np.linalg.solve(basis.mass, rhs[..., None])[..., 0] if len(rhs) else rhs
+        macro = self.disc.fine_to_macro_facet[self.disc.slave_to_fine[:len(rhs)]]
+        hit = np.zeros(int(macro.max(initial=-1)) + 1)
+        np.add.at(hit, macro, basis.covered)
+        value[hit[macro] == 0.0] = self.disc.problem.miss_gap
+        dofs = np.array([Ws.dofmap.cell_dofs(f) for f in range(len(rhs))], dtype=np.int32)
+        gap.x.array[dofs.ravel()] = value.ravel()
         gap.x.scatter_forward()
         return gap
 
-    def _share_matrix(self, slave_cells: np.ndarray, master: _Master) -> PETSc.Mat:
-        """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K."""
+    def _share_matrix(self, slave_cells: np.ndarray, master: _Side,
+                      basis: _FacetBasis) -> PETSc.Mat:
+        """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K.
+
+        The uncovered part of a facet stays with its slave cell (S[c, c]; P v is v there).
+        """
         rule, fine = self.rule, self.disc.mesh
         cells = fine.topology.index_map(fine.topology.dim)
-        hit = np.zeros(len(slave_cells))
-        np.add.at(hit, rule.facet, rule.weights)
-        frac = rule.weights / np.where(hit > 0.0, hit, 1.0)[rule.facet]
+        measure = np.where(basis.measure > 0.0, basis.measure, 1.0)
+        frac = rule.weights / measure[rule.facet]
+        own = np.clip(1.0 - basis.covered / measure, 0.0, 1.0)
         # a slave cell with several slave facets shares each facet's part equally
         count = np.zeros(len(slave_cells))
         _, inverse, counts = np.unique(slave_cells, return_inverse=True, return_counts=True)
@@ -341,10 +388,12 @@ class MasterTrace:
             nnz=(8, 8), comm=self.disc.comm,
         )
         S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        rows = master.cell[rule.master].astype(PETSc.IntType)
-        cols = slave_cells[rule.facet].astype(PETSc.IntType)
-        for r, c, v in zip(rows, cols, frac / count[rule.facet], strict=True):
-            S.setValue(r, c, v, addv=PETSc.InsertMode.ADD_VALUES)
+        rows = np.concatenate([master.cell[rule.master], slave_cells]).astype(PETSc.IntType)
+        cols = np.concatenate([slave_cells[rule.facet], slave_cells]).astype(PETSc.IntType)
+        vals = np.concatenate([frac / count[rule.facet], own / count])
+        for r, c, v in zip(rows, cols, vals, strict=True):
+            if v != 0.0:
+                S.setValue(r, c, v, addv=PETSc.InsertMode.ADD_VALUES)
         S.assemble()
         return S
 
@@ -415,39 +464,50 @@ class MasterTrace:
 
 
 class _FacetBasis:
-    """W's scalar basis on this rank's slave facets: theta_a(x_q), mass matrices, int theta_a."""
+    """W's scalar basis on this rank's slave facets, pulled back with their coordinate map.
 
-    def __init__(self, Ws: fem.FunctionSpace, vertices: np.ndarray, rule: MortarRule) -> None:
+    theta_a at the rule's points, and on a Gauss rule over each whole facet (``full_*``), the
+    mass matrices, int_F theta_a, |F| and the covered measure of each facet.
+    """
+
+    def __init__(self, Ws: fem.FunctionSpace, facets: FacetMap, rule: MortarRule) -> None:
         element = Ws.ufl_element().basix_element
-        fdim = Ws.mesh.topology.dim
-        num = len(vertices)
-        # affine facets: x = v0 + sum_k X_k (v_{k+1} - v0) (a quadrilateral's vertices 1 and 2)
-        axes = np.stack([vertices[:, k + 1] - vertices[:, 0] for k in range(fdim)], axis=1) \
-            if num else np.zeros((0, fdim, vertices.shape[-1]))
-        gram = np.einsum("fkd,fld->fkl", axes, axes)
-        if len(rule.facet):
-            A = gram[rule.facet]
-            b = np.einsum("qkd,qd->qk", axes[rule.facet], rule.points - vertices[rule.facet, 0])
-            X = np.linalg.solve(A, b[..., None])[..., 0]
-            self.theta = _tabulate(element, X)
-        else:
-            self.theta = np.zeros((0, element.dim))
-        points, weights = basix.make_quadrature(element.cell_type, 2 * max(element.degree, 1))
-        ref = _tabulate(element, points)
-        jac = np.sqrt(np.abs(np.linalg.det(gram))) if num else np.zeros(0)
-        self.mass = np.einsum("q,qa,qb->ab", weights, ref, ref)[None] * jac[:, None, None]
-        self.integrals = (weights @ ref)[None] * jac[:, None]
-        #: |F|, and whether the master covers F in part only (not at all, or not all of it)
+        num = len(facets.vertices)
+        self.theta = _tabulate(element, facets.pull(rule.facet, rule.points)) if len(
+            rule.facet) else np.zeros((0, element.dim))
+        f, X, x, w = facets.quadrature(2 * max(element.degree, 1))
+        self.full_facet, self.full_points, self.full_weights = f, x, w
+        self.full_theta = _tabulate(element, X) if len(f) else np.zeros((0, element.dim))
+        self.mass = np.zeros((num, element.dim, element.dim))
+        np.add.at(self.mass, f, np.einsum("q,qa,qb->qab", w, self.full_theta, self.full_theta))
+        self.integrals = np.zeros((num, element.dim))
+        np.add.at(self.integrals, f, w[:, None] * self.full_theta)
+        #: |F| and the measure of its covered part
         self.measure = self.integrals.sum(axis=1)
-        covered = np.zeros(num)
-        np.add.at(covered, rule.facet, rule.weights)
-        self.partial = covered < (1.0 - 1e-9) * self.measure
+        self.covered = np.zeros(num)
+        np.add.at(self.covered, rule.facet, rule.weights)
 
 
-def _master_basis(
-    mesh: dmesh.Mesh, V: fem.FunctionSpace, master: _Master, which: np.ndarray, y: np.ndarray
+def _cells(
+    msh: dmesh.Mesh, V: fem.FunctionSpace, cells: np.ndarray, vertices: np.ndarray
+) -> _Side:
+    """The facets' cells: their geometry, V's global dofs, global index; the facets' normals."""
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    geometry = msh.geometry.x[compat.geometry_dofmap(msh)[cells]][:, :, :gdim]
+    normals = facet_normals(vertices, geometry.mean(axis=1)) if len(cells) else (
+        np.zeros((0, gdim)))
+    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32)
+    dofs = V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape) if len(
+        cells) else np.zeros((0, V.dofmap.dof_layout.num_dofs), dtype=np.int64)
+    cell = msh.topology.index_map(tdim).local_to_global(cells)
+    return _Side(vertices, normals, geometry, dofs, cell)
+
+
+def _cell_basis(
+    mesh: dmesh.Mesh, V: fem.FunctionSpace, geometry: np.ndarray, which: np.ndarray,
+    y: np.ndarray,
 ) -> np.ndarray:
-    """phi_j(y_q) of V's scalar element in the master cell ``which[q]`` of each point."""
+    """phi_j(y_q) of V's scalar element in the cell ``which[q]`` (geometry nodes ``geometry``)."""
     element = V.ufl_element().sub_elements[0].basix_element
     if V.element.needs_dof_transformations:
         raise NotImplementedError(
@@ -458,7 +518,7 @@ def _master_basis(
     out = np.zeros((len(y), element.dim))
     for g in np.unique(which):
         at = np.flatnonzero(which == g)
-        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), master.geometry[g])
+        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[g])
         out[at] = _tabulate(element, X)
     return out
 
