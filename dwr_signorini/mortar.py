@@ -305,7 +305,8 @@ def _overlap(p: np.ndarray, q: np.ndarray, area_F: float) -> bool:
     for poly in (p, q):
         edges = np.roll(poly, -1, axis=0) - poly
         normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
-        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        length = np.linalg.norm(normals, axis=1)
+        normals = normals[length > 0.0] / length[length > 0.0, None]
         a, b = p @ normals.T, q @ normals.T
         if np.any((a.max(axis=0) <= b.min(axis=0) + tol) | (b.max(axis=0) <= a.min(axis=0) + tol)):
             return False

@@ -334,6 +334,10 @@ class MasterTrace:
         for facet, weights, theta, phi, dofs in terms:
             # per point: the facet's rows (a) times the cell's columns (j)
             local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
+            # a facet the master covers in part: the mean (no polynomial through the jump at
+            # the master's end); its integral against a constant is the same
+            part = basis.partial[facet]
+            local[part] = (weights[part] / basis.measure[facet[part]])[:, None]
             r_q = w_dofs[facet]
             v_q = np.einsum("qa,qj->qaj", local, phi)
             shape = v_q.shape
@@ -351,7 +355,9 @@ class MasterTrace:
 
         The uncovered part of a facet carries no gap (and no relative displacement,
         :meth:`_uncovered`): the integrated gap of a macro facet is that of its covered part.
-        A macro facet that no master facet covers at all gets the problem's ``miss_gap``, which
+        On a facet covered in part, the projection onto constants (a polynomial through the
+        jump at the master's end would dip below the gaps met: a false contact). A macro facet
+        that no master facet covers at all gets the problem's ``miss_gap``, which
         keeps its multiplier zero.
         """
         rule, Ws = self.rule, self.Ws
@@ -359,6 +365,8 @@ class MasterTrace:
         rhs = np.zeros_like(basis.integrals)
         np.add.at(rhs, rule.facet, basis.theta * (rule.weights * rule.gap)[:, None])
         value = np.linalg.solve(basis.mass, rhs[..., None])[..., 0] if len(rhs) else rhs
+        part = basis.partial
+        value[part] = (rhs[part].sum(axis=1) / basis.measure[part])[:, None]
         macro = self.disc.fine_to_macro_facet[self.disc.slave_to_fine[:len(rhs)]]
         hit = np.zeros(int(macro.max(initial=-1)) + 1)
         np.add.at(hit, macro, basis.covered)
@@ -486,6 +494,8 @@ class _FacetBasis:
         self.measure = self.integrals.sum(axis=1)
         self.covered = np.zeros(num)
         np.add.at(self.covered, rule.facet, rule.weights)
+        #: facets covered in part (P and the gap project onto constants there)
+        self.partial = (self.covered > 0.0) & (self.covered < (1.0 - 1e-12) * self.measure)
 
 
 def _cells(
