@@ -191,6 +191,9 @@ def _pieces_2d(
     if len(facing) == 0:
         return []
     breaks = np.unique(np.clip(np.concatenate([lo, hi, [0.0, 1.0]]), 0.0, 1.0))
+    # breaks closer than the tolerance are one (no sliver between two master facets is lost)
+    breaks = breaks[np.r_[True, np.diff(breaks) > _PIECE_TOL]]
+    breaks[-1] = 1.0
     points, weights = rule
     out = []
     for s0, s1 in pairwise(breaks):
@@ -397,6 +400,9 @@ class FacetMap:
 
     def push(self, facet: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """x(X) and the Jacobian dx/dX, shape (q, gdim) and (q, gdim, fdim), at X on ``facet``."""
+        gdim = self.vertices.shape[2]
+        if len(X) == 0:  # (basix aborts on no points)
+            return np.zeros((0, gdim)), np.zeros((0, gdim, X.shape[1]))
         tab = self.element.tabulate(1, np.ascontiguousarray(X, dtype=np.float64))[..., 0]
         nodes = self.vertices[facet]  # (q, nv, gdim)
         x = np.einsum("qi,qid->qd", tab[0], nodes)

@@ -47,6 +47,10 @@ from . import compat
 from .mortar import FacetMap, MortarRule, facet_normals, mortar_rule
 from .timing import timed
 
+#: Relative uncovered measure below which a facet counts as covered (the rule drops pieces of
+#: relative size 1e-10, :data:`~dwr_signorini.mortar._PIECE_TOL`).
+_COVERED_TOL = 1e-9
+
 __all__ = [
     "ContactPair",
     "MasterTrace",
@@ -299,7 +303,7 @@ class MasterTrace:
         P v = v o Pi where a master facet is met and v itself where none is, so that the
         relative displacement v - P v vanishes where the master is not there.
         """
-        part = np.flatnonzero(basis.covered < (1.0 - 1e-12) * basis.measure)
+        part = np.flatnonzero(~basis.full)
         if len(part) == 0:
             return []
         on = np.isin(basis.full_facet, part)
@@ -494,8 +498,10 @@ class _FacetBasis:
         self.measure = self.integrals.sum(axis=1)
         self.covered = np.zeros(num)
         np.add.at(self.covered, rule.facet, rule.weights)
-        #: facets covered in part (P and the gap project onto constants there)
-        self.partial = (self.covered > 0.0) & (self.covered < (1.0 - 1e-12) * self.measure)
+        #: facets covered fully (up to the pieces the rule drops), and in part (P and the gap
+        #: project onto constants there)
+        self.full = self.covered >= (1.0 - _COVERED_TOL) * self.measure
+        self.partial = (self.covered > 0.0) & ~self.full
 
 
 def _cells(
