@@ -44,7 +44,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from . import compat
-from .mortar import FacetMap, MortarRule, facet_normals, mortar_rule
+from .mortar import FacetMap, MortarRule, check_planar, facet_normals, mortar_rule, warp
 from .timing import timed
 
 #: Relative uncovered measure below which a facet counts as covered (the rule drops pieces of
@@ -262,6 +262,20 @@ class MasterTrace:
         return _Side(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
 
     @staticmethod
+    def _check_planar(disc: Any) -> None:
+        """Refuse warped quadrilateral facets of the pairs' macro facets, on every rank.
+
+        (The macro ones: the children of a warped facet would not even be tagged on T_h.)
+        """
+        macro, tags = disc.macro_mesh, disc.problem.facet_tags
+        fdim = macro.topology.dim - 1
+        n_own = macro.topology.index_map(fdim).size_local
+        found = [tags.find(t) for p in disc.problem.pairs for t in (p.slave, p.master)]
+        facets = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int32)
+        facets = facets[facets < n_own].astype(np.int32)
+        check_planar(disc.comm.allreduce(warp(_entity_points(macro, fdim, facets)), op=MPI.MAX))
+
+    @staticmethod
     def _windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
         """The pair's penetration window (default: each slave macro facet's diameter)."""
         if pair.window is not None:
@@ -272,6 +286,7 @@ class MasterTrace:
     # -- assembly ----------------------------------------------------------------------------
     def _build(self, disc: Any, V: fem.FunctionSpace, degree: int) -> None:
         """The rule, P, the gap and the share weights (one pass over the slave facets)."""
+        self._check_planar(disc)
         vertices, normals, slave, slave_tag = self._slave_facets(disc)
         rules, masters = [], []
         offset = 0
@@ -543,7 +558,11 @@ def _entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarra
     """The geometry nodes of ``entities`` of dimension ``dim``, shape (m, nodes, gdim)."""
     gdim = msh.geometry.dim
     if len(entities) == 0:  # (entities_to_geometry divides by the count)
-        nodes = msh.topology.dim + 1 if dim == msh.topology.dim else dim + 1
+        simplex = msh.topology.cell_type in (
+            dmesh.CellType.interval, dmesh.CellType.triangle, dmesh.CellType.tetrahedron)
+        nodes = dim + 1 if simplex else 2**dim
+        if dim == msh.topology.dim:
+            nodes = compat.geometry_dofmap(msh).shape[1]
         return np.zeros((0, nodes, gdim))
     return msh.geometry.x[dmesh.entities_to_geometry(msh, dim, entities)][:, :, :gdim]
 

@@ -88,3 +88,70 @@ def punch(model, n=4, punch_n=None):
     model.addPhysicalGroup(2, [block], BLOCK)
     model.addPhysicalGroup(2, [top], PUNCH)
     model.mesh.generate(2)
+
+
+# two stacked hexahedral blocks: cells 1 (lower [0, 1]^2 x [0, 1]), 2 (upper, z in [1, 2])
+HEX_BOTTOM, HEX_TOP, HEX_LOWER_TOP, HEX_UPPER_BOTTOM, HEX_X0, HEX_Y0 = 1, 2, 3, 4, 5, 6
+
+
+def _hex_grid(n: int, z0: float, jitter: float, rng: np.random.Generator):
+    """An n x n x n hexahedral grid of [0, 1]^2 x [z0, z0 + 1], its inner vertices moved in x
+    and y by up to ``jitter`` cells (the same in every z layer: planar quadrilateral faces)."""
+    t = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(t, t, indexing="ij")
+    inner = (slice(1, -1), slice(1, -1))
+    X[inner] += rng.uniform(-jitter, jitter, X[inner].shape) / n
+    Y[inner] += rng.uniform(-jitter, jitter, Y[inner].shape) / n
+    layers = [np.stack([X.ravel(), Y.ravel(), np.full(X.size, z0 + k / n)], axis=1)
+              for k in range(n + 1)]
+    x = np.concatenate(layers)
+
+    def v(i, j, k):  # X, Y are indexed (i, j): x along i
+        return k * (n + 1) ** 2 + i * (n + 1) + j
+
+    cells = [[v(i, j, k), v(i + 1, j, k), v(i, j + 1, k), v(i + 1, j + 1, k),
+              v(i, j, k + 1), v(i + 1, j, k + 1), v(i, j + 1, k + 1), v(i + 1, j + 1, k + 1)]
+             for k in range(n) for j in range(n) for i in range(n)]
+    return x, np.array(cells, dtype=np.int64)
+
+
+def hex_blocks(comm, n_lower=3, n_upper=4, jitter=0.3, seed=7):
+    """Two stacked hexahedral blocks, non-matching, their interface faces planar trapezoid-like
+    quadrilaterals; returns (mesh, cell tags, facet tags) on ``comm``."""
+    import basix.ufl
+    import ufl
+    from dolfinx import mesh as dmesh
+
+    from dwr_signorini import compat
+
+    if comm.rank == 0:
+        rng = np.random.default_rng(seed)
+        xl, cl = _hex_grid(n_lower, 0.0, jitter, rng)
+        xu, cu = _hex_grid(n_upper, 1.0, jitter, rng)
+        x, cells = np.concatenate([xl, xu]), np.concatenate([cl, cu + len(xl)])
+    else:
+        x, cells = np.zeros((0, 3)), np.zeros((0, 8), dtype=np.int64)
+    domain = ufl.Mesh(basix.ufl.element("Lagrange", "hexahedron", 1, shape=(3,)))
+    msh = compat.create_mesh(comm, cells, x, domain,
+                             partitioner=compat.cell_partitioner(dmesh.GhostMode.none))
+    tdim = 3
+    num = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+    centre = dmesh.compute_midpoints(msh, tdim, np.arange(num, dtype=np.int32))
+    body = np.where(centre[:, 2] < 1.0, 1, 2).astype(np.int32)
+    cell_tags = dmesh.meshtags(msh, tdim, np.arange(num, dtype=np.int32), body)
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    facets = dmesh.exterior_facet_indices(msh.topology)
+    mid = dmesh.compute_midpoints(msh, tdim - 1, facets)
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    lower = body[[f2c.links(f)[0] for f in facets]] == 1
+    eps = 1e-10
+    values = np.full(len(facets), -1, dtype=np.int32)
+    values[np.abs(mid[:, 0]) < eps] = HEX_X0
+    values[np.abs(mid[:, 1]) < eps] = HEX_Y0
+    values[np.abs(mid[:, 2]) < eps] = HEX_BOTTOM
+    values[np.abs(mid[:, 2] - 2.0) < eps] = HEX_TOP
+    values[(np.abs(mid[:, 2] - 1.0) < eps) & lower] = HEX_LOWER_TOP
+    values[(np.abs(mid[:, 2] - 1.0) < eps) & ~lower] = HEX_UPPER_BOTTOM
+    keep = values > 0
+    facet_tags = dmesh.meshtags(msh, tdim - 1, facets[keep].astype(np.int32), values[keep])
+    return msh, cell_tags, facet_tags
