@@ -272,11 +272,11 @@ def _pieces_3d(
         if t_at(g, piece.mean(axis=0)) >= -window:
             found.append((piece, g))
     out = []
+    overlap = _overlaps([f[0] for f in found], area_F)
     for k, (piece, g) in enumerate(found):
         parts = [piece]
-        for j, (other, h) in enumerate(found):
-            if j == k or not _overlap(piece, other, area_F):
-                continue
+        for j in np.flatnonzero(overlap[k]):
+            other, h = found[j]
             common = _clip(piece, other)
             if len(common) < 3 or _area(common) <= _PIECE_TOL * area_F:
                 continue
@@ -316,18 +316,37 @@ def _ccw(polygon: np.ndarray) -> np.ndarray:
     return polygon if _area(polygon) >= 0.0 else polygon[::-1]
 
 
-def _overlap(p: np.ndarray, q: np.ndarray, area_F: float) -> bool:
-    """Whether two convex polygons (ccw) may overlap in more than an edge (separating axes)."""
+def _overlaps(pieces: list[np.ndarray], area_F: float) -> np.ndarray:
+    """Which pairs of convex polygons (ccw) may overlap in more than an edge (separating axes).
+
+    Args:
+        pieces: The polygons, (n_k, 2) each.
+        area_F: The slave facet's area (scales the tolerance).
+
+    Returns:
+        A symmetric boolean matrix (False on the diagonal).
+    """
+    k = len(pieces)
+    if k < 2:
+        return np.zeros((k, k), dtype=bool)
+    size = max(len(p) for p in pieces)
+    # padded with the last vertex: repeats change no projection's extent
+    V = np.stack([np.concatenate([p, np.repeat(p[-1:], size - len(p), axis=0)]) for p in pieces])
+    edges = np.roll(V, -1, axis=1) - V
+    axes = np.stack([edges[..., 1], -edges[..., 0]], axis=2)  # (k, size, 2)
+    length = np.linalg.norm(axes, axis=2)
+    valid = length > 0.0
+    axes = axes / np.where(valid, length, 1.0)[..., None]
+    proj = np.einsum("iad,jvd->iajv", axes, V)  # piece j's vertices on piece i's axes
+    lo, hi = proj.min(axis=3), proj.max(axis=3)  # (k, size, k)
+    own_lo = np.einsum("iai->ia", lo)[:, :, None]
+    own_hi = np.einsum("iai->ia", hi)[:, :, None]
     tol = 1e-9 * np.sqrt(area_F)
-    for poly in (p, q):
-        edges = np.roll(poly, -1, axis=0) - poly
-        normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
-        length = np.linalg.norm(normals, axis=1)
-        normals = normals[length > 0.0] / length[length > 0.0, None]
-        a, b = p @ normals.T, q @ normals.T
-        if np.any((a.max(axis=0) <= b.min(axis=0) + tol) | (b.max(axis=0) <= a.min(axis=0) + tol)):
-            return False
-    return True
+    apart = ((own_hi <= lo + tol) | (hi <= own_lo + tol)) & valid[:, :, None]
+    separated = apart.any(axis=1)  # (i, j): an axis of i separates them
+    out = ~(separated | separated.T)
+    np.fill_diagonal(out, False)
+    return out
 
 
 def _half(subject: list, a: tuple, b: tuple) -> list:
