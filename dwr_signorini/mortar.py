@@ -38,16 +38,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import pairwise
+from typing import Any
 
 import basix
 import numpy as np
 
 __all__ = [
-    "FacetMap", "MortarRule", "check_planar", "entry", "facet_normals", "mortar_rule", "warp",
+    "FacetBasis", "FacetMap", "MortarRule", "check_planar", "entry", "facet_normals", "mortar_rule",
+    "tabulate", "warp",
 ]
 
 #: Relative size below which a piece of a slave facet is dropped (a touching corner).
 _PIECE_TOL = 1e-10
+#: Relative uncovered measure below which a facet counts as covered (the rule drops pieces of
+#: relative size :data:`_PIECE_TOL`).
+_COVERED_TOL = 1e-9
 #: The degree added to the rule where a side has quadrilateral facets: their maps are bilinear,
 #: so theta and v o Pi are rational on a piece (measured on the hexahedral patch test with
 #: trapezoid-like faces: lambda to 1.5e-5, 6e-8, 4e-10, 3e-14 with 0, 2, 4, 8 added).
@@ -486,3 +491,37 @@ class FacetMap:
         x, J = self.push(facet, X)
         det = np.sqrt(np.abs(np.linalg.det(np.einsum("qdk,qdl->qkl", J, J))))
         return facet, X, x, np.tile(weights, m) * det
+
+
+class FacetBasis:
+    """A scalar basix element's basis on the slave facets, pulled back with their coordinate map.
+
+    theta_a at the rule's points, and on a Gauss rule over each whole facet (``full_*``), the
+    mass matrices, int_F theta_a, |F| and the covered measure of each facet.
+    """
+
+    def __init__(self, element: Any, facets: FacetMap, rule: MortarRule) -> None:
+        num = len(facets.vertices)
+        self.theta = tabulate(element, facets.pull(rule.facet, rule.points)) if len(
+            rule.facet) else np.zeros((0, element.dim))
+        f, X, x, w = facets.quadrature(2 * max(element.degree, 1))
+        self.full_facet, self.full_points, self.full_weights = f, x, w
+        self.full_theta = tabulate(element, X) if len(f) else np.zeros((0, element.dim))
+        self.mass = np.zeros((num, element.dim, element.dim))
+        np.add.at(self.mass, f, np.einsum("q,qa,qb->qab", w, self.full_theta, self.full_theta))
+        self.integrals = np.zeros((num, element.dim))
+        np.add.at(self.integrals, f, w[:, None] * self.full_theta)
+        #: |F| and the measure of its covered part
+        self.measure = self.integrals.sum(axis=1)
+        self.covered = np.zeros(num)
+        np.add.at(self.covered, rule.facet, rule.weights)
+        #: facets covered fully (up to the pieces the rule drops), and in part (P and the gap
+        #: project onto constants there)
+        self.full = self.covered >= (1.0 - _COVERED_TOL) * self.measure
+        self.partial = (self.covered > 0.0) & ~self.full
+
+
+def tabulate(element: Any, X: np.ndarray) -> np.ndarray:
+    """A scalar basix element's basis values at the reference points X, shape (points, dofs)."""
+    values = element.tabulate(0, np.ascontiguousarray(X, dtype=np.float64))
+    return values.reshape(values.shape[1], values.shape[2])

@@ -11,18 +11,21 @@ conditions (2) hold for the normal relative displacement
 with the friction laws acting on the tangential part of the same relative displacement.
 
 **The master trace.** For a displacement space V on T_h, :class:`MasterTrace` assembles once per
-mesh the matrix P of the L2 projection of v o Pi, per fine slave facet, onto the discontinuous
-polynomials W of V's degree on the fine slave facets Sigma_h:
+mesh the matrix P of the L2 projection, per fine slave facet, onto the discontinuous polynomials
+W of V's degree on the fine slave facets Sigma_h of what the slave side is compared with: v o Pi
+where the master covers F (chi = 1, the mortar rule's pieces) and v itself where it does not,
 
-    (P v)|_F = argmin_{w in P_k(F)} ||w - v o Pi||_{L2(F)},
+    (P v)|_F = argmin_{w in P_k(F)} ||w - (chi v o Pi + (1 - chi) v)||_{L2(F)},
 
-from the exact integrals of the mortar rule. Every form of the package writes the relative
+from the exact integrals of the mortar rule (onto constants on a facet covered in part). So the
+relative displacement v - P v vanishes where the master is not there, and the conditions of a
+macro facet hold on its covered part. Every form of the package writes the relative
 displacement as ``v - P v`` (:meth:`~dwr_signorini.spaces.Discretization.relative`), P v a
 function of W. For a multiplier piecewise constant on the macro facets and a normal constant on
 each flat facet, (mu, (P v) . n)_GC = (mu, (v o Pi) . n)_GC exactly: the coupling matrix
 N (I - P) of the algebra is the mortar matrix, and the residuals of the estimators use the same
 coupling as the discrete problem (Galerkin orthogonality holds in both bodies). The gap is the
-same projection of g(x).
+same projection of chi g(x); a macro facet that no master facet covers gets ``miss_gap``.
 
 **The master share.** A residual term (r, (P v) . e)_GC with a displacement weight v belongs to
 the master cells that v o Pi lives on. :meth:`MasterTrace.share` moves such a term, localised to
@@ -44,12 +47,17 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from . import compat
-from .mortar import FacetMap, MortarRule, check_planar, facet_normals, mortar_rule, warp
+from .mortar import (
+    FacetBasis,
+    FacetMap,
+    MortarRule,
+    check_planar,
+    facet_normals,
+    mortar_rule,
+    tabulate,
+    warp,
+)
 from .timing import timed
-
-#: Relative uncovered measure below which a facet counts as covered (the rule drops pieces of
-#: relative size 1e-10, :data:`~dwr_signorini.mortar._PIECE_TOL`).
-_COVERED_TOL = 1e-9
 
 __all__ = [
     "ContactPair",
@@ -302,7 +310,7 @@ class MasterTrace:
             "facet", "points", "weights", "master", "gap")))
         master = _Side(*(np.concatenate([getattr(m, f) for m in masters])
                            for f in _Side.fields()))
-        basis = _FacetBasis(self.Ws, FacetMap(vertices), self.rule)
+        basis = FacetBasis(self.Ws.ufl_element().basix_element, FacetMap(vertices), self.rule)
         projected = self.rule.points + self.rule.gap[:, None] * normals[self.rule.facet]
         phi = _cell_basis(disc.mesh, V, master.geometry, self.rule.master, projected)
         terms = [(self.rule.facet, self.rule.weights, basis.theta, phi,
@@ -312,7 +320,7 @@ class MasterTrace:
         self.gap = self._gap(basis)
         self._share = self._share_matrix(slave.cell, master, basis)
 
-    def _uncovered(self, basis: _FacetBasis, slave: _Side) -> list[tuple[np.ndarray, ...]]:
+    def _uncovered(self, basis: FacetBasis, slave: _Side) -> list[tuple[np.ndarray, ...]]:
         """The slave's own trace on the uncovered part of each facet: + int_F, - int_covered.
 
         P v = v o Pi where a master facet is met and v itself where none is, so that the
@@ -332,7 +340,7 @@ class MasterTrace:
         weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
         return [(facet, weights, theta, phi, slave.dofs[facet])]
 
-    def _projection(self, basis: _FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
+    def _projection(self, basis: FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
         """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
 
         Args:
@@ -369,7 +377,7 @@ class MasterTrace:
                     (vmap.size_local * V.dofmap.index_map_bs,
                      vmap.size_global * V.dofmap.index_map_bs))
 
-    def _gap(self, basis: _FacetBasis) -> fem.Function:
+    def _gap(self, basis: FacetBasis) -> fem.Function:
         """The gap g projected per facet from its covered part (zero elsewhere).
 
         The uncovered part of a facet carries no gap (and no relative displacement,
@@ -396,7 +404,7 @@ class MasterTrace:
         return gap
 
     def _share_matrix(self, slave_cells: np.ndarray, master: _Side,
-                      basis: _FacetBasis) -> PETSc.Mat:
+                      basis: FacetBasis) -> PETSc.Mat:
         """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K.
 
         The uncovered part of a facet stays with its slave cell (S[c, c]; P v is v there).
@@ -490,35 +498,6 @@ class MasterTrace:
         self._images.clear()
 
 
-class _FacetBasis:
-    """W's scalar basis on this rank's slave facets, pulled back with their coordinate map.
-
-    theta_a at the rule's points, and on a Gauss rule over each whole facet (``full_*``), the
-    mass matrices, int_F theta_a, |F| and the covered measure of each facet.
-    """
-
-    def __init__(self, Ws: fem.FunctionSpace, facets: FacetMap, rule: MortarRule) -> None:
-        element = Ws.ufl_element().basix_element
-        num = len(facets.vertices)
-        self.theta = _tabulate(element, facets.pull(rule.facet, rule.points)) if len(
-            rule.facet) else np.zeros((0, element.dim))
-        f, X, x, w = facets.quadrature(2 * max(element.degree, 1))
-        self.full_facet, self.full_points, self.full_weights = f, x, w
-        self.full_theta = _tabulate(element, X) if len(f) else np.zeros((0, element.dim))
-        self.mass = np.zeros((num, element.dim, element.dim))
-        np.add.at(self.mass, f, np.einsum("q,qa,qb->qab", w, self.full_theta, self.full_theta))
-        self.integrals = np.zeros((num, element.dim))
-        np.add.at(self.integrals, f, w[:, None] * self.full_theta)
-        #: |F| and the measure of its covered part
-        self.measure = self.integrals.sum(axis=1)
-        self.covered = np.zeros(num)
-        np.add.at(self.covered, rule.facet, rule.weights)
-        #: facets covered fully (up to the pieces the rule drops), and in part (P and the gap
-        #: project onto constants there)
-        self.full = self.covered >= (1.0 - _COVERED_TOL) * self.measure
-        self.partial = (self.covered > 0.0) & ~self.full
-
-
 def _cells(
     msh: dmesh.Mesh, V: fem.FunctionSpace, cells: np.ndarray, vertices: np.ndarray
 ) -> _Side:
@@ -550,7 +529,7 @@ def _cell_basis(
     for g in np.unique(which):
         at = np.flatnonzero(which == g)
         X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[g])
-        out[at] = _tabulate(element, X)
+        out[at] = tabulate(element, X)
     return out
 
 
@@ -565,12 +544,6 @@ def _entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarra
             nodes = compat.geometry_dofmap(msh).shape[1]
         return np.zeros((0, nodes, gdim))
     return msh.geometry.x[dmesh.entities_to_geometry(msh, dim, entities)][:, :, :gdim]
-
-
-def _tabulate(element: Any, X: np.ndarray) -> np.ndarray:
-    """A scalar basix element's basis values at the reference points X, shape (points, dofs)."""
-    values = element.tabulate(0, np.ascontiguousarray(X, dtype=np.float64))
-    return values.reshape(values.shape[1], values.shape[2])
 
 
 def _facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
