@@ -88,6 +88,32 @@ def test_rule_2d_integrates_slave_times_master_polynomials_exactly(k):
 
 
 @pytest.mark.parametrize("k", [1, 2])
+def test_rule_on_a_tilted_master_integrates_theta_times_v_of_pi_exactly(k):
+    """A master plane z = h(x, y) = 0.02 + 0.3 x + 0.1 y over random triangles (slave flat):
+    Pi x = (x, y, h) is affine, so theta(x) v(Pi x) with v(p) = (p_x - p_z)^k + p_y and theta of
+    degree k is a polynomial of degree 2k, integrated exactly."""
+    slave = _triangles(3, 0.0)
+    master = _triangles(4, 0.0, -0.1, 1.1)
+    h = lambda x, y: 0.02 + 0.3 * x + 0.1 * y  # noqa: E731
+    master[..., 2] = h(master[..., 0], master[..., 1])
+    normal = np.array([0.3, 0.1, -1.0]) / np.linalg.norm([0.3, 0.1, -1.0])
+    rule = mortar_rule(slave, _normals(slave, 1.0), master, np.tile(normal, (len(master), 1)),
+                       2 * k, 0.1)
+    projected = rule.points + rule.gap[:, None] * np.array([0.0, 0.0, 1.0])
+    assert projected[:, 2] == pytest.approx(h(projected[:, 0], projected[:, 1]), rel=1e-12)
+    v = (projected[:, 0] - projected[:, 2]) ** k + projected[:, 1]
+    found = _per_facet(rule, rule.weights * rule.points[:, 1] ** k * v, len(slave))
+    import basix
+
+    ref, wref = basix.make_quadrature(basix.CellType.triangle, 2 * k + 2)
+    p = slave[:, None, 0] + ref[None, :, :1] * (slave[:, None, 1] - slave[:, None, 0]) \
+        + ref[None, :, 1:] * (slave[:, None, 2] - slave[:, None, 0])
+    X, Y = p[..., 0], p[..., 1]
+    exact = 2 * _area(slave) * ((Y**k * ((X - h(X, Y)) ** k + Y)) @ wref)
+    assert found == pytest.approx(exact, rel=1e-11)
+
+
+@pytest.mark.parametrize("k", [1, 2])
 def test_rule_3d_integrates_slave_times_master_polynomials_exactly(k):
     slave = _triangles(4, 0.0)
     master = _triangles(5, 0.02, -0.05, 1.05)
