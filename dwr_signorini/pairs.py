@@ -59,6 +59,9 @@ from .mortar import (
 )
 from .timing import timed
 
+#: The covered fraction of a macro facet below which it counts as uncovered (``miss_gap``).
+MIN_MACRO_COVER = 1e-3
+
 __all__ = [
     "ContactPair",
     "MasterTrace",
@@ -385,7 +388,8 @@ class MasterTrace:
         On a facet covered in part, the projection onto constants (a polynomial through the
         jump at the master's end would dip below the gaps met: a false contact). A macro facet
         that no master facet covers at all gets the problem's ``miss_gap``, which
-        keeps its multiplier zero.
+        keeps its multiplier zero; so does one covered by less than :data:`MIN_MACRO_COVER` of
+        its measure (its row of N would be that small: a near-null pivot).
         """
         rule, Ws = self.rule, self.Ws
         gap = fem.Function(Ws, name="gap")
@@ -395,9 +399,10 @@ class MasterTrace:
         part = basis.partial
         value[part] = (rhs[part].sum(axis=1) / basis.measure[part])[:, None]
         macro = self.disc.fine_to_macro_facet[self.disc.slave_to_fine[:len(rhs)]]
-        hit = np.zeros(int(macro.max(initial=-1)) + 1)
+        hit, size = np.zeros((2, int(macro.max(initial=-1)) + 1))
         np.add.at(hit, macro, basis.covered)
-        value[hit[macro] == 0.0] = self.disc.problem.miss_gap
+        np.add.at(size, macro, basis.measure)
+        value[hit[macro] <= MIN_MACRO_COVER * size[macro]] = self.disc.problem.miss_gap
         dofs = np.array([Ws.dofmap.cell_dofs(f) for f in range(len(rhs))], dtype=np.int32)
         gap.x.array[dofs.ravel()] = value.ravel()
         gap.x.scatter_forward()
