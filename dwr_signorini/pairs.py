@@ -79,16 +79,16 @@ class ContactPair:
     multiplier lives on the slave side's macro facets (P0) and the gap of a slave point is its
     distance to the master surface along the slave normal (:mod:`~dwr_signorini.pairs`).
 
-    A slave point's partner is the first crossing of its normal ray with a master facet that
-    faces it, in front of the point or behind it by at most ``window`` (the penetration window,
-    :mod:`~dwr_signorini.mortar`): master facets on the far side of the master body, or farther
-    behind, are no partners.
-
     Args:
         slave: The facet tag of the slave side.
         master: The facet tag of the master side.
         window: The penetration window, a length > 0; None (default): the diameter of each
             slave macro facet (twice that of its fine facets).
+
+    A slave point's partner is the first crossing of its normal ray with a master facet that
+    faces it, in front of the point or behind it by at most ``window``
+    (:mod:`~dwr_signorini.mortar`): master facets on the far side of the master body, or farther
+    behind, are no partners, so the tags may be whole boundaries.
     """
 
     slave: int
