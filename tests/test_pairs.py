@@ -30,6 +30,7 @@ from dolfinx import mesh as dmesh
 
 import dwr_signorini as ds
 from dwr_signorini.refine import refine_marked
+from dwr_signorini.spaces import discretize
 
 from . import pair_geometries as G
 from .helpers import global_max, global_min, integrate
@@ -300,7 +301,7 @@ def annuli():
     return from_model(G.two_annuli)
 
 
-def annuli_problem(whole):
+def annuli_problem(whole, window=None):
     """The upper annulus's bore pushed down onto the lower one's; contact tags the facing arcs,
     or (``whole``) the whole outer circles, on the same mesh."""
     msh, cells, facets = annuli()
@@ -310,7 +311,8 @@ def annuli_problem(whole):
         values[values == G.UPPER_REST] = G.UPPER_FACING
     tags = dmesh.meshtags(msh, msh.topology.dim - 1, facets.indices, values)
     return ds.SignoriniProblem(
-        msh, tags, contact=ds.ContactPair(slave=G.UPPER_FACING, master=G.LOWER_FACING),
+        msh, tags, contact=ds.ContactPair(slave=G.UPPER_FACING, master=G.LOWER_FACING,
+                                          window=window),
         dirichlet={G.LOWER_BORE: 0.0, G.UPPER_BORE: (0.0, -ANNULI_DELTA)}, E=1.0, nu=0.3,
         cell_tags=cells,
     )
@@ -334,6 +336,14 @@ def test_whole_boundary_tags_give_the_facing_arcs_solution():
     arcs, whole = found
     assert arcs[0] > 1e-3  # in contact
     assert whole == pytest.approx(arcs, rel=1e-10)
+
+
+def test_a_window_beyond_the_body_lets_its_far_side_in():
+    """The window is the pair's: 4.5 (more than the annuli's diameters) makes the far side of
+    the lower annulus a partner of the upper one's far side again (its projected gap -4)."""
+    trace = discretize(annuli_problem(True, window=4.5)).master_trace()
+    assert global_min(trace.gap.x.array, COMM) == pytest.approx(-4.0, abs=0.05)
+    trace.destroy()
 
 
 def corner_penetration(sol, n):
