@@ -51,8 +51,8 @@ DELTA = 0.004  # the upper flat pressed down
 
 
 @functools.cache
-def blocks(h_lower: float = 0.2, h_upper: float = 0.13):
-    return from_model(BLOCKS.build, h_lower=h_lower, h_upper=h_upper)
+def blocks(h_lower: float = 0.2, h_upper: float = 0.13, quads: int = 0):
+    return from_model(BLOCKS.build, h_lower=h_lower, h_upper=h_upper, quads=quads)
 
 
 @functools.cache
@@ -60,9 +60,9 @@ def cylinders(h_contact: float = 0.01, h: float = 0.15):
     return from_model(CYLINDERS.build, h_contact=h_contact, h=h)
 
 
-def blocks_problem(pair):
+def blocks_problem(pair, quads=0):
     """The top moved down by the blocks' compressions under PRESSURE (a uniform state)."""
-    msh, cells, facets = blocks()
+    msh, cells, facets = blocks(quads=quads)
     return ds.SignoriniProblem(
         msh, facets, contact=pair, cell_tags=cells, **BLOCK_MATERIAL,
         dirichlet={BLOCKS.BOTTOM: (None, 0.0), BLOCKS.LOWER_LEFT: (0.0, None),
@@ -153,11 +153,12 @@ def top_displacement() -> float:
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("quads", [0, 1], ids=["triangles", "quadrilaterals"])
 @pytest.mark.parametrize("pair", [UPPER_SLAVE, LOWER_SLAVE], ids=["upper_slave", "lower_slave"])
-def test_patch_test_transmits_a_uniform_pressure_exactly(pair):
+def test_patch_test_transmits_a_uniform_pressure_exactly(pair, quads):
     """The top moved by the compressions under PRESSURE: lambda = PRESSURE on every macro facet,
     the force PRESSURE times the width 1, and a vanishing estimate."""
-    with ds.solve(blocks_problem(pair)) as sol, ds.estimate(sol, contact_force) as est:
+    with ds.solve(blocks_problem(pair, quads)) as sol, ds.estimate(sol, contact_force) as est:
         lam = sol.lam.x.array
         assert global_min(lam, COMM) == pytest.approx(PRESSURE, rel=1e-10)
         assert global_max(lam, COMM) == pytest.approx(PRESSURE, rel=1e-10)
