@@ -11,18 +11,21 @@ conditions (2) hold for the normal relative displacement
 with the friction laws acting on the tangential part of the same relative displacement.
 
 **The master trace.** For a displacement space V on T_h, :class:`MasterTrace` assembles once per
-mesh the matrix P of the L2 projection of v o Pi, per fine slave facet, onto the discontinuous
-polynomials W of V's degree on the fine slave facets Sigma_h:
+mesh the matrix P of the L2 projection, per fine slave facet, onto the discontinuous polynomials
+W of V's degree on the fine slave facets Sigma_h of what the slave side is compared with: v o Pi
+where the master covers F (chi = 1, the mortar rule's pieces) and v itself where it does not,
 
-    (P v)|_F = argmin_{w in P_k(F)} ||w - v o Pi||_{L2(F)},
+    (P v)|_F = argmin_{w in P_k(F)} ||w - (chi v o Pi + (1 - chi) v)||_{L2(F)},
 
-from the exact integrals of the mortar rule. Every form of the package writes the relative
+from the exact integrals of the mortar rule (onto constants on a facet covered in part). So the
+relative displacement v - P v vanishes where the master is not there, and the conditions of a
+macro facet hold on its covered part. Every form of the package writes the relative
 displacement as ``v - P v`` (:meth:`~dwr_signorini.spaces.Discretization.relative`), P v a
 function of W. For a multiplier piecewise constant on the macro facets and a normal constant on
 each flat facet, (mu, (P v) . n)_GC = (mu, (v o Pi) . n)_GC exactly: the coupling matrix
 N (I - P) of the algebra is the mortar matrix, and the residuals of the estimators use the same
 coupling as the discrete problem (Galerkin orthogonality holds in both bodies). The gap is the
-same projection of g(x).
+same projection of chi g(x); a macro facet that no master facet covers gets ``miss_gap``.
 
 **The master share.** A residual term (r, (P v) . e)_GC with a displacement weight v belongs to
 the master cells that v o Pi lives on. :meth:`MasterTrace.share` moves such a term, localised to
@@ -39,14 +42,25 @@ from typing import Any
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import basix
 import numpy as np
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from . import compat
-from .mortar import MortarRule, facet_normals, mortar_rule
+from .mortar import (
+    FacetBasis,
+    FacetMap,
+    MortarRule,
+    check_planar,
+    facet_normals,
+    mortar_rule,
+    tabulate,
+    warp,
+)
 from .timing import timed
+
+#: The covered fraction of a macro facet below which it counts as uncovered (``miss_gap``).
+MIN_MACRO_COVER = 1e-3
 
 __all__ = [
     "ContactPair",
@@ -68,10 +82,18 @@ class ContactPair:
     Args:
         slave: The facet tag of the slave side.
         master: The facet tag of the master side.
+        window: The penetration window, a length > 0; None (default): the diameter of each
+            slave macro facet (twice that of its fine facets).
+
+    A slave point's partner is the first crossing of its normal ray with a master facet that
+    faces it, in front of the point or behind it by at most ``window``
+    (:mod:`~dwr_signorini.mortar`): master facets on the far side of the master body, or farther
+    behind, are no partners, so the tags may be whole boundaries.
     """
 
     slave: int
     master: int
+    window: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("slave", "master"):
@@ -79,6 +101,13 @@ class ContactPair:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise TypeError(f"ContactPair: {name} must be an integer facet tag, got {value!r}")
             object.__setattr__(self, name, int(value))
+        w = self.window
+        if w is not None:
+            if isinstance(w, bool) or not isinstance(w, (int, float, np.floating, np.integer)):
+                raise TypeError(f"ContactPair: window must be a number or None, got {w!r}")
+            if not (0.0 < float(w) < np.inf):
+                raise ValueError(f"ContactPair: window must be a finite length > 0, got {w!r}")
+            object.__setattr__(self, "window", float(w))
         if self.slave == self.master:
             raise ValueError(
                 f"ContactPair: slave and master must be different facet tags, got {self.slave} "
@@ -172,14 +201,19 @@ def check_pair_bodies(
 
 
 @dataclass
-class _Master:
-    """The master facets of a pair, gathered on every rank."""
+class _Side:
+    """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
 
     vertices: np.ndarray  # (m, nv, gdim)
     normals: np.ndarray  # (m, gdim)
     geometry: np.ndarray  # (m, nodes, gdim): the adjacent cell's geometry
     dofs: np.ndarray  # (m, ndofs): its global block dofs of V
     cell: np.ndarray  # (m,): its global cell index
+
+    @staticmethod
+    def fields() -> tuple[str, ...]:
+        """The attributes in order."""
+        return ("vertices", "normals", "geometry", "dofs", "cell")
 
 
 class MasterTrace:
@@ -194,8 +228,8 @@ class MasterTrace:
     Attributes:
         W: Vector DG of V's degree on Sigma_h; ``Ws`` the scalar one.
         P: The projection (PETSc Mat, W x V, the prescribed Dirichlet columns included).
-        gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` where no
-            master facet is met).
+        gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` on the
+            macro facets that no master facet covers).
         rule: The mortar rule of this rank's slave facets.
         frame: The normal of the contact frame on the fine slave facets (vector DG0,
             :meth:`_frame`), in which the tangential slip is measured.
@@ -213,8 +247,8 @@ class MasterTrace:
             self._build(disc, V, degree)
 
     # -- geometry ----------------------------------------------------------------------------
-    def _slave_facets(self, disc: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """This rank's slave facets: vertices, normals, slave cells (global), slave tag."""
+    def _slave_facets(self, disc: Any) -> tuple[np.ndarray, np.ndarray, _Side, np.ndarray]:
+        """This rank's slave facets: vertices, normals, their cells and the slave tag."""
         sub, fine = disc.slave_mesh, disc.mesh
         tdim = fine.topology.dim
         num = sub.topology.index_map(sub.topology.dim).size_local
@@ -223,108 +257,157 @@ class MasterTrace:
         vertices = x[compat.geometry_dofmap(sub)[:num]]
         f2c = fine.topology.connectivity(tdim - 1, tdim)
         cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        inside = _entity_points(fine, tdim, cells).mean(axis=1)
-        normals = facet_normals(vertices, inside)
-        glob = fine.topology.index_map(tdim).local_to_global(cells)
+        cell = _cells(fine, self.V, cells, vertices)
         tag = _facet_tag(disc.facet_tags, facets)
-        return vertices, normals, glob, tag
+        return vertices, cell.normals, cell, tag
 
-    def _master_facets(self, disc: Any, V: fem.FunctionSpace, tag: int) -> _Master:
+    def _master_facets(self, disc: Any, V: fem.FunctionSpace, tag: int) -> _Side:
         """The owned master facets of ``tag`` with their cells, gathered on every rank."""
         fine = disc.mesh
-        tdim, gdim = fine.topology.dim, fine.geometry.dim
+        tdim = fine.topology.dim
         n_own = fine.topology.index_map(tdim - 1).size_local
         facets = disc.facet_tags.find(tag)
         facets = facets[facets < n_own].astype(np.int32)
         f2c = fine.topology.connectivity(tdim - 1, tdim)
         cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        vertices = _entity_points(fine, tdim - 1, facets)
-        geometry = fine.geometry.x[compat.geometry_dofmap(fine)[cells]][:, :, :gdim]
-        normals = facet_normals(vertices, geometry.mean(axis=1))
-        index_map = V.dofmap.index_map
-        local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32)
-        dofs = index_map.local_to_global(local.ravel()).reshape(local.shape) if len(cells) else (
-            np.zeros((0, V.dofmap.dof_layout.num_dofs), dtype=np.int64))
-        cell = fine.topology.index_map(tdim).local_to_global(cells)
-        parts = disc.comm.allgather((vertices, normals, geometry, dofs, cell))
-        return _Master(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
+        mine = _cells(fine, V, cells, _entity_points(fine, tdim - 1, facets))
+        parts = disc.comm.allgather(tuple(getattr(mine, f) for f in _Side.fields()))
+        return _Side(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
+
+    @staticmethod
+    def _check_planar(disc: Any) -> None:
+        """Refuse warped quadrilateral facets of the pairs' macro facets, on every rank.
+
+        (The macro ones: the children of a warped facet would not even be tagged on T_h.)
+        """
+        macro, tags = disc.macro_mesh, disc.problem.facet_tags
+        fdim = macro.topology.dim - 1
+        n_own = macro.topology.index_map(fdim).size_local
+        found = [tags.find(t) for p in disc.problem.pairs for t in (p.slave, p.master)]
+        facets = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int32)
+        facets = facets[facets < n_own].astype(np.int32)
+        check_planar(disc.comm.allreduce(warp(_entity_points(macro, fdim, facets)), op=MPI.MAX))
+
+    @staticmethod
+    def _windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
+        """The pair's penetration window (default: each slave macro facet's diameter)."""
+        if pair.window is not None:
+            return pair.window
+        d = np.linalg.norm(vertices[:, :, None] - vertices[:, None], axis=3)
+        return 2.0 * d.max(axis=(1, 2)) if len(vertices) else np.zeros(0)
 
     # -- assembly ----------------------------------------------------------------------------
     def _build(self, disc: Any, V: fem.FunctionSpace, degree: int) -> None:
         """The rule, P, the gap and the share weights (one pass over the slave facets)."""
-        vertices, normals, slave_cells, slave_tag = self._slave_facets(disc)
+        self._check_planar(disc)
+        vertices, normals, slave, slave_tag = self._slave_facets(disc)
         rules, masters = [], []
         offset = 0
         for pair in disc.problem.pairs:
             master = self._master_facets(disc, V, pair.master)
             on = np.flatnonzero(slave_tag == pair.slave)
             r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
-                            2 * degree)
+                            2 * degree, self._windows(pair, vertices[on]))
             rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset, r.gap))
             masters.append(master)
             offset += len(master.cell)
         self.rule = MortarRule(*(np.concatenate([getattr(r, f) for r in rules]) for f in (
             "facet", "points", "weights", "master", "gap")))
-        master = _Master(*(np.concatenate([getattr(m, f) for m in masters]) for f in (
-            "vertices", "normals", "geometry", "dofs", "cell")))
-        basis = _FacetBasis(self.Ws, vertices, self.rule)
+        master = _Side(*(np.concatenate([getattr(m, f) for m in masters])
+                           for f in _Side.fields()))
+        basis = FacetBasis(self.Ws.ufl_element().basix_element, FacetMap(vertices), self.rule)
         projected = self.rule.points + self.rule.gap[:, None] * normals[self.rule.facet]
-        phi = _master_basis(disc.mesh, V, master, self.rule.master, projected)
-        self.P = self._projection(basis, phi, master)
+        phi = _cell_basis(disc.mesh, V, master.geometry, self.rule.master, projected)
+        terms = [(self.rule.facet, self.rule.weights, basis.theta, phi,
+                  master.dofs[self.rule.master])]
+        terms += self._uncovered(basis, slave)
+        self.P = self._projection(basis, terms)
         self.gap = self._gap(basis)
         self.frame = self._frame(normals, master.normals[self.rule.master])
-        self._share = self._share_matrix(slave_cells, master)
+        self._share = self._share_matrix(slave.cell, master, basis)
 
-    def _projection(self, basis: _FacetBasis, phi: np.ndarray, master: _Master) -> PETSc.Mat:
-        """P = M_F^{-1} sum_q w_q theta(x_q) phi(Pi(x_q))^T per facet and component.
+    def _uncovered(self, basis: FacetBasis, slave: _Side) -> list[tuple[np.ndarray, ...]]:
+        """The slave's own trace on the uncovered part of each facet: + int_F, - int_covered.
 
-        On a facet the master covers in part, the projection onto constants instead (as the
-        gap, :meth:`_gap`).
+        P v = v o Pi where a master facet is met and v itself where none is, so that the
+        relative displacement v - P v vanishes where the master is not there.
         """
-        rule, W, V = self.rule, self.W, self.V
+        part = np.flatnonzero(~basis.full)
+        if len(part) == 0:
+            return []
+        on = np.isin(basis.full_facet, part)
+        f_full = basis.full_facet[on]
+        at = np.isin(self.rule.facet, part)
+        f_rule = self.rule.facet[at]
+        facet = np.concatenate([f_full, f_rule])
+        x = np.concatenate([basis.full_points[on], self.rule.points[at]])
+        phi = _cell_basis(self.disc.mesh, self.V, slave.geometry, facet, x)
+        theta = np.concatenate([basis.full_theta[on], basis.theta[at]])
+        weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
+        return [(facet, weights, theta, phi, slave.dofs[facet])]
+
+    def _projection(self, basis: FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
+        """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
+
+        Args:
+            basis: W's basis on the slave facets.
+            terms: (facet, weight, theta(x_q), phi(y_q), global dofs of phi's cell) per point:
+                the master points y_q = Pi(x_q) of the rule, and the slave's own points on the
+                uncovered parts (:meth:`_uncovered`).
+        """
+        W, V = self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
         inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
-        # per point: the facet's rows (a) times the master cell's columns (j)
-        local = np.einsum("qab,qb->qa", inv[rule.facet], basis.theta) * rule.weights[:, None]
-        # a facet the master covers in part: the mean of the trace (no polynomial through the
-        # master's end); its integral against a constant is the same
-        part = basis.partial[rule.facet]
-        local[part] = (rule.weights[part] / basis.measure[rule.facet[part]])[:, None]
         w_dofs = wmap.local_to_global(
             np.array([W.dofmap.cell_dofs(int(f)) for f in range(len(basis.mass))],
                      dtype=np.int32).ravel()
         ).reshape(len(basis.mass), -1) if len(basis.mass) else np.zeros((0, 1), np.int64)
         rows, cols, vals = [], [], []
-        r_q, c_q = w_dofs[rule.facet], master.dofs[rule.master]  # (q, a), (q, j)
-        v_q = np.einsum("qa,qj->qaj", local, phi)
-        shape = v_q.shape
-        for c in range(bs):
-            rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
-            cols.append(np.broadcast_to((c_q * bs + c)[:, None, :], shape).ravel())
-            vals.append(v_q.ravel())
+        for facet, weights, theta, phi, dofs in terms:
+            # per point: the facet's rows (a) times the cell's columns (j)
+            local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
+            # a facet the master covers in part: the mean (no polynomial through the jump at
+            # the master's end); its integral against a constant is the same
+            part = basis.partial[facet]
+            local[part] = (weights[part] / basis.measure[facet[part]])[:, None]
+            r_q = w_dofs[facet]
+            v_q = np.einsum("qa,qj->qaj", local, phi)
+            shape = v_q.shape
+            for c in range(bs):
+                rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
+                cols.append(np.broadcast_to((dofs * bs + c)[:, None, :], shape).ravel())
+                vals.append(v_q.ravel())
         return _csr(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
                     (wmap.size_local * bs, wmap.size_global * bs),
                     (vmap.size_local * V.dofmap.index_map_bs,
                      vmap.size_global * V.dofmap.index_map_bs))
 
-    def _gap(self, basis: _FacetBasis) -> fem.Function:
-        """The gap g projected per facet, the problem's miss_gap where no master facet is met.
+    def _gap(self, basis: FacetBasis) -> fem.Function:
+        """The gap g projected per facet from its covered part (zero elsewhere).
 
-        On a facet that the master covers in part, the projection onto constants: a polynomial
-        through the jump from the gaps met to miss_gap would dip below them (a false contact).
+        The uncovered part of a facet carries no gap (and no relative displacement,
+        :meth:`_uncovered`): the integrated gap of a macro facet is that of its covered part.
+        On a facet covered in part, the projection onto constants (a polynomial through the
+        jump at the master's end would dip below the gaps met: a false contact). A macro facet
+        that no master facet covers at all gets the problem's ``miss_gap``, which
+        keeps its multiplier zero; so does one covered by less than :data:`MIN_MACRO_COVER` of
+        its measure (its row of N would be that small: a near-null pivot).
         """
-        miss = self.disc.problem.miss_gap
         rule, Ws = self.rule, self.Ws
         gap = fem.Function(Ws, name="gap")
-        rhs = miss * basis.integrals.copy()
-        np.add.at(rhs, rule.facet, basis.theta * (rule.weights * (rule.gap - miss))[:, None])
-        for f in range(len(basis.mass)):
-            if basis.partial[f]:  # the mean, between the gaps met and miss_gap
-                value = rhs[f].sum() / basis.measure[f]
-            else:
-                value = np.linalg.solve(basis.mass[f], rhs[f])
-            gap.x.array[Ws.dofmap.cell_dofs(f)] = value
+        rhs = np.zeros_like(basis.integrals)
+        np.add.at(rhs, rule.facet, basis.theta * (rule.weights * rule.gap)[:, None])
+        value = np.linalg.solve(basis.mass, rhs[..., None])[..., 0] if len(rhs) else rhs
+        part = basis.partial
+        value[part] = (rhs[part].sum(axis=1) / basis.measure[part])[:, None]
+        macro = self.disc.fine_to_macro_facet[self.disc.slave_to_fine[:len(rhs)]]
+        hit, size = np.zeros((2, int(macro.max(initial=-1)) + 1))
+        np.add.at(hit, macro, basis.covered)
+        np.add.at(size, macro, basis.measure)
+        value[hit[macro] <= MIN_MACRO_COVER * size[macro]] = self.disc.problem.miss_gap
+        dofs = np.array([Ws.dofmap.cell_dofs(f) for f in range(len(rhs))], dtype=np.int32)
+        gap.x.array[dofs.ravel()] = value.ravel()
         gap.x.scatter_forward()
         return gap
 
@@ -360,13 +443,17 @@ class MasterTrace:
         out.x.scatter_forward()
         return out
 
-    def _share_matrix(self, slave_cells: np.ndarray, master: _Master) -> PETSc.Mat:
-        """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K."""
+    def _share_matrix(self, slave_cells: np.ndarray, master: _Side,
+                      basis: FacetBasis) -> PETSc.Mat:
+        """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K.
+
+        The uncovered part of a facet stays with its slave cell (S[c, c]; P v is v there).
+        """
         rule, fine = self.rule, self.disc.mesh
         cells = fine.topology.index_map(fine.topology.dim)
-        hit = np.zeros(len(slave_cells))
-        np.add.at(hit, rule.facet, rule.weights)
-        frac = rule.weights / np.where(hit > 0.0, hit, 1.0)[rule.facet]
+        measure = np.where(basis.measure > 0.0, basis.measure, 1.0)
+        frac = rule.weights / measure[rule.facet]
+        own = np.clip(1.0 - basis.covered / measure, 0.0, 1.0)
         # a slave cell with several slave facets shares each facet's part equally
         count = np.zeros(len(slave_cells))
         _, inverse, counts = np.unique(slave_cells, return_inverse=True, return_counts=True)
@@ -376,10 +463,12 @@ class MasterTrace:
             nnz=(8, 8), comm=self.disc.comm,
         )
         S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        rows = master.cell[rule.master].astype(PETSc.IntType)
-        cols = slave_cells[rule.facet].astype(PETSc.IntType)
-        for r, c, v in zip(rows, cols, frac / count[rule.facet], strict=True):
-            S.setValue(r, c, v, addv=PETSc.InsertMode.ADD_VALUES)
+        rows = np.concatenate([master.cell[rule.master], slave_cells]).astype(PETSc.IntType)
+        cols = np.concatenate([slave_cells[rule.facet], slave_cells]).astype(PETSc.IntType)
+        vals = np.concatenate([frac / count[rule.facet], own / count])
+        for r, c, v in zip(rows, cols, vals, strict=True):
+            if v != 0.0:
+                S.setValue(r, c, v, addv=PETSc.InsertMode.ADD_VALUES)
         S.assemble()
         return S
 
@@ -449,40 +538,26 @@ class MasterTrace:
         self._images.clear()
 
 
-class _FacetBasis:
-    """W's scalar basis on this rank's slave facets: theta_a(x_q), mass matrices, int theta_a."""
-
-    def __init__(self, Ws: fem.FunctionSpace, vertices: np.ndarray, rule: MortarRule) -> None:
-        element = Ws.ufl_element().basix_element
-        fdim = Ws.mesh.topology.dim
-        num = len(vertices)
-        # affine facets: x = v0 + sum_k X_k (v_{k+1} - v0) (a quadrilateral's vertices 1 and 2)
-        axes = np.stack([vertices[:, k + 1] - vertices[:, 0] for k in range(fdim)], axis=1) \
-            if num else np.zeros((0, fdim, vertices.shape[-1]))
-        gram = np.einsum("fkd,fld->fkl", axes, axes)
-        if len(rule.facet):
-            A = gram[rule.facet]
-            b = np.einsum("qkd,qd->qk", axes[rule.facet], rule.points - vertices[rule.facet, 0])
-            X = np.linalg.solve(A, b[..., None])[..., 0]
-            self.theta = _tabulate(element, X)
-        else:
-            self.theta = np.zeros((0, element.dim))
-        points, weights = basix.make_quadrature(element.cell_type, 2 * max(element.degree, 1))
-        ref = _tabulate(element, points)
-        jac = np.sqrt(np.abs(np.linalg.det(gram))) if num else np.zeros(0)
-        self.mass = np.einsum("q,qa,qb->ab", weights, ref, ref)[None] * jac[:, None, None]
-        self.integrals = (weights @ ref)[None] * jac[:, None]
-        #: |F|, and whether the master covers F in part only (not at all, or not all of it)
-        self.measure = self.integrals.sum(axis=1)
-        covered = np.zeros(num)
-        np.add.at(covered, rule.facet, rule.weights)
-        self.partial = covered < (1.0 - 1e-9) * self.measure
+def _cells(
+    msh: dmesh.Mesh, V: fem.FunctionSpace, cells: np.ndarray, vertices: np.ndarray
+) -> _Side:
+    """The facets' cells: their geometry, V's global dofs, global index; the facets' normals."""
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    geometry = msh.geometry.x[compat.geometry_dofmap(msh)[cells]][:, :, :gdim]
+    normals = facet_normals(vertices, geometry.mean(axis=1)) if len(cells) else (
+        np.zeros((0, gdim)))
+    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32)
+    dofs = V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape) if len(
+        cells) else np.zeros((0, V.dofmap.dof_layout.num_dofs), dtype=np.int64)
+    cell = msh.topology.index_map(tdim).local_to_global(cells)
+    return _Side(vertices, normals, geometry, dofs, cell)
 
 
-def _master_basis(
-    mesh: dmesh.Mesh, V: fem.FunctionSpace, master: _Master, which: np.ndarray, y: np.ndarray
+def _cell_basis(
+    mesh: dmesh.Mesh, V: fem.FunctionSpace, geometry: np.ndarray, which: np.ndarray,
+    y: np.ndarray,
 ) -> np.ndarray:
-    """phi_j(y_q) of V's scalar element in the master cell ``which[q]`` of each point."""
+    """phi_j(y_q) of V's scalar element in the cell ``which[q]`` (geometry nodes ``geometry``)."""
     element = V.ufl_element().sub_elements[0].basix_element
     if V.element.needs_dof_transformations:
         raise NotImplementedError(
@@ -493,8 +568,8 @@ def _master_basis(
     out = np.zeros((len(y), element.dim))
     for g in np.unique(which):
         at = np.flatnonzero(which == g)
-        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), master.geometry[g])
-        out[at] = _tabulate(element, X)
+        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[g])
+        out[at] = tabulate(element, X)
     return out
 
 
@@ -502,15 +577,13 @@ def _entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarra
     """The geometry nodes of ``entities`` of dimension ``dim``, shape (m, nodes, gdim)."""
     gdim = msh.geometry.dim
     if len(entities) == 0:  # (entities_to_geometry divides by the count)
-        nodes = msh.topology.dim + 1 if dim == msh.topology.dim else dim + 1
+        simplex = msh.topology.cell_type in (
+            dmesh.CellType.interval, dmesh.CellType.triangle, dmesh.CellType.tetrahedron)
+        nodes = dim + 1 if simplex else 2**dim
+        if dim == msh.topology.dim:
+            nodes = compat.geometry_dofmap(msh).shape[1]
         return np.zeros((0, nodes, gdim))
     return msh.geometry.x[dmesh.entities_to_geometry(msh, dim, entities)][:, :, :gdim]
-
-
-def _tabulate(element: Any, X: np.ndarray) -> np.ndarray:
-    """A scalar basix element's basis values at the reference points X, shape (points, dofs)."""
-    values = element.tabulate(0, np.ascontiguousarray(X, dtype=np.float64))
-    return values.reshape(values.shape[1], values.shape[2])
 
 
 def _facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
