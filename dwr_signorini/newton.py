@@ -92,6 +92,7 @@ from .linalg import (
     memory,
     system_class,
 )
+from .rigid import FreeMotions, RigidHold, free_motions
 from .semismooth import ConvergenceError, NewtonLoop
 from .settings import SolverOptions
 from .spaces import Discretization
@@ -331,6 +332,9 @@ def _solve(
     symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
     assembled = None
     method = options.method
+    motions = free_motions(disc)
+    if motions.count:
+        method = _held_by_contact_method(method, motions)
     if method is None:
         if options.petsc_options is not None:
             method = "block"
@@ -350,10 +354,33 @@ def _solve(
     except LinearSolveError as err:
         raise ConvergenceError(str(err), []) from err
     try:
-        return _semismooth_newton(system, initial_guess, options.max_iterations, options.rtol)
+        hold = None
+        if motions.count:
+            hold = RigidHold(
+                motions, system.N, system.algebra.n_q, system.algebra.c_n, system.M.array,
+                disc.problem,
+            )
+        return _semismooth_newton(
+            system, initial_guess, options.max_iterations, options.rtol, hold
+        )
     except BaseException:
         system.destroy()
         raise
+
+
+def _held_by_contact_method(method: str | None, motions: FreeMotions) -> str:
+    """The method where only contact holds a body: the block path (K is singular).
+
+    Raises:
+        ValueError: ``method`` is ``"schur"`` or ``"krylov"``, which solve with K alone.
+    """
+    if method in (None, "block"):
+        return "block"
+    raise ValueError(
+        f"method={method!r} solves with the stiffness matrix K alone, which is singular where "
+        f"only contact holds a body ({motions.count} rigid motion(s) left free by dirichlet): "
+        "use method='block' (the default there)"
+    )
 
 
 def _automatic_method(
@@ -404,8 +431,13 @@ def _semismooth_newton(
     initial_guess: tuple[fem.Function, ...] | None,
     max_iterations: int,
     rtol: float,
+    hold: RigidHold | None = None,
 ) -> Solution:
-    """The loop of :func:`solve` on a set-up Newton system (see there)."""
+    """The loop of :func:`solve` on a set-up Newton system (see there).
+
+    With ``hold`` (a body held only by contact) a step's set that leaves a free rigid motion
+    unheld is completed by :meth:`~dwr_signorini.rigid.RigidHold.complete`.
+    """
     disc = system.disc
     if not _all_finite(disc.comm, system.f.array, system.g.array):
         raise ConvergenceError(
@@ -422,6 +454,8 @@ def _semismooth_newton(
             if loop.finished(it):
                 break
             new, new_free, couplings = loop.next_set(it, wanted, free)
+            if hold is not None:
+                new = _held(hold, loop, system, u, lam_owned, new)
             loop.linear_solve(it, new, new_free, couplings)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):
@@ -439,6 +473,19 @@ def _semismooth_newton(
         loop.destroy()
     system.set_loose(False)  # the dual problem reuses the system: at full accuracy
     return _solution(system, u, lams, loop.history)
+
+
+def _held(
+    hold: RigidHold, loop: NewtonLoop, system: NewtonLinearSystem, u: fem.Function,
+    lam: np.ndarray, new: np.ndarray,
+) -> np.ndarray:
+    """The step's set ``new``, completed where it leaves a free rigid motion unheld."""
+    u_vec = u.x.petsc_vec
+    new, added = hold.complete(new, u_vec, lam, system.f, system.algebra.gap_residual(u_vec))
+    if added:
+        loop.history[-1]["held"] = added
+        logger.info("%d facet(s) added to the active set to hold the free rigid motions", added)
+    return new
 
 
 def _update(f: fem.Function, values: np.ndarray, theta: float) -> None:
