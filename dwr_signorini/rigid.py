@@ -40,7 +40,7 @@ springs c_n (chosen)                          1      3        4       5     4
 
 From the first facets alone the set grows by a ring of facets per step (a point load's
 penetration is local), from every approaching facet it shrinks by a ring per step; the
-workaround's window, the facets with g_i < |E_i| lam0 / c_n,i, depends on the units of lam0.
+workaround's window, the facets with g_i < M_i lam0 / c_n,i, depends on the units of lam0.
 The springs c_n = E / H are the NCP function's own scale: a window in the problem's units. A
 regularisation of K (a vanishing eps K_0 in the first steps) was not taken: its first step
 moves the body by O(1 / eps), so every approaching facet penetrates (it would start as the
