@@ -200,6 +200,12 @@ def free_motions(disc: Discretization) -> FreeMotions:
     Collective. Per body, the standard motions Z_b (translations, rotations about the centroid)
     and the generalised eigenproblem Z_b,D^T Z_b,D v = mu Z_b^T Z_b v (D the Dirichlet dofs):
     the motions with mu <= :data:`FREE_FRACTION` are free.
+
+    Args:
+        disc: The discretisation (its V on T_h and Dirichlet conditions).
+
+    Returns:
+        The free motions (none where the supports hold every body).
     """
     V, comm = disc.V, disc.comm
     gdim = disc.mesh.geometry.dim
