@@ -139,6 +139,11 @@ class MeshFields:
         )
         #: The DG0 fields of E and nu given per cell tag, made when first used.
         self._materials: dict[str, fem.Function] = {}
+        #: The rigid displacement delta of a force-controlled obstacle along its direction (a
+        #: Constant on this mesh, set by the Newton method; None without force control).
+        self.obstacle_displacement = (
+            None if problem.force_obstacle is None else fem.Constant(mesh, 0.0)
+        )
 
     def call_user(self, where: str, function: Callable[..., Any], *args: Any) -> Any:
         """A user's callable of the problem's data, called collectively (naming ``where``)."""
@@ -238,6 +243,8 @@ class MeshFields:
         miss = self.problem.miss_gap
 
         def value(g: Any) -> Any:
+            if g is self.problem.force_obstacle:  # at its displacement delta
+                return gap_value(g, g.moved(x, self.obstacle_displacement), n, miss)
             return gap_value(g, x, n, miss)
 
         problem = self.problem
@@ -254,6 +261,26 @@ class MeshFields:
         chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)
         rigid = self.contact_expr(problem.gap, x, "gap", value, problem.rigid_tags)
         return chi * rigid + (1.0 - chi) * pairs
+
+    def gap_rate(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
+        """d g / d delta: the gap's change per unit displacement of the force-controlled obstacle.
+
+        Args:
+            x: The spatial coordinate of this mesh.
+            n: The outward unit normal (``None``: the ``ufl.FacetNormal`` of the mesh).
+
+        Returns:
+            The derivative at the current :attr:`obstacle_displacement`, a UFL scalar.
+
+        Raises:
+            ValueError: The problem has no force-controlled obstacle.
+        """
+        obstacle = self.problem.force_obstacle
+        if obstacle is None:
+            raise ValueError("the problem has no obstacle under a given force")
+        delta = ufl.variable(self.obstacle_displacement)
+        g = gap_value(obstacle, obstacle.moved(x, delta), n, self.problem.miss_gap)
+        return ufl.diff(g, delta)
 
     def contact_expr(
         self,

@@ -92,7 +92,8 @@ from .linalg import (
     memory,
     system_class,
 )
-from .rigid import FreeMotions, RigidHold, free_motions
+from .force import ForceControl
+from .rigid import RigidHold, free_motions
 from .semismooth import ConvergenceError, NewtonLoop
 from .settings import SolverOptions
 from .spaces import Discretization
@@ -135,6 +136,10 @@ class Solution(Releasable):
             (:func:`~dwr_signorini.laws.tangent_basis`); () without.
         stick, slip: With friction, the macro contact facets in contact that stick
             (``|lambda_t| < s``) and that slip (owned rows); None without.
+        obstacle_displacement: With an obstacle under a given force
+            (``ds.obstacles.Plane(..., force=F)``), its rigid displacement delta along its
+            direction of approach, an unknown of the discrete problem
+            (:mod:`dwr_signorini.force`); None without.
     """
 
     u: fem.Function
@@ -151,6 +156,7 @@ class Solution(Releasable):
     stick: np.ndarray | None = None
     slip: np.ndarray | None = None
     tangential: tuple[fem.Function, ...] = ()
+    obstacle_displacement: float | None = None
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
@@ -172,6 +178,9 @@ class Solution(Releasable):
 
     def destroy(self) -> None:
         """Release the Newton system's PETSc objects and options (collective; idempotent)."""
+        force = getattr(self.system, "force_control", None)
+        if force is not None:
+            force.destroy()
         self.system.destroy()
 
     def stacked(self, functions: tuple[fem.Function, ...] | None = None) -> np.ndarray:
@@ -333,8 +342,14 @@ def _solve(
     assembled = None
     method = options.method
     motions = free_motions(disc)
-    if motions.count:
-        method = _held_by_contact_method(method, motions)
+    obstacle = disc.problem.force_obstacle
+    if obstacle is not None and not symmetric:
+        raise ValueError(
+            f"an obstacle under a given force ({obstacle!r}) takes a frictionless or 2D Tresca "
+            "law (a symmetric Newton matrix)"
+        )
+    if motions.count or obstacle is not None:
+        method = _held_by_contact_method(method, motions.count)
     if method is None:
         if options.petsc_options is not None:
             method = "block"
@@ -353,33 +368,40 @@ def _solve(
         )
     except LinearSolveError as err:
         raise ConvergenceError(str(err), []) from err
+    hold = force = None
     try:
-        hold = None
-        if motions.count:
+        if obstacle is not None:
+            force = ForceControl(system)
+            system.force_control = force  # the dual problem is the bordered system's
+        if motions.count or obstacle is not None:
             hold = RigidHold(
                 motions, system.N, system.algebra.n_q, system.algebra.c_n, system.M.array,
-                disc.problem,
+                disc.problem, None if force is None else (force.rate(), force.force),
             )
         return _semismooth_newton(
-            system, initial_guess, options.max_iterations, options.rtol, hold
+            system, initial_guess, options.max_iterations, options.rtol, hold, force
         )
     except BaseException:
+        if force is not None:
+            force.destroy()
         system.destroy()
         raise
 
 
-def _held_by_contact_method(method: str | None, motions: FreeMotions) -> str:
-    """The method where only contact holds a body: the block path (K is singular).
+def _held_by_contact_method(method: str | None, count: int) -> str:
+    """The method where only contact holds a body or an obstacle: the block path.
 
     Raises:
-        ValueError: ``method`` is ``"schur"`` or ``"krylov"``, which solve with K alone.
+        ValueError: ``method`` is ``"schur"`` or ``"krylov"``: they solve with K alone, which
+            is singular where a body is held only by contact, and know no force-controlled
+            obstacle.
     """
     if method in (None, "block"):
         return "block"
     raise ValueError(
         f"method={method!r} solves with the stiffness matrix K alone, which is singular where "
-        f"only contact holds a body ({motions.count} rigid motion(s) left free by dirichlet): "
-        "use method='block' (the default there)"
+        f"only contact holds a body ({count} rigid motion(s) left free by dirichlet), and "
+        "knows no obstacle under a given force: use method='block' (the default there)"
     )
 
 
@@ -432,6 +454,7 @@ def _semismooth_newton(
     max_iterations: int,
     rtol: float,
     hold: RigidHold | None = None,
+    force: ForceControl | None = None,
 ) -> Solution:
     """The loop of :func:`solve` on a set-up Newton system (see there).
 
@@ -456,7 +479,11 @@ def _semismooth_newton(
             new, new_free, couplings = loop.next_set(it, wanted, free)
             if hold is not None:
                 new = _held(hold, loop, system, u, lam_owned, new)
-            loop.linear_solve(it, new, new_free, couplings)
+            if force is None:
+                loop.linear_solve(it, new, new_free, couplings)
+            else:
+                force.step(lambda a, fr: loop.linear_solve(it, a, fr, couplings), new, new_free)
+                loop.moving = force.moving(rtol)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):
                 loop.history[-1]["nonfinite"] = True
@@ -472,7 +499,10 @@ def _semismooth_newton(
     finally:
         loop.destroy()
     system.set_loose(False)  # the dual problem reuses the system: at full accuracy
-    return _solution(system, u, lams, loop.history)
+    out = _solution(system, u, lams, loop.history)
+    if force is not None:
+        out.obstacle_displacement = force.delta
+    return out
 
 
 def _held(

@@ -151,6 +151,7 @@ class SignoriniProblem:
         )
         self.gap = check_pair_gap(gap, self.pairs, self.rigid_tags) if self.pairs else gap
         self.gap = check_gap(self.gap, mesh, facet_tags, self.rigid_tags or self.contact_tags)
+        self.force_obstacle = _force_obstacle(self.gap, bool(self.pairs))
         self.boundary_projection = check_projection(boundary_projection)
         used = (
             [("contact", t) for t in self.contact_tags]
@@ -343,6 +344,25 @@ class SignoriniProblem:
             friction=self.law,
             quadrature_degree=self.quadrature_degree,
         )
+
+
+def _force_obstacle(gap: Any, pairs: bool) -> Obstacle | None:
+    """The obstacle of ``gap`` under a given force (force control), or None.
+
+    Raises:
+        ValueError: A force-controlled obstacle in a gap per contact tag or beside contact
+            pairs (one obstacle, the only contact, is supported).
+    """
+    if isinstance(gap, Obstacle):
+        return gap if gap.force is not None else None
+    if isinstance(gap, Mapping) and any(
+        isinstance(g, Obstacle) and g.force is not None for g in gap.values()
+    ) or (pairs and isinstance(gap, Obstacle) and gap.force is not None):
+        raise ValueError(
+            "an obstacle with force= must be the problem's only gap (gap=obstacle), not one of "
+            "a gap per contact tag or beside contact pairs"
+        )
+    return None
 
 
 def _frozen_error(name: str) -> NoReturn:

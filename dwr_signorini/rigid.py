@@ -270,6 +270,8 @@ class RigidHold:
         N: The coupling matrix (rows of all the law's components).
         n_q: Owned rows of one component (the normal rows come first).
         c_n, M: c_n,i of the NCP function (20) and the facet sizes M_i, owned rows.
+        obstacle: With a force-controlled obstacle, the rate of its rows' gap residual per unit
+            approach (-m, owned normal rows) and its force F: one motion more.
         problem: The problem (its tags, for the messages).
 
     Raises:
@@ -278,7 +280,7 @@ class RigidHold:
 
     def __init__(
         self, motions: FreeMotions, N: PETSc.Mat, n_q: int, c_n: np.ndarray, M: np.ndarray,
-        problem: object,
+        problem: object, obstacle: tuple[np.ndarray, float] | None = None,
     ) -> None:
         self.motions, self.n_q, self.problem = motions, n_q, problem
         self.c_n, self.M = c_n, M
@@ -289,8 +291,15 @@ class RigidHold:
             u.array_w[:] = z
             N.mult(u, lam)
             H.append(lam.array_r.copy())
+        num_rows = lam.getLocalSize()
         u.destroy()
         lam.destroy()
+        self.load = np.zeros(motions.count)
+        if obstacle is not None:  # a force-controlled obstacle: one motion more, no K
+            rate = np.zeros(num_rows)
+            rate[:n_q] = obstacle[0]
+            H.append(rate)
+            self.load = np.append(self.load, obstacle[1])
         self.H = np.stack(H, axis=1)
         full = self._gram(np.ones(len(self.H), dtype=bool))
         mu, vecs = np.linalg.eigh(full)
@@ -340,8 +349,8 @@ class RigidHold:
         """
         out = active.copy()
         added = 0
-        push = self.comm.allreduce(self.motions.Z.T @ f.array_r[: len(self.motions.Z)])
-        push = push - self.comm.allreduce(self.H.T @ lam)
+        load = self.comm.allreduce(self.motions.Z.T @ f.array_r[: len(self.motions.Z)])
+        push = np.append(load, self.load[len(load):]) - self.comm.allreduce(self.H.T @ lam)
         while True:
             free = self.unheld(out)
             if not free.shape[1]:
@@ -394,7 +403,12 @@ class RigidHold:
 
     def _message(self, free: np.ndarray, reason: str) -> str:
         problem = self.problem
-        motions = "; ".join(self.motions.describe(free[:, k]) for k in range(free.shape[1]))
+        count = self.motions.count
+        motions = "; ".join(
+            self.motions.describe(free[:count, k]) if np.any(free[:count, k]) else
+            f"the approach of the obstacle {self.problem.force_obstacle!r}"
+            for k in range(free.shape[1])
+        )
         return (
             f"only contact can hold a rigid motion that the Dirichlet conditions leave free "
             f"(dirichlet tags {list(problem.dirichlet)}), but {reason}: {motions}; contact "
