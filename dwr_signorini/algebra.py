@@ -98,6 +98,9 @@ class ContactAlgebra:
         c_n: c_n,i on the owned multiplier rows.
         gap_rate: With a force-controlled obstacle, m_i = int dg/ddelta psi_i on the owned normal
             rows at its current displacement (:meth:`set_obstacle_displacement`); else None.
+        resultant: With a force-controlled obstacle, w_i = int (-n . d) psi_i on the owned
+            normal rows: w . lam is the contact force on the obstacle against its direction d
+            of approach; else None.
         ncp_scale: The validated ``ncp_scale``.
         n_u, n_lam: Owned displacement dofs and multiplier rows of this rank.
     """
@@ -163,6 +166,8 @@ class ContactAlgebra:
             forms["g_rate"] = form(
                 with_quadrature_degrees(fields.gap_rate(m.x, m.n) * mu * m.ds_contact, degree)
             )
+            d = ufl.as_vector([float(c) for c in problem.force_obstacle.direction])
+            forms["resultant"] = form(-ufl.dot(m.n, d) * mu * m.ds_contact)
         bound = problem.law.bound_expr(fields, m.x)
         if bound is not None:
             forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact, degree))
@@ -209,6 +214,11 @@ class ContactAlgebra:
             M_owned = M.array.copy()
             self._gap_forms = (forms["g"], forms["N"][0] if lift else None, forms.get("g_rate"))
             self.gap_rate = self._gap_rate()
+            self.resultant = None
+            if "resultant" in forms:
+                vec = self._vector(forms["resultant"])
+                self.resultant = vec.array.copy()
+                vec.destroy()
             self.M = self._stacked_vector([M] * len(self.components))
             self.g = self._stacked_vector(g)
             if self.trace is not None:
@@ -229,7 +239,7 @@ class ContactAlgebra:
         self.c_n = np.tile(c_n, len(self.components))
 
     def _gap_rate(self) -> np.ndarray | None:
-        """m = int dg/ddelta psi on the owned normal rows (force control), else None."""
+        """M = int dg/ddelta psi on the owned normal rows (force control), else None."""
         if self._gap_forms[2] is None:
             return None
         vec = self._vector(self._gap_forms[2])

@@ -263,7 +263,7 @@ class MeshFields:
         return chi * rigid + (1.0 - chi) * pairs
 
     def gap_rate(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
-        """d g / d delta: the gap's change per unit displacement of the force-controlled obstacle.
+        """D g / d delta: the gap's change per unit displacement of the force-controlled obstacle.
 
         Args:
             x: The spatial coordinate of this mesh.

@@ -1,22 +1,29 @@
 r"""A rigid obstacle under a given force: its displacement delta, one unknown more.
 
 An obstacle of :mod:`dwr_signorini.obstacles` given with ``force=F`` and a direction of approach
-d moves rigidly by delta d; the gap of the moved obstacle is g(x; delta) = g(x - delta d), and
-delta is the unknown that makes the contact force balance F. With the Lagrangian
-1/2 a(u, u) - l(u) - F delta + lam . (N u - g(delta)), stationarity in delta reads
+d moves rigidly by delta d; the gap of the moved obstacle is g(x; delta) = g(x - delta d), whose
+rate m_i = int_GC (dg/ddelta) psi_i (m < 0 where the obstacle approaches) shifts the active
+rows, and delta is the unknown that makes the contact force balance F.
 
-    -m^T lam = F,    m_i = int_GC (dg/ddelta) psi_i    (m < 0 where the obstacle approaches),
+Its equilibrium is stated with the contact force on the obstacle, the traction lam n of the
+body on it, against its direction of approach:
 
-so the Newton step of an active set A solves the bordered system
+    w^T lam = F,    w_i = int_GC (-n . d) psi_i,
+
+(not with -m^T lam, the derivative of the Lagrangian 1/2 a(u, u) - l(u) - F delta +
+lam . (N u - g(delta)): the gap is measured along the body's normal n, so -m^T lam =
+int lam / (n . nu) for a plane of normal nu, which exceeds the resultant where the surface is
+curved; for a flat face both are F). So the Newton step of an active set A solves the bordered
+system
 
     [ A     b ] [x    ]   [ r(g(delta_k) - m delta_k) ]
     [ c^T   0 ] [delta] = [ F                         ],
 
 A the Newton matrix of :mod:`dwr_signorini.newton` (the last step's, for the dual problem), b its
-column for delta (the gap's shift m delta on the active rows), c^T x = -m^T lam. It is solved
+column for delta (the gap's shift m delta on the active rows), c^T x = w^T lam. It is solved
 with A's factorisation (:class:`ForceControl`): x1 = A^-1 r and x2 = A^-1 r(f = 0, g = m), the
 response to a unit delta (the same active set: the factors are reused), then
-delta = (F + m^T lam1) / (-m^T lam2) and x = x1 + delta x2. For a plane m does not depend on
+delta = (F - w^T lam1) / (w^T lam2) and x = x1 + delta x2. For a plane m does not depend on
 delta and the step is exact; for a curved obstacle it is Newton's step in delta (the set is
 not final until delta has settled too).
 
@@ -48,6 +55,7 @@ class ForceControl:
         delta: The obstacle's displacement along its direction (the current iterate).
         change: |delta| change of the last step.
         x2: The response of the last step's system to a unit delta (block vector).
+        zeta: The dual's entry for delta of the last dual solve (None before one).
     """
 
     def __init__(self, system: NewtonLinearSystem) -> None:
@@ -57,6 +65,7 @@ class ForceControl:
         self.delta = float(system.disc.fields.obstacle_displacement.value)
         self.change = np.inf
         self.x2 = system.x.duplicate()
+        self.zeta: float | None = None
         system.algebra.set_obstacle_displacement(self.delta)
 
     @property
@@ -97,15 +106,16 @@ class ForceControl:
         finally:
             alg.f.array_w[:] = f_now
             alg.g.array_w[:] = g_now
+        w = alg.resultant
         lam1 = system.split(system.x)[1][:n_q]
         lam2 = system.split(self.x2)[1][:n_q]
-        response = -self._dot(m, lam2)
+        response = self._dot(w, lam2)
         if response == 0.0:
             raise np.linalg.LinAlgError(
                 "the force-controlled obstacle touches no active facet: its force cannot be "
                 "balanced"
             )
-        delta = (self.force + self._dot(m, lam1)) / response
+        delta = (self.force - self._dot(w, lam1)) / response
         system.x.axpy(delta, self.x2)
         self.change = abs(delta - self.delta)
         self.delta = delta
@@ -130,7 +140,7 @@ class ForceControl:
         n_u, n_q = system.n_u, system.algebra.n_q
         c = rhs.duplicate()
         c.set(0.0)
-        c.array_w[n_u : n_u + n_q] = -system.algebra.gap_rate
+        c.array_w[n_u : n_u + n_q] = system.algebra.resultant
         z2 = rhs.duplicate()
         try:
             system.solve_transpose(rhs, z)
@@ -138,6 +148,7 @@ class ForceControl:
             x2 = self.x2.array_r
             zeta = (self._dot(x2, rhs.array_r) + j_delta) / self._dot(x2, c.array_r)
             z.axpy(-zeta, z2)
+            self.zeta = zeta
         finally:
             c.destroy()
             z2.destroy()

@@ -70,6 +70,7 @@ initial guess against the gap, and the iterates from a zero initial guess do not
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass, field
 from typing import Any
@@ -81,6 +82,7 @@ import ufl
 from dolfinx import fem, la
 
 from .algebra import ContactAlgebra
+from .force import ForceControl
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
 from .linalg import (
@@ -92,8 +94,7 @@ from .linalg import (
     memory,
     system_class,
 )
-from .force import ForceControl
-from .rigid import RigidHold, free_motions
+from .rigid import RigidHold, free_motions, held_method
 from .semismooth import ConvergenceError, NewtonLoop
 from .settings import SolverOptions
 from .spaces import Discretization
@@ -349,7 +350,7 @@ def _solve(
             "law (a symmetric Newton matrix)"
         )
     if motions.count or obstacle is not None:
-        method = _held_by_contact_method(method, motions.count)
+        method = held_method(method, motions.count)
     if method is None:
         if options.petsc_options is not None:
             method = "block"
@@ -386,23 +387,6 @@ def _solve(
             force.destroy()
         system.destroy()
         raise
-
-
-def _held_by_contact_method(method: str | None, count: int) -> str:
-    """The method where only contact holds a body or an obstacle: the block path.
-
-    Raises:
-        ValueError: ``method`` is ``"schur"`` or ``"krylov"``: they solve with K alone, which
-            is singular where a body is held only by contact, and know no force-controlled
-            obstacle.
-    """
-    if method in (None, "block"):
-        return "block"
-    raise ValueError(
-        f"method={method!r} solves with the stiffness matrix K alone, which is singular where "
-        f"only contact holds a body ({count} rigid motion(s) left free by dirichlet), and "
-        "knows no obstacle under a given force: use method='block' (the default there)"
-    )
 
 
 def _automatic_method(
@@ -478,11 +462,12 @@ def _semismooth_newton(
                 break
             new, new_free, couplings = loop.next_set(it, wanted, free)
             if hold is not None:
-                new = _held(hold, loop, system, u, lam_owned, new)
+                new = hold.apply(loop, system, u, lam_owned, new)
             if force is None:
                 loop.linear_solve(it, new, new_free, couplings)
             else:
-                force.step(lambda a, fr: loop.linear_solve(it, a, fr, couplings), new, new_free)
+                force.step(functools.partial(loop.linear_solve, it, couplings=couplings),
+                           new, new_free)
                 loop.moving = force.moving(rtol)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):
@@ -503,19 +488,6 @@ def _semismooth_newton(
     if force is not None:
         out.obstacle_displacement = force.delta
     return out
-
-
-def _held(
-    hold: RigidHold, loop: NewtonLoop, system: NewtonLinearSystem, u: fem.Function,
-    lam: np.ndarray, new: np.ndarray,
-) -> np.ndarray:
-    """The step's set ``new``, completed where it leaves a free rigid motion unheld."""
-    u_vec = u.x.petsc_vec
-    new, added = hold.complete(new, u_vec, lam, system.f, system.algebra.gap_residual(u_vec))
-    if added:
-        loop.history[-1]["held"] = added
-        logger.info("%d facet(s) added to the active set to hold the free rigid motions", added)
-    return new
 
 
 def _update(f: fem.Function, values: np.ndarray, theta: float) -> None:

@@ -353,16 +353,16 @@ def _force_obstacle(gap: Any, pairs: bool) -> Obstacle | None:
         ValueError: A force-controlled obstacle in a gap per contact tag or beside contact
             pairs (one obstacle, the only contact, is supported).
     """
-    if isinstance(gap, Obstacle):
-        return gap if gap.force is not None else None
-    if isinstance(gap, Mapping) and any(
-        isinstance(g, Obstacle) and g.force is not None for g in gap.values()
-    ) or (pairs and isinstance(gap, Obstacle) and gap.force is not None):
+    given = list(gap.values()) if isinstance(gap, Mapping) else [gap]
+    forced = [g for g in given if isinstance(g, Obstacle) and g.force is not None]
+    if not forced:
+        return None
+    if isinstance(gap, Mapping) or pairs:
         raise ValueError(
             "an obstacle with force= must be the problem's only gap (gap=obstacle), not one of "
             "a gap per contact tag or beside contact pairs"
         )
-    return None
+    return forced[0]
 
 
 def _frozen_error(name: str) -> NoReturn:

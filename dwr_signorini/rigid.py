@@ -56,7 +56,9 @@ its tags.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -69,7 +71,9 @@ from dolfinx import fem, la
 
 from .spaces import Discretization
 
-__all__ = ["FreeMotions", "RigidHold", "free_motions"]
+__all__ = ["FreeMotions", "RigidHold", "free_motions", "held_method"]
+
+logger = logging.getLogger("dwr_signorini.newton")
 
 #: A motion is free when at most this fraction of its squared norm lies on Dirichlet dofs.
 FREE_FRACTION = 1e-10
@@ -262,6 +266,30 @@ def _body_tags(disc: Discretization, body: np.ndarray, num_bodies: int) -> list[
             for b in range(num_bodies)]
 
 
+def held_method(method: str | None, count: int) -> str:
+    """The method where only contact holds a body or an obstacle: the block path.
+
+    Args:
+        method: The method asked for (None: automatic).
+        count: The number of free rigid motions.
+
+    Returns:
+        ``"block"``.
+
+    Raises:
+        ValueError: ``method`` is ``"schur"`` or ``"krylov"``: they solve with K alone, which
+            is singular where a body is held only by contact, and know no force-controlled
+            obstacle.
+    """
+    if method in (None, "block"):
+        return "block"
+    raise ValueError(
+        f"method={method!r} solves with the stiffness matrix K alone, which is singular where "
+        f"only contact holds a body ({count} rigid motion(s) left free by dirichlet), and "
+        "knows no obstacle under a given force: use method='block' (the default there)"
+    )
+
+
 class RigidHold:
     """Completes an active set that leaves a free rigid motion unheld (module docstring).
 
@@ -312,6 +340,29 @@ class RigidHold:
                 "along its surface)",
             ))
         self.full_inv_sqrt = vecs @ np.diag(mu**-0.5) @ vecs.T
+
+    def apply(
+        self, loop: Any, system: Any, u: fem.Function, lam: np.ndarray, new: np.ndarray
+    ) -> np.ndarray:
+        """The step's set ``new`` completed where it leaves a free motion unheld (collective).
+
+        Args:
+            loop: The Newton loop (:class:`~dwr_signorini.semismooth.NewtonLoop`; its history
+                records the rows added as ``held``).
+            system: The Newton system (its load and gap).
+            u: The displacement iterate.
+            lam: The owned multiplier rows of the iterate.
+            new: The step's constrained rows.
+
+        Returns:
+            The completed set.
+        """
+        u_vec = u.x.petsc_vec
+        new, added = self.complete(new, u_vec, lam, system.f, system.algebra.gap_residual(u_vec))
+        if added:
+            loop.history[-1]["held"] = added
+            logger.info("%d facet(s) added to the active set to hold the free motions", added)
+        return new
 
     def _gram(self, rows: np.ndarray) -> np.ndarray:
         H = self.H[rows]

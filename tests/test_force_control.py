@@ -1,0 +1,135 @@
+"""A rigid obstacle under a given force (issue 58, item 2; :mod:`dwr_signorini.force`).
+
+``ds.obstacles.Plane(..., force=F)`` / ``Sphere(..., force=F, direction=d)``: the obstacle's rigid
+displacement delta along d is an unknown of the discrete problem (a bordered Newton step).
+Truths:
+
+- force control = displacement control at the displacement it finds: the obstacle placed at
+  delta by hand gives the same J and lambda_H (to 1e-10);
+- a flat punch's equilibrium: on a flat contact face the multipliers integrate to F to
+  round-off;
+- the dual of the bordered system: for a goal linear in (u, lambda), J(w_h) = z_h . r + zeta F
+  with the final active set (r the last step's right-hand side);
+- Hertz's line contact under a given force (asimov-contact's data: R = 8, E = 200, nu = 0.3, a
+  load of 10 per unit length): half-width and peak pressure within 1.5 %.
+"""
+
+import math
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+import ufl
+
+import dwr_signorini as ds
+from dwr_signorini import obstacles as ob
+
+from .helpers import global_max, global_sum, integrate
+from .problems import block, from_model, make, mesh_script
+
+pytestmark = pytest.mark.mpi
+
+COMM = MPI.COMM_WORLD
+F = 0.05
+
+
+def punch(gap):
+    """The unit square (8 x 8 macro cells) clamped on top, its flat bottom in contact."""
+    msh, tags = block(COMM, 8, 8)
+    return make(msh, tags, gap=gap, E=1.0)
+
+
+def goal(u, lam, m):
+    """A goal linear in (u, lambda)."""
+    return lam * m.ds_contact + u[1] * m.dx
+
+
+@pytest.mark.parametrize(
+    ("forced", "placed"),
+    [
+        (lambda: ob.Plane((0.0, 0.0), (0.0, -1.0), force=F),
+         lambda d: ob.Plane((0.0, d), (0.0, -1.0))),
+        (lambda: ob.Sphere((0.5, -2.0), 2.0, force=F, direction=(0.0, 1.0)),
+         lambda d: ob.Sphere((0.5, -2.0 + d), 2.0)),
+    ],
+    ids=["plane", "disc"],
+)
+def test_force_control_is_displacement_control_at_its_displacement(forced, placed):
+    msh, tags = block(COMM, 8, 8)
+    with ds.solve(make(msh, tags, gap=forced(), E=1.0)) as sol:
+        delta = sol.obstacle_displacement
+        m = sol.disc.m
+        # the contact force on the obstacle against its direction (0, 1) balances F
+        assert integrate(sol, -sol.lam * m.n[1] * m.ds_contact) == pytest.approx(F, rel=1e-12)
+        J = integrate(sol, goal(sol.u, sol.lam, m))
+        with ds.solve(make(msh, tags, gap=placed(delta), E=1.0)) as ref:
+            assert integrate(ref, goal(ref.u, ref.lam, ref.disc.m)) == pytest.approx(J, rel=1e-10)
+            scale = global_max(np.abs(ref.lam.x.array))
+            assert global_max(np.abs(sol.lam.x.array - ref.lam.x.array)) <= 1e-10 * scale
+        assert delta > 0 and sol.num_active > 0
+
+
+def test_flat_punch_multipliers_integrate_to_the_force():
+    with ds.solve(punch(ob.Plane((0.0, -0.01), (0.0, -1.0), force=F))) as sol:
+        assert integrate(sol, sol.lam * sol.disc.m.ds_contact) == pytest.approx(F, rel=1e-12)
+        assert sol.obstacle_displacement > 0.01  # it closed the gap and pressed
+        assert sol.newton_iterations <= 3
+
+
+def test_dual_of_the_bordered_system():
+    """J(w_h) = z_h . r + zeta F for the linear goal, r = [f; -g_hat on A] the last step's
+    right-hand side (g_hat = g(delta) - m delta, the plane's gap at delta = 0)."""
+    with ds.solve(punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F))) as sol, \
+            ds.estimate(sol, goal, estimator="eta_p", weights="patch") as est:
+        s = sol.system
+        alg = s.algebra
+        g_hat = s.g.array - alg.gap_rate * sol.obstacle_displacement
+        F_lam = np.where(sol.active, -s.c_n * g_hat, 0.0)
+        y, xi = est.dual.y.x.array[: s.n_u], est.dual.xi.x.array[: s.n_lam]
+        zeta = s.force_control.zeta
+        J = integrate(sol, goal(sol.u, sol.lam, sol.disc.m))
+        assert global_sum(y @ s.f.array + xi @ F_lam) + zeta * F == pytest.approx(J, rel=1e-10)
+        assert abs(zeta * F) > 1e-3 * abs(J)  # the obstacle's entry contributes
+
+
+def test_estimate_takes_patch_weights_only():
+    with ds.solve(punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F))) as sol:
+        with pytest.raises(ValueError, match="weights='patch'"):
+            ds.estimate(sol, goal, weights="higher_order")
+
+
+def test_hertz_line_contact_under_a_given_force():
+    """The quarter disc of ``meshes/hertz_2d.py`` with R = 8 (top clamped, symmetry x = 0), a
+    rigid flat pressed up into it by half of P = 10 per unit length: a = sqrt(4 P R / (pi E*)),
+    p0 = 2 P / (pi a). Measured (contact facets of 0.015): a -1.0 %, p0 +0.3 %."""
+    R, E, nu, P = 8.0, 200.0, 0.3, 10.0
+    module = mesh_script("hertz_2d")
+    msh, cells, facets = from_model(module.build, radius=R, h=R / 5, h_contact=0.015,
+                                    refine_radius=0.15)
+    problem = ds.SignoriniProblem(
+        msh, facets, contact=module.CONTACT, E=E, nu=nu, cell_tags=cells,
+        dirichlet={module.TOP: (0.0, 0.0), module.SYMMETRY: (0.0, None)},
+        gap=ob.Plane((0.0, 0.0), (0.0, -1.0), force=P / 2),
+        boundary_projection=module.projections(R),
+    )
+    with ds.solve(problem) as sol:
+        m = sol.disc.m
+        assert 2 * integrate(sol, -sol.lam * m.n[1] * m.ds_contact) == pytest.approx(P, rel=1e-12)
+        a_h = integrate(sol, ufl.conditional(ufl.gt(sol.lam, 0.0), 1.0, 0.0) * m.ds_contact)
+        p_h = global_max(sol.lam.x.array)
+    a = math.sqrt(4 * P * R / (math.pi * E / (1 - nu**2)))
+    p0 = 2 * P / (math.pi * a)
+    assert a_h == pytest.approx(a, rel=0.015)
+    assert p_h == pytest.approx(p0, rel=0.015)
+
+
+def test_bad_force_input():
+    with pytest.raises(ValueError, match="needs direction="):
+        ob.Sphere((0.0, 0.0), 1.0, force=1.0)
+    with pytest.raises(ValueError, match="force must be a finite number > 0"):
+        ob.Plane((0.0, 0.0), (0.0, -1.0), force=-1.0)
+    with pytest.raises(ValueError, match="direction is the direction of a force"):
+        ob.Plane((0.0, 0.0), (0.0, -1.0), direction=(0.0, 1.0))
+    with pytest.raises(ValueError, match="method='block'"):
+        ds.solve(punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F)), method="schur")
