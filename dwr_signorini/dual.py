@@ -146,8 +146,8 @@ def _solve_dual(
     with timed("dual solve"), collective(system.disc.comm, "the dual solve"):
         if force is None:
             system.solve_transpose(rhs, z)
-        else:  # the bordered system's dual (dwr_signorini.force); goals do not see delta
-            force.solve_transpose(rhs, z)
+        else:  # the bordered system's dual (dwr_signorini.force)
+            force.solve_transpose(rhs, z, force.goal_rate(goal.value))
     y = fem.Function(system.V, name="y")
     y.x.array[: system.n_u] = z.array_r[: system.n_u]
     y.x.scatter_forward()

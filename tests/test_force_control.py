@@ -8,8 +8,9 @@ Truths:
   delta by hand gives the same J and lambda_H (to 1e-10);
 - a flat punch's equilibrium: on a flat contact face the multipliers integrate to F to
   round-off;
-- the dual of the bordered system: for a goal linear in (u, lambda), J(w_h) = z_h . r + zeta F
-  with the final active set (r the last step's right-hand side);
+- the dual of the bordered system: for a goal linear in (u, lambda) and delta (a goal sees delta
+  as ``m.obstacle_displacement``), J(w_h) = z_h . r + zeta F with the final active set (r the
+  last step's right-hand side);
 - Hertz's line contact under a given force (asimov-contact's data: R = 8, E = 200, nu = 0.3, a
   load of 10 per unit length): half-width and peak pressure within 1.5 %.
 """
@@ -77,19 +78,26 @@ def test_flat_punch_multipliers_integrate_to_the_force():
         assert sol.newton_iterations <= 3
 
 
-def test_dual_of_the_bordered_system():
-    """J(w_h) = z_h . r + zeta F for the linear goal, r = [f; -g_hat on A] the last step's
+def goal_with_delta(u, lam, m):
+    """A goal linear in (u, lambda, delta): the obstacle's displacement enters as a Constant."""
+    return goal(u, lam, m) + 2.0 * m.obstacle_displacement * m.ds_contact
+
+
+@pytest.mark.parametrize("J_goal", [goal, goal_with_delta], ids=["u-lam", "u-lam-delta"])
+def test_dual_of_the_bordered_system(J_goal):
+    """J(w_h) = z_h . r + zeta F for a linear goal, r = [f; -g_hat on A] the last step's
     right-hand side (g_hat = g(delta) - m delta, the plane's gap at delta = 0)."""
     with ds.solve(punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F))) as sol, \
-            ds.estimate(sol, goal, estimator="eta_p", weights="patch") as est:
+            ds.estimate(sol, J_goal, estimator="eta_p", weights="patch") as est:
         s = sol.system
         alg = s.algebra
         g_hat = s.g.array - alg.gap_rate * sol.obstacle_displacement
         F_lam = np.where(sol.active, -s.c_n * g_hat, 0.0)
         y, xi = est.dual.y.x.array[: s.n_u], est.dual.xi.x.array[: s.n_lam]
         zeta = s.force_control.zeta
-        J = integrate(sol, goal(sol.u, sol.lam, sol.disc.m))
+        J = integrate(sol, J_goal(sol.u, sol.lam, sol.disc.m))
         assert global_sum(y @ s.f.array + xi @ F_lam) + zeta * F == pytest.approx(J, rel=1e-10)
+        assert est.J_h == pytest.approx(J, rel=1e-12)
         assert abs(zeta * F) > 1e-3 * abs(J)  # the obstacle's entry contributes
 
 
