@@ -54,7 +54,7 @@ class ForceControl:
 
     Attributes:
         delta: The obstacle's displacement along its direction (the current iterate).
-        change: |delta| change of the last step.
+        change: The change of delta in the last step (its absolute value).
         x2: The response of the last step's system to a unit delta (block vector).
         zeta: The dual's entry for delta of the last dual solve (None before one).
     """
@@ -158,7 +158,7 @@ class ForceControl:
     def goal_rate(self, value: object) -> float:
         """dJ/ddelta of a goal that uses delta (``m.obstacle_displacement``), collective.
 
-        By the central difference of J(w_h) at delta +- h with w_h fixed, h = 1e-3 max(|delta|,
+        By the central difference of J(w_h) at delta +- h with w_h fixed, h = 1e-3 max(abs(delta),
         1e-3 of the mesh's size): exact to round-off for a goal polynomial of degree <= 2 in
         delta (the difference's error is h^2 / 6 times the third derivative). The gap is not
         reassembled: only the goal's form reads the Constant here.
