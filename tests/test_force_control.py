@@ -141,3 +141,31 @@ def test_bad_force_input():
         ob.Plane((0.0, 0.0), (0.0, -1.0), direction=(0.0, 1.0))
     with pytest.raises(ValueError, match="method='block'"):
         ds.solve(punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F)), method="schur")
+
+
+@pytest.mark.slow
+def test_hertz_point_contact_under_a_given_force():
+    """The quarter hemisphere of ``meshes/hertz_3d.py`` (R = 1, top clamped, symmetry planes
+    x = 0 and y = 0), a rigid flat pressed up into it by a quarter of P = 0.0015:
+    a = (3 P R / (4 E*))^(1/3), p0 = 3 P / (2 pi a^2). Measured (contact facets of 0.01, 15 s):
+    the radius of the active area -2.2 %, the peak +0.9 % (the peak of lambda_H on a polyhedral
+    surface overshoots, the radius is resolved to a facet)."""
+    E, nu, P = 1.0, 0.3, 0.0015
+    module = mesh_script("hertz_3d")
+    msh, cells, facets = from_model(module.build, h=0.3, h_contact=0.01, refine_radius=0.11)
+    problem = ds.SignoriniProblem(
+        msh, facets, contact=module.CONTACT, E=E, nu=nu, cell_tags=cells,
+        dirichlet={module.TOP: (0.0, 0.0, 0.0), module.SYMMETRY_X: (0.0, None, None),
+                   module.SYMMETRY_Y: (None, 0.0, None)},
+        gap=ob.Plane((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), force=P / 4),
+        boundary_projection=module.projections(),
+    )
+    with ds.solve(problem) as sol:
+        m = sol.disc.m
+        assert 4 * integrate(sol, -sol.lam * m.n[2] * m.ds_contact) == pytest.approx(P, rel=1e-12)
+        area = 4 * integrate(sol, ufl.conditional(ufl.gt(sol.lam, 0.0), 1.0, 0.0) * m.ds_contact)
+        p_h = global_max(sol.lam.x.array)
+    a = (3 * P / (4 * E / (1 - nu**2))) ** (1 / 3)
+    p0 = 3 * P / (2 * math.pi * a**2)
+    assert math.sqrt(area / math.pi) == pytest.approx(a, rel=0.03)
+    assert p_h == pytest.approx(p0, rel=0.015)
