@@ -47,7 +47,7 @@ from .report import AdaptiveResult, LevelRecord, Reporter
 from .settings import EstimateOptions, SolverOptions
 from .spaces import Discretization, discretize
 from .timing import timed
-from .transfer import transfer_solution
+from .transfer import carry_obstacle_displacement, transfer_solution
 
 __all__ = ["PathResult", "StepRecord", "history_estimates", "history_goal", "solve_path"]
 
@@ -143,6 +143,7 @@ def _warm_start(previous: Solution, disc: Discretization) -> tuple[Any, ...]:
     """
     if previous.disc.V is not disc.V:
         return transfer_solution(previous, disc)
+    carry_obstacle_displacement(previous, disc)
     copies = []
     for f in (previous.u, *previous.multipliers):
         g = fem.Function(f.function_space, name=f.name)

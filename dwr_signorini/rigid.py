@@ -13,9 +13,10 @@ zero initial iterate the rule (21) takes only the facets that penetrate already,
 step of such a problem has a singular matrix.
 
 :class:`RigidHold` completes a set that does not hold the bodies with the facets that the
-bodies' free rigid motion under the out-of-balance load reaches: with the free motions Z
-(orthonormal), the load's push b = Z^T (f - K u - N^T lam) = Z^T f - (N Z)^T lam projected onto
-the motions the set leaves free, and the approach rate s = N Z b of each facet, facet i is
+bodies' free rigid motion under the load reaches: with the free motions Z (orthonormal), the
+load's push b = Z^T f (K Z = 0) projected onto the motions the set leaves free (the load, not
+the out-of-balance force: a warm start's multipliers off the set may balance it already), and
+the approach rate s = N Z b of each facet, facet i is
 reached after the rigid motion alpha_i = (g - N u)_i / s_i (s_i > 0). The facets join that are
 reached by the motion alpha* at which springs of the NCP function's stiffness c_n on the
 reached facets carry the push, sum_i c_n,i s_i (alpha* s_i - (g - N u)_i)_+ / M_i = b . b
@@ -401,7 +402,7 @@ class RigidHold:
         out = active.copy()
         added = 0
         load = self.comm.allreduce(self.motions.Z.T @ f.array_r[: len(self.motions.Z)])
-        push = np.append(load, self.load[len(load):]) - self.comm.allreduce(self.H.T @ lam)
+        push = np.append(load, self.load[len(load):])
         while True:
             free = self.unheld(out)
             if not free.shape[1]:

@@ -169,3 +169,16 @@ def test_hertz_point_contact_under_a_given_force():
     p0 = 3 * P / (2 * math.pi * a**2)
     assert math.sqrt(area / math.pi) == pytest.approx(a, rel=0.03)
     assert p_h == pytest.approx(p0, rel=0.015)
+
+
+def test_adaptive_levels_carry_the_obstacle_displacement():
+    """``solve_adaptive`` (patch weights) under a given force: each level starts from the last
+    level's delta, and each level's J_h, the force on the flat punch, is F to round-off."""
+
+    def force(u, lam, m):
+        return lam * m.ds_contact
+
+    problem = punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F))
+    with ds.solve_adaptive(problem, force, max_levels=2, weights="patch", verbose=False) as res:
+        assert [r.J_h for r in res.levels] == pytest.approx([F, F], rel=1e-12)
+        assert res.levels[1].newton_iterations <= 2
