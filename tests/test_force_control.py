@@ -182,3 +182,16 @@ def test_adaptive_levels_carry_the_obstacle_displacement():
     with ds.solve_adaptive(problem, force, max_levels=2, weights="patch", verbose=False) as res:
         assert [r.J_h for r in res.levels] == pytest.approx([F, F], rel=1e-12)
         assert res.levels[1].newton_iterations <= 2
+
+
+def test_load_path_of_forces():
+    """``solve_path`` with the force raised step by step: each step balances its force."""
+    msh, tags = block(COMM, 8, 8)
+    steps = [make(msh, tags, gap=ob.Plane((0.0, -0.01), (0.0, -1.0), force=f), E=1.0)
+             for f in (F / 2, F)]
+
+    def force(u, lam, m):
+        return lam * m.ds_contact
+
+    with ds.solve_path(steps, force, weights="patch", verbose=False, history=False) as res:
+        assert [r.J_h for r in res.steps] == pytest.approx([F / 2, F], rel=1e-12)
