@@ -15,6 +15,8 @@ discrete problem. Truths:
 - a body that no contact can hold raises a ValueError naming the motion and the tags.
 """
 
+import math
+
 from mpi4py import MPI
 
 import numpy as np
@@ -163,3 +165,32 @@ def test_motion_no_contact_can_hold_raises():
         ds.solve(block(COMM, p=0.0, dirichlet={TOP: (None, -0.01)}))
     assert "translation along (1, 0)" in str(info.value)
     assert f"contact tags [{BOTTOM}]" in str(info.value)
+
+
+def test_hertz_disc_pressed_on_a_body_of_the_same_material():
+    """asimov-contact's data, the disc on an elastic body of the same material under a given
+    force, from zero: the quarter disc R = 8 of ``meshes/hertz_cylinders_2d.py`` pressed by
+    P / 2 = 5 (P = 10 per unit length) on its flat, held vertically only by the contact, on the
+    lower quarter disc of radius 200 (nearly a flat block, 25 times the disc's size), E = 200,
+    nu = 0.3. Hertz: 1 / E* = 2 (1 - nu^2) / E, 1 / R = 1 / 8 + 1 / 200, a = sqrt(4 P R / (pi E*)),
+    p0 = 2 P / (pi a). Measured (contact facets of 0.05): a +0.08 %, p0 +0.41 %, 10 steps."""
+    R, R_lower, E, nu, P = 8.0, 200.0, 200.0, 0.3, 10.0
+    m = mesh_script("hertz_cylinders_2d")
+    msh, cells, facets = from_model(m.build, r_lower=R_lower, r_upper=R, h=4.0, h_contact=0.05,
+                                    refine_radius=0.15)
+    problem = ds.SignoriniProblem(
+        msh, facets, contact=ds.ContactPair(slave=m.UPPER_ARC, master=m.LOWER_ARC),
+        dirichlet={m.LOWER_FLAT: (0.0, 0.0), m.LOWER_SYMMETRY: (0.0, None),
+                   m.UPPER_SYMMETRY: (0.0, None)},
+        traction={m.UPPER_FLAT: (0.0, -P / 2 / R)}, E=E, nu=nu, cell_tags=cells,
+        boundary_projection=m.projections(R_lower, R),
+    )
+    with ds.solve(problem) as sol:
+        assert 2 * contact_force(sol) == pytest.approx(P, rel=1e-10)
+        chi = ufl.conditional(ufl.gt(sol.lam, 0.0), 1.0, 0.0)
+        a_h = integrate(sol, chi * sol.disc.m.ds_contact)
+        p_h = global_max(sol.lam.x.array)
+    E_star = E / (2 * (1 - nu**2))
+    a = math.sqrt(4 * P / (1 / R + 1 / R_lower) / (math.pi * E_star))
+    assert a_h == pytest.approx(a, rel=0.015)
+    assert p_h == pytest.approx(2 * P / (math.pi * a), rel=0.015)
