@@ -22,8 +22,10 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 import ufl
+from dolfinx import mesh
 
 import dwr_signorini as ds
+from dwr_signorini import examples as ex
 from dwr_signorini import obstacles as ob
 
 from .helpers import global_max, global_sum, integrate
@@ -141,6 +143,38 @@ def test_bad_force_input():
         ob.Plane((0.0, 0.0), (0.0, -1.0), direction=(0.0, 1.0))
     with pytest.raises(ValueError, match="method='block'"):
         ds.solve(punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F)), method="schur")
+    # pushed away from the body: no facet is ever reached
+    away = ob.Plane((0.0, -0.01), (0.0, -1.0), force=F, direction=(0.0, -1.0))
+    with pytest.raises(ValueError, match="the approach of the obstacle Plane"):
+        ds.solve(punch(away))
+
+
+def test_cylinder_force_control_is_displacement_control():
+    """A 3D block clamped on top pressed by a rigid cylinder along x under it, given its force."""
+    msh = mesh.create_box(COMM, [(0.0, 0.0, 0.0), (1.0, 1.0, 0.5)], [4, 4, 2],
+                          mesh.CellType.tetrahedron, ghost_mode=mesh.GhostMode.none)
+
+    def classify(x):
+        tags = np.full(x.shape[1], ex.NEUMANN)
+        tags[np.isclose(x[2], 0.5)] = ex.DIRICHLET
+        tags[np.isclose(x[2], 0.0)] = ex.CONTACT
+        return tags
+
+    tags = ex.tag_exterior_facets(msh, classify)
+
+    def cylinder(lift, **force):
+        return ob.Cylinder((0.0, 0.5, -1.0 + lift), (1.0, 0.0, 0.0), 1.0, **force)
+
+    def problem(gap):
+        return make(msh, tags, gap=gap, E=1.0, model="3d")
+
+    with ds.solve(problem(cylinder(0.0, force=F, direction=(0.0, 0.0, 1.0)))) as sol:
+        m = sol.disc.m
+        assert integrate(sol, -sol.lam * m.n[2] * m.ds_contact) == pytest.approx(F, rel=1e-12)
+        with ds.solve(problem(cylinder(sol.obstacle_displacement))) as ref:
+            scale = global_max(np.abs(ref.lam.x.array))
+            assert global_max(np.abs(sol.lam.x.array - ref.lam.x.array)) <= 1e-10 * scale
+            assert sol.num_active == ref.num_active > 0
 
 
 @pytest.mark.slow
