@@ -462,7 +462,7 @@ def _semismooth_newton(
                 break
             new, new_free, couplings = loop.next_set(it, wanted, free)
             if hold is not None:
-                new = hold.apply(loop, system, u, lam_owned, new)
+                new = hold.apply(loop, system, u, new)
             if force is None:
                 loop.linear_solve(it, new, new_free, couplings)
             else:

@@ -342,9 +342,7 @@ class RigidHold:
             ))
         self.full_inv_sqrt = vecs @ np.diag(mu**-0.5) @ vecs.T
 
-    def apply(
-        self, loop: Any, system: Any, u: fem.Function, lam: np.ndarray, new: np.ndarray
-    ) -> np.ndarray:
+    def apply(self, loop: Any, system: Any, u: fem.Function, new: np.ndarray) -> np.ndarray:
         """The step's set ``new`` completed where it leaves a free motion unheld (collective).
 
         Args:
@@ -352,14 +350,13 @@ class RigidHold:
                 records the rows added as ``held``).
             system: The Newton system (its load and gap).
             u: The displacement iterate.
-            lam: The owned multiplier rows of the iterate.
             new: The step's constrained rows.
 
         Returns:
             The completed set.
         """
         u_vec = u.x.petsc_vec
-        new, added = self.complete(new, u_vec, lam, system.f, system.algebra.gap_residual(u_vec))
+        new, added = self.complete(new, system.f, system.algebra.gap_residual(u_vec))
         if added:
             loop.history[-1]["held"] = added
             logger.info("%d facet(s) added to the active set to hold the free motions", added)
@@ -380,15 +377,12 @@ class RigidHold:
         return basis
 
     def complete(
-        self, active: np.ndarray, u: PETSc.Vec, lam: np.ndarray, f: PETSc.Vec,
-        gap_residual: np.ndarray,
+        self, active: np.ndarray, f: PETSc.Vec, gap_residual: np.ndarray
     ) -> tuple[np.ndarray, int]:
         """``active`` with the facets the unheld motions reach first, until it holds (collective).
 
         Args:
             active: The step's constrained rows (all components).
-            u: The displacement iterate.
-            lam: The owned multiplier rows of the iterate.
             f: The load vector.
             gap_residual: (N u - g) on the owned rows.
 
