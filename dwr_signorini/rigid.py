@@ -459,5 +459,5 @@ class RigidHold:
             f"only contact can hold a rigid motion that the Dirichlet conditions leave free "
             f"(dirichlet tags {list(problem.dirichlet)}), but {reason}: {motions}; contact "
             f"tags {list(problem.contact_tags)}. Prescribe that motion (dirichlet), or load "
-            "the body towards the contact"
+            "the body (or direct the obstacle's force) towards the contact"
         )
