@@ -227,5 +227,5 @@ def test_load_path_of_forces():
     def force(u, lam, m):
         return lam * m.ds_contact
 
-    with ds.solve_path(steps, force, weights="patch", verbose=False, history=False) as res:
+    with ds.solve_path(steps, force, weights="patch", verbose=False) as res:
         assert [r.J_h for r in res.steps] == pytest.approx([F / 2, F], rel=1e-12)

@@ -148,7 +148,7 @@ def test_adaptive_and_path_from_zero():
             assert r.J_h == pytest.approx(p, rel=1e-10)
     first = block(COMM, p=P / 2)
     steps = [first, block(COMM, on=first)]
-    with ds.solve_path(steps, force, verbose=False, history=False) as res:
+    with ds.solve_path(steps, force, verbose=False) as res:
         assert [r.J_h for r in res.steps] == pytest.approx([P / 2, P], rel=1e-10)
 
 
