@@ -456,7 +456,8 @@ def estimate(
         TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution`, or ``goal`` is not
             callable or does not return a UFL form.
         ValueError: For an unknown ``estimator`` or ``weights``, or a goal that is not a scalar
-            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``.
+            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``; weights other
+            than ``"patch"`` with an obstacle under a given force.
         RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
             the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
@@ -480,6 +481,12 @@ def estimate(
     check_options_on_ranks(sol.disc.mesh, "estimate", options)
     if model_error is not None:
         check_richer(sol.disc.problem, model_error)
+    if sol.obstacle_displacement is not None and options.weights != "patch":
+        raise ValueError(
+            f"weights={options.weights!r}: with an obstacle under a given force the estimate "
+            "takes weights='patch' (the P2 solves of the other weights know no obstacle "
+            "displacement)"
+        )
     goal_forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.tangential or None)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)

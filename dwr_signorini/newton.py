@@ -70,6 +70,7 @@ initial guess against the gap, and the iterates from a zero initial guess do not
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from dataclasses import dataclass, field
@@ -83,6 +84,7 @@ from dolfinx import fem, la
 
 from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
+from .force import ForceControl
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
 from .linalg import (
@@ -94,6 +96,7 @@ from .linalg import (
     memory,
     system_class,
 )
+from .rigid import RigidHold, free_motions, held_method
 from .semismooth import ConvergenceError, NewtonLoop
 from .settings import SolverOptions
 from .spaces import Discretization
@@ -136,6 +139,10 @@ class Solution(Releasable):
             (:func:`~dwr_signorini.laws.tangent_basis`); () without.
         stick, slip: With friction, the macro contact facets in contact that stick
             (``|lambda_t| < s``) and that slip (owned rows); None without.
+        obstacle_displacement: With an obstacle under a given force
+            (``ds.obstacles.Plane(..., force=F)``), its rigid displacement delta along its
+            direction of approach, an unknown of the discrete problem
+            (:mod:`dwr_signorini.force`); None without.
     """
 
     u: fem.Function
@@ -152,6 +159,7 @@ class Solution(Releasable):
     stick: np.ndarray | None = None
     slip: np.ndarray | None = None
     tangential: tuple[fem.Function, ...] = ()
+    obstacle_displacement: float | None = None
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
@@ -173,6 +181,9 @@ class Solution(Releasable):
 
     def destroy(self) -> None:
         """Release the Newton system's PETSc objects and options (collective; idempotent)."""
+        force = getattr(self.system, "force_control", None)
+        if force is not None:
+            force.destroy()
         self.system.destroy()
 
     def stacked(self, functions: tuple[fem.Function, ...] | None = None) -> np.ndarray:
@@ -352,6 +363,15 @@ def _solve(
     symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
     assembled = None
     method = options.method
+    motions = free_motions(disc)
+    obstacle = disc.problem.force_obstacle
+    if obstacle is not None and not symmetric:
+        raise ValueError(
+            f"an obstacle under a given force ({obstacle!r}) takes a frictionless or 2D Tresca "
+            "law (a symmetric Newton matrix)"
+        )
+    if motions.count or obstacle is not None:
+        method = held_method(method, motions.count)
     if method is None:
         if options.petsc_options is not None:
             method = "block"
@@ -370,9 +390,22 @@ def _solve(
         )
     except LinearSolveError as err:
         raise ConvergenceError(str(err), []) from err
+    hold = force = None
     try:
-        return _semismooth_newton(system, initial_guess, options.max_iterations, options.rtol)
+        if obstacle is not None:
+            force = ForceControl(system)
+            system.force_control = force  # the dual problem is the bordered system's
+        if motions.count or obstacle is not None:
+            hold = RigidHold(
+                motions, system.N, system.algebra.n_q, system.algebra.c_n, system.M.array,
+                disc.problem, None if force is None else (force.rate(), force.force),
+            )
+        return _semismooth_newton(
+            system, initial_guess, options.max_iterations, options.rtol, hold, force
+        )
     except BaseException:
+        if force is not None:
+            force.destroy()
         system.destroy()
         raise
 
@@ -425,8 +458,14 @@ def _semismooth_newton(
     initial_guess: tuple[fem.Function, ...] | None,
     max_iterations: int,
     rtol: float,
+    hold: RigidHold | None = None,
+    force: ForceControl | None = None,
 ) -> Solution:
-    """The loop of :func:`solve` on a set-up Newton system (see there)."""
+    """The loop of :func:`solve` on a set-up Newton system (see there).
+
+    With ``hold`` (a body held only by contact) a step's set that leaves a free rigid motion
+    unheld is completed by :meth:`~dwr_signorini.rigid.RigidHold.complete`.
+    """
     disc = system.disc
     if not _all_finite(disc.comm, system.f.array, system.g.array):
         raise ConvergenceError(
@@ -443,7 +482,14 @@ def _semismooth_newton(
             if loop.finished(it):
                 break
             new, new_free, couplings = loop.next_set(it, wanted, free)
-            loop.linear_solve(it, new, new_free, couplings)
+            if hold is not None:
+                new = hold.apply(loop, system, u, new)
+            if force is None:
+                loop.linear_solve(it, new, new_free, couplings)
+            else:
+                force.step(functools.partial(loop.linear_solve, it, couplings=couplings),
+                           new, new_free)
+                loop.moving = force.moving(rtol)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):
                 loop.history[-1]["nonfinite"] = True
@@ -459,7 +505,10 @@ def _semismooth_newton(
     finally:
         loop.destroy()
     system.set_loose(False)  # the dual problem reuses the system: at full accuracy
-    return _solution(system, u, lams, loop.history)
+    out = _solution(system, u, lams, loop.history)
+    if force is not None:
+        out.obstacle_displacement = force.delta
+    return out
 
 
 def _update(f: fem.Function, values: np.ndarray, theta: float) -> None:

@@ -86,9 +86,54 @@ class Obstacle:
 
     Attributes:
         dim: The space dimension the obstacle is defined in (2 or 3).
+        force: The resultant F > 0 it presses the body with along :attr:`direction` (force
+            control: its rigid displacement along the direction is then an unknown of the
+            discrete problem), or None (the obstacle stays where it is given).
+        direction: The unit direction of approach of a force-controlled obstacle, or None.
     """
 
     dim: int
+    force: float | None = None
+    direction: np.ndarray | None = None
+
+    def _set_force(self, force: float | None, direction: Sequence[float] | None,
+                   default: np.ndarray | None) -> None:
+        """Check and set :attr:`force` and :attr:`direction` (``default``: the direction)."""
+        name = type(self).__name__
+        if force is None:
+            if direction is not None:
+                raise ValueError(f"{name} direction is the direction of a force: give force=")
+            return
+        self.force = _positive(force, f"{name} force")
+        if direction is None and default is None:
+            raise ValueError(
+                f"{name} with force= needs direction=, the direction in which it approaches "
+                "the body"
+            )
+        self.direction = _unit(default if direction is None else direction, f"{name} direction")
+        if self.direction.size != self.dim:
+            raise ValueError(f"{name} direction must have {self.dim} components")
+
+    def moved(self, x: Expr, displacement: Expr) -> Expr:
+        """The point ``x`` seen from the obstacle moved by ``displacement`` along its direction.
+
+        A rigid translation by delta d: the gap of the moved obstacle at x is the gap of the
+        obstacle at x - delta d.
+
+        Args:
+            x: The point (UFL vector).
+            displacement: delta, a UFL scalar (a dolfinx Constant).
+
+        Returns:
+            x - delta d as a UFL vector.
+        """
+        d = [float(c) for c in self.direction]
+        return ufl.as_vector([x[i] - displacement * d[i] for i in range(self.dim)])
+
+    def _force_repr(self) -> str:
+        if self.force is None:
+            return ""
+        return f", force={self.force}, direction={self.direction.tolist()}"
 
     @property
     def size(self) -> float:
@@ -161,18 +206,24 @@ class Plane(Obstacle):
     Args:
         point: A point of the plane.
         normal: The direction into the obstacle (normalised here).
+        force: A resultant F > 0 pressing the obstacle onto the body (force control), or None.
+        direction: Its direction of approach (default ``-normal``).
 
     Raises:
         ValueError: If ``point`` or ``normal`` is not a finite vector of 2 or 3 components,
             ``normal`` is zero, or the two differ in length.
     """
 
-    def __init__(self, point: Sequence[float], normal: Sequence[float]) -> None:
+    def __init__(
+        self, point: Sequence[float], normal: Sequence[float], force: float | None = None,
+        direction: Sequence[float] | None = None,
+    ) -> None:
         self.point = _point(point, "Plane point")
         self.normal = _unit(normal, "Plane normal")
         if self.point.size != self.normal.size:
             raise ValueError("Plane point and normal must have the same number of components")
         self.dim = self.point.size
+        self._set_force(force, direction, -self.normal)
 
     @property
     def reference_point(self) -> np.ndarray:  # noqa: D102
@@ -193,7 +244,10 @@ class Plane(Obstacle):
         return ufl.conditional(ufl.gt(n_dot, 0.0), normal, n)
 
     def __repr__(self) -> str:
-        return f"Plane(point={self.point.tolist()}, normal={self.normal.tolist()})"
+        return (
+            f"Plane(point={self.point.tolist()}, normal={self.normal.tolist()}"
+            f"{self._force_repr()})"
+        )
 
 
 class Sphere(Obstacle):
@@ -205,6 +259,8 @@ class Sphere(Obstacle):
     Args:
         center: The center, 2 or 3 coordinates.
         radius: The radius, > 0.
+        force: A resultant F > 0 pressing the obstacle onto the body (force control), or None.
+        direction: Its direction of approach (needed with ``force``).
 
     Raises:
         ValueError: If ``center`` is not a finite point of 2 or 3 coordinates, or ``radius`` is
@@ -212,10 +268,14 @@ class Sphere(Obstacle):
         TypeError: If ``radius`` is not a number.
     """
 
-    def __init__(self, center: Sequence[float], radius: float) -> None:
+    def __init__(
+        self, center: Sequence[float], radius: float, force: float | None = None,
+        direction: Sequence[float] | None = None,
+    ) -> None:
         self.center = _point(center, "Sphere center")
         self.radius = _positive(radius, "Sphere radius")
         self.dim = self.center.size
+        self._set_force(force, direction, None)
 
     @property
     def size(self) -> float:  # noqa: D102
@@ -234,7 +294,9 @@ class Sphere(Obstacle):
         return self._towards([float(c) for c in self.center], x, n, miss)
 
     def __repr__(self) -> str:
-        return f"Sphere(center={self.center.tolist()}, radius={self.radius})"
+        return (
+            f"Sphere(center={self.center.tolist()}, radius={self.radius}{self._force_repr()})"
+        )
 
 
 class Cylinder(Obstacle):
@@ -247,6 +309,8 @@ class Cylinder(Obstacle):
         point: A point of the axis (3 coordinates).
         axis: The axis direction (normalised here).
         radius: The radius, > 0.
+        force: A resultant F > 0 pressing the obstacle onto the body (force control), or None.
+        direction: Its direction of approach (needed with ``force``).
 
     Raises:
         ValueError: If ``point`` or ``axis`` is not a finite vector of 3 components, ``axis``
@@ -254,13 +318,17 @@ class Cylinder(Obstacle):
         TypeError: If ``radius`` is not a number.
     """
 
-    def __init__(self, point: Sequence[float], axis: Sequence[float], radius: float) -> None:
+    def __init__(
+        self, point: Sequence[float], axis: Sequence[float], radius: float,
+        force: float | None = None, direction: Sequence[float] | None = None,
+    ) -> None:
         self.point = _point(point, "Cylinder point")
         self.axis = _unit(axis, "Cylinder axis")
         if self.point.size != 3 or self.axis.size != 3:
             raise ValueError("Cylinder is a 3D obstacle: point and axis need 3 components")
         self.radius = _positive(radius, "Cylinder radius")
         self.dim = 3
+        self._set_force(force, direction, None)
 
     @property
     def size(self) -> float:  # noqa: D102
@@ -292,7 +360,7 @@ class Cylinder(Obstacle):
     def __repr__(self) -> str:
         return (
             f"Cylinder(point={self.point.tolist()}, axis={self.axis.tolist()}, "
-            f"radius={self.radius})"
+            f"radius={self.radius}{self._force_repr()})"
         )
 
 

@@ -48,7 +48,7 @@ from .report import AdaptiveResult, LevelRecord, Reporter
 from .settings import EstimateOptions, SolverOptions
 from .spaces import Discretization, discretize
 from .timing import timed
-from .transfer import transfer_solution
+from .transfer import carry_obstacle_displacement, transfer_solution
 
 __all__ = ["PathResult", "StepRecord", "history_estimates", "history_goal", "solve_path"]
 
@@ -144,6 +144,7 @@ def _warm_start(previous: Solution, disc: Discretization) -> tuple[Any, ...]:
     """
     if previous.disc.V is not disc.V:
         return transfer_solution(previous, disc)
+    carry_obstacle_displacement(previous, disc)
     copies = []
     for f in (previous.u, *previous.multipliers):
         g = fem.Function(f.function_space, name=f.name)
@@ -198,8 +199,9 @@ def solve_path(
         history: Estimate the error the earlier steps carry into each step's goal
             (:func:`history_estimates`, added to the step's estimate and interval): keeps every
             step's solution (and its factorisation) and costs k more estimates at step k.
-            Default: True on a path on one mesh, False with ``adaptive`` (not available there:
-            the earlier steps live on other meshes).
+            Default: True on a path on one mesh with a frictional law, False with ``adaptive``
+            (not available there: the earlier steps live on other meshes) and for a
+            frictionless law (its steps do not depend on the earlier ones).
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -224,8 +226,8 @@ def solve_path(
     goals = _goals(goal, len(problems))
     settings = _path_settings(problems[0], adaptive, fraction, growth, estimator, weights,
                               petsc_options, method, ncp_scale)
-    if history is None:
-        history = not adaptive
+    if history is None:  # a frictionless law carries no history (no slip offsets)
+        history = not adaptive and problems[0].law.frictional
     if not isinstance(history, bool):
         raise TypeError(f"history must be True, False or None, got {history!r}")
     if history and adaptive:

@@ -163,6 +163,7 @@ class SignoriniProblem:
         )
         self.gap = check_pair_gap(gap, self.pairs, self.rigid_tags) if self.pairs else gap
         self.gap = check_gap(self.gap, mesh, facet_tags, self.rigid_tags or self.contact_tags)
+        self.force_obstacle = _force_obstacle(self.gap, bool(self.pairs))
         self.boundary_projection = check_projection(boundary_projection)
         used = (
             [("contact", t) for t in self.contact_tags]
@@ -359,6 +360,25 @@ class SignoriniProblem:
             friction=self.law if law is None else law,
             quadrature_degree=self.quadrature_degree,
         )
+
+
+def _force_obstacle(gap: Any, pairs: bool) -> Obstacle | None:
+    """The obstacle of ``gap`` under a given force (force control), or None.
+
+    Raises:
+        ValueError: A force-controlled obstacle in a gap per contact tag or beside contact
+            pairs (one obstacle, the only contact, is supported).
+    """
+    given = list(gap.values()) if isinstance(gap, Mapping) else [gap]
+    forced = [g for g in given if isinstance(g, Obstacle) and g.force is not None]
+    if not forced:
+        return None
+    if isinstance(gap, Mapping) or pairs:
+        raise ValueError(
+            "an obstacle with force= must be the problem's only gap (gap=obstacle), not one of "
+            "a gap per contact tag or beside contact pairs"
+        )
+    return forced[0]
 
 
 def _frozen_error(name: str) -> NoReturn:

@@ -59,6 +59,9 @@ class Measures:
         problem: The problem (for material data).
         fields: The problem's data on the fine mesh (the discretisation's
             :class:`~dwr_signorini.fields.MeshFields`).
+        obstacle_displacement: The displacement delta of an obstacle under a given force along
+            its direction (a dolfinx Constant, for goals: its dual entry takes dJ/ddelta), or
+            None.
     """
 
     x: Any
@@ -69,6 +72,7 @@ class Measures:
     mesh: dmesh.Mesh
     problem: SignoriniProblem
     fields: MeshFields
+    obstacle_displacement: Any = None
 
     def sigma(self, u: Any) -> Any:
         """Stress sigma(u) of the problem's material law.
@@ -197,6 +201,7 @@ class Discretization:
             mesh=fine,
             problem=problem,
             fields=self.fields,
+            obstacle_displacement=self.fields.obstacle_displacement,
         )
 
     def for_problem(self, problem: SignoriniProblem) -> Discretization:

@@ -5,7 +5,9 @@ usually described by, each an integral of the multipliers over Gamma_C (the slav
 pair) and the same on every rank:
 
 * the resultant the contact exerts on the body, ``F = -int_GC (lambda_n n + lambda_t) ds``
-  (``lambda_n >= 0`` a pressure, n the body's outward normal, ``lambda_t`` the tangential
+  (``lambda_n >= 0`` a pressure, n the normal of the contact frame, ``Discretization.
+  contact_frame``: the body's outward normal where the gap is a number or a function, the
+  obstacle's or the pair's shared normal otherwise; ``lambda_t`` the tangential
   multiplier as a vector: the traction of the body on the obstacle, as ``lambda_n n`` is; the
   signs of the primal equation ``a(u, v) + (lambda_n, v_n) + (lambda_t, v_t) = l(v)``), the
   total pressure ``P = int_GC lambda_n ds`` and the friction part ``-int_GC lambda_t ds``;
@@ -107,8 +109,9 @@ class _Moments:
         domain = extract_unique_domain(m.x)
         self.x0 = fem.Constant(domain, np.zeros(gdim))
         d = m.x - self.x0
-        tangents = list(tangent_basis(m.n)) if gdim == 3 else []
-        entries = [ufl.as_ufl(1.0)] + [d[i] for i in range(gdim)] + [m.n[i] for i in range(gdim)]
+        n = disc.contact_frame()  # the normal the multipliers act along
+        tangents = list(tangent_basis(n)) if gdim == 3 else []
+        entries = [ufl.as_ufl(1.0)] + [d[i] for i in range(gdim)] + [n[i] for i in range(gdim)]
         entries += [t[i] for t in tangents for i in range(gdim)]
         self.pairs = [(i, j) for i in range(gdim) for j in range(i, gdim)]
         entries += [d[i] * d[j] for i, j in self.pairs]
@@ -147,7 +150,8 @@ class _Moments:
 
 
 def _friction_force(sol: Solution, moments: _Moments) -> np.ndarray:
-    """``-int lambda_t ds``: in 2D lambda_t t with t = (-n_2, n_1), in 3D sum_k lambda_tk t_k."""
+    """``-int lambda_t ds``: in 2D lambda_t t with t = (-n_2, n_1), in 3D sum_k lambda_tk t_k
+    (n the contact frame's normal)."""
     gdim = moments.gdim
     if gdim == 2:
         n = moments.integrals(sol.lam_t.x.array, moments.first["n"], 2)
