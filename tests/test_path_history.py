@@ -11,7 +11,6 @@
 
 from mpi4py import MPI
 
-import numpy as np
 import pytest
 from dolfinx import fem
 
