@@ -259,10 +259,12 @@ def _history_mode(history: Any, adaptive: bool) -> str | None:
         history = "every"
     if history is False:
         return None
-    if history not in HISTORY_MODES:
+    if not isinstance(history, str):
         raise TypeError(
             f"history must be None, True, False, 'last' or 'every', got {history!r}"
         )
+    if history not in HISTORY_MODES:
+        raise ValueError(f"history must be None, True, False, 'last' or 'every', got {history!r}")
     if adaptive:
         raise ValueError(
             f"history={history!r} needs every step on one mesh: the history's error is not "

@@ -109,8 +109,8 @@ def test_last_step_history_is_the_chain_in_one_sweep(monkeypatch):
 @pytest.mark.mpi
 def test_history_modes_are_checked():
     problems = sheared_path()[:2]
-    for bad in ("all", 1):
-        with pytest.raises(TypeError, match="history must be"):
+    for bad, error in (("all", ValueError), (1, TypeError)):
+        with pytest.raises(error, match="history must be"):
             ds.solve_path(problems, ex.goal_friction_force(), history=bad, verbose=False)
     with pytest.raises(ValueError, match="adaptive path"):
         ds.solve_path(problems, ex.goal_friction_force(), adaptive=True, history="last",
