@@ -3,10 +3,10 @@
 With P1 displacements on T_h the strain is constant on every fine cell, so the Cauchy stress
 ``sigma(u_h) = 2 mu eps(u_h) + lambda tr(eps(u_h)) I`` (Hooke's law, Section 2 of the paper) is
 too for constant material data: its DG0 interpolant, at each cell's midpoint, is exact (for E, nu
-varying in x, and for Q1 on quadrilaterals or hexahedra, it is the midpoint value). The von Mises stress is that of the full 3D stress
-tensor, ``sigma_vM = sqrt(3/2 s : s)``, ``s = sigma - tr(sigma) / 3 I``: in plane strain with the
-out-of-plane stress ``sigma_zz = nu (sigma_xx + sigma_yy)``, in plane stress with
-``sigma_zz = 0``. The output of :func:`~dwr_signorini.solve_adaptive` and
+varying in x, and for Q1 on quadrilaterals or hexahedra, it is the midpoint value). The von
+Mises stress is that of the full 3D stress tensor, ``sigma_vM = sqrt(3/2 s : s)``,
+``s = sigma - tr(sigma) / 3 I``: in plane strain with the out-of-plane stress
+``sigma_zz = nu (sigma_xx + sigma_yy)``, in plane stress with ``sigma_zz = 0``. The output of :func:`~dwr_signorini.solve_adaptive` and
 :func:`~dwr_signorini.solve_path` writes both beside u and lambda (:mod:`dwr_signorini.io`).
 """
 

@@ -150,8 +150,7 @@ class _Moments:
 
 
 def _friction_force(sol: Solution, moments: _Moments) -> np.ndarray:
-    """``-int lambda_t ds``: in 2D lambda_t t with t = (-n_2, n_1), in 3D sum_k lambda_tk t_k
-    (n the contact frame's normal)."""
+    """``-int lambda_t ds`` (2D: lambda_t t, t = (-n_2, n_1); 3D: sum_k lambda_tk t_k; n_c's)."""
     gdim = moments.gdim
     if gdim == 2:
         n = moments.integrals(sol.lam_t.x.array, moments.first["n"], 2)

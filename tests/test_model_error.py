@@ -233,8 +233,8 @@ def test_bad_combinations():
 def test_hertz_press_friction_matters_little(h_contact):
     """The 2D Hertz press of tests/test_hertz.py with Coulomb(0.3): friction raises the force
     of the prescribed approach by about 1 % (small, as Spence's theory has it; measured 1.02 %
-    and 0.90 % with every law in the flat's frame); measured ieff 0.944 and 0.926. The two problems are built separately, with equal
-    but distinct obstacles: the same data."""
+    and 0.90 % with every law in the flat's frame); measured ieff 0.944 and 0.926. The two
+    problems are built separately, with equal but distinct obstacles: the same data."""
     module = mesh_script("hertz_2d")
     msh, cells, facets = from_model(module.build, h=0.2, h_contact=h_contact, refine_radius=0.1)
 
