@@ -6,8 +6,9 @@ too for constant material data: its DG0 interpolant, at each cell's midpoint, is
 varying in x, and for Q1 on quadrilaterals or hexahedra, it is the midpoint value). The von
 Mises stress is that of the full 3D stress tensor, ``sigma_vM = sqrt(3/2 s : s)``,
 ``s = sigma - tr(sigma) / 3 I``: in plane strain with the out-of-plane stress
-``sigma_zz = nu (sigma_xx + sigma_yy)``, in plane stress with ``sigma_zz = 0``. The output of :func:`~dwr_signorini.solve_adaptive` and
-:func:`~dwr_signorini.solve_path` writes both beside u and lambda (:mod:`dwr_signorini.io`).
+``sigma_zz = nu (sigma_xx + sigma_yy)``, in plane stress with ``sigma_zz = 0``.
+The output of :func:`~dwr_signorini.solve_adaptive` and :func:`~dwr_signorini.solve_path`
+writes both beside u and lambda (:mod:`dwr_signorini.io`).
 """
 
 from __future__ import annotations
