@@ -106,20 +106,48 @@ class ModelChoice:
         return self.index == len(self.models) - 1
 
     def settings(self, base: LevelSettings) -> LevelSettings:
-        """``base`` estimating the model error against the next richer model (none on the last)."""
+        """``base`` estimating the model error against the next richer model (none on the last).
+
+        Args:
+            base: The run's settings.
+
+        Returns:
+            A copy of ``base`` with its ``model_error``.
+        """
         return replace(base, model_error=None if self.last else self.models[self.index + 1])
 
     def settled(self, est: Estimate) -> bool:
-        """(M2): the model in force serves the goal (always on the richest)."""
+        """(M2): the model in force serves the goal (always on the richest).
+
+        Args:
+            est: The level's estimate, with the model error against the next richer model.
+
+        Returns:
+            Whether B_M <= share * tol, or the model in force is the richest.
+        """
         return self.last or model_bound(est) <= self.share * self.tol
 
     def converged(self, est: Estimate) -> bool:
-        """(M3): half the interval of J plus the model error's bound at most tol."""
+        """(M3): half the interval of J plus the model error's bound at most tol.
+
+        Args:
+            est: The level's estimate.
+
+        Returns:
+            Whether (J_high - J_low) / 2 + B_M <= tol.
+        """
         J_low, J_high = est.interval
         return 0.5 * (J_high - J_low) + model_bound(est) <= self.tol
 
     def on_model(self, problem: SignoriniProblem) -> SignoriniProblem:
-        """``problem`` (a level's) with the law of the model in force."""
+        """``problem`` (a level's) with the law of the model in force.
+
+        Args:
+            problem: A level's problem.
+
+        Returns:
+            ``problem`` itself if it has that law, else its data with that law.
+        """
         law = self.models[self.index].law
         if problem.law is law:
             return problem
