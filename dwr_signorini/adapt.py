@@ -58,6 +58,19 @@ def _check_refinement(problem: SignoriniProblem, refinement: str, rule: Any, exa
     check_simplex(problem, refinement)
 
 
+def _model_choice(
+    problem: SignoriniProblem, model_error: Any, models: Any, tol: Any, share: Any
+) -> ModelChoice | None:
+    """Check ``model_error`` or ``models`` of :func:`solve_adaptive`; the run's model choice."""
+    if model_error is not None:
+        check_richer(problem, model_error)
+    if models is None:
+        return None
+    if model_error is not None:
+        raise ValueError("give models or model_error, not both")
+    return ModelChoice(check_models(problem, models, tol, share), tol, share)
+
+
 def solve_adaptive(
     problem: SignoriniProblem,
     goal: Goal,
@@ -162,13 +175,7 @@ def solve_adaptive(
         solver, estimate_options, marking, refinement, refinement_rule, exact, model_error
     )
     _check_refinement(problem, refinement, refinement_rule, exact)
-    if model_error is not None:
-        check_richer(problem, model_error)
-    choice = None
-    if models is not None:
-        if model_error is not None:
-            raise ValueError("give models or model_error, not both")
-        choice = ModelChoice(check_models(problem, models, tol, model_share), tol, model_share)
+    choice = _model_choice(problem, model_error, models, tol, model_share)
     meta = {"refinement": refinement, "fraction": marking.fraction, "strategy": marking.strategy,
             "max_growth": marking.max_growth, "estimator": estimator, "weights": weights,
             "method": method, "ncp_scale": solver.ncp_scale, "refinement_rule": refinement_rule,
