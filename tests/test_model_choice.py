@@ -128,3 +128,22 @@ def test_bad_models():
         ds.solve_adaptive(simple, slide, tol=1e-3, models=[simple])
     with pytest.raises(ValueError, match="not both"):
         ds.solve_adaptive(simple, slide, tol=1e-3, models=[simple, rich], model_error=rich)
+
+
+@pytest.mark.mpi
+def test_chain_through_tresca_equals_the_coulomb_run():
+    """models = [frictionless, Tresca(0.005), Coulomb(0.5)]: level 0 climbs both steps (model
+    errors -3.1e-2 and -6.6e-3, far above 0.5 tol) and the run then is the Coulomb run of
+    solve_adaptive(coulomb, ...) itself: the same meshes and J_h to the Newton tolerance."""
+    msh, tags = block(COMM, 8, 4, lx=2.0, ly=1.0)
+    laws = (None, ds.Tresca(0.005), ds.Coulomb(0.5))
+    models = [sheared(msh, tags, law) for law in laws]
+    with ds.solve_adaptive(models[0], slide, tol=2e-4, max_levels=3, models=models,
+                           verbose=False) as res:
+        chain = res.levels
+    with ds.solve_adaptive(models[2], slide, tol=2e-4, max_levels=3, verbose=False) as res:
+        rich = res.levels
+    assert [r.model for r in chain] == ["coulomb"] * len(rich)
+    for a, b in zip(chain, rich, strict=True):
+        assert a.num_cells == b.num_cells
+        assert abs(a.J_h - b.J_h) <= 1e-8 * abs(b.J_h)
