@@ -53,7 +53,7 @@ from .goal import Goal, GoalForms
 from .laws import multiplier_names
 from .linalg import system_class
 
-__all__ = ["ModelError", "check_richer", "model_error"]
+__all__ = ["ModelError", "check_richer", "law_phrase", "model_error"]
 
 #: Which law is richer than which (by the laws' ``name``): the simpler law's name maps to the
 #: laws that extend it.
@@ -64,6 +64,28 @@ DATA = (
     "facet_tags", "model", "quadrature_degree", "cell_tags", "E", "nu", "contact_tags",
     "pairs", "dirichlet_values", "body_force", "traction", "gap", "boundary_projection",
 )
+
+#: What leaving out the richer law means, by the (simpler, richer) laws' names.
+PHRASES = {
+    ("frictionless", "tresca"): "leaving out friction",
+    ("frictionless", "coulomb"): "leaving out friction",
+    ("tresca", "coulomb"): "Tresca in place of Coulomb",
+}
+
+
+def law_phrase(simple: str, rich: str) -> str:
+    """The words for the model error of the law ``simple`` in place of ``rich`` (their names).
+
+    Args:
+        simple: The name of the law that ran (``"frictionless"``, ``"tresca"``, ...).
+        rich: The name of the richer law.
+
+    Returns:
+        E.g. ``"leaving out friction"``; ``"<simple> in place of <rich>"`` for other pairs.
+    """
+    return PHRASES.get((simple, rich), f"{simple} in place of {rich}")
+
+
 
 #: Most fixed-point steps for the multipliers the simpler law lacks.
 MAX_FILL_STEPS = 50

@@ -33,6 +33,7 @@ from .collective import call_collectively, on_root
 from .estimator import Estimate
 from .io import OutputDirectory, write_csv, write_json
 from .lifetime import Releasable
+from .model_error import law_phrase
 from .newton import Solution
 from .problem import SignoriniProblem
 from .stress import stress_fields
@@ -85,6 +86,9 @@ class LevelRecord:
             J(richer) - J(simpler) (:attr:`Estimate.model_error`), else ``None``.
         model_error_low: The lower end of its interval, else ``None``.
         model_error_high: Its upper end, else ``None``.
+        model: The name of the contact law the level ran (``"frictionless"``, ``"tresca"``,
+            ``"coulomb"``); with ``solve_adaptive(..., models=[...])`` the model it chose.
+        richer_model: The name of the richer law of ``model_error``, else ``None``.
     """
 
     level: int
@@ -118,6 +122,8 @@ class LevelRecord:
     model_error: float | None = None
     model_error_low: float | None = None
     model_error_high: float | None = None
+    model: str = ""
+    richer_model: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The record as a plain dict.
@@ -238,6 +244,8 @@ def level_record(
         model_error=est.model_error,
         model_error_low=model_low,
         model_error_high=model_high,
+        model=disc.problem.law.name,
+        richer_model=None if est.model is None else est.model.law.name,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
         time={
@@ -273,10 +281,13 @@ def progress_line(record: LevelRecord, label: str | None = None) -> str:
         else f"stick/slip {record.num_stick:d}/{record.num_slip:d}  "
     )
     contact = "no contact  " if record.no_contact else ""
+    if record.model_error is None and record.num_stick is not None:
+        contact += f"model {record.model}  "
     if record.model_error is not None:
+        phrase = law_phrase(record.model, record.richer_model)
         contact += (
-            f"model error {record.model_error: .3e} in [{record.model_error_low: .3e}, "
-            f"{record.model_error_high: .3e}]  "
+            f"model {record.model}; model error of {phrase}: {record.model_error: .3e} in "
+            f"[{record.model_error_low: .3e}, {record.model_error_high: .3e}]  "
         )
     fallback = ", memory" if record.weights_fallback else ""
     label = f"level {record.level:2d}" if label is None else label
