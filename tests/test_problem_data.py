@@ -212,15 +212,16 @@ def test_quarter_model_equals_full_model():
 
 @pytest.mark.mpi
 def test_two_contact_tags_equal_union():
-    """Bottom split in two tags with a plane and a disc: the same solution as one tag whose gap
-    is the piecewise union of the two obstacles' gaps."""
+    """Bottom split in two tags with two planes at different heights: the same solution as one
+    tag whose gap is the piecewise union of the two obstacles' gaps. (Planes of one normal: a
+    curved obstacle's contact frame is its own normal, a function gap's the body's.)"""
     msh = dmesh.create_rectangle(COMM, [[0.0, 0.0], [1.0, 1.0]], [4, 4],
                                  ghost_mode=dmesh.GhostMode.none)
     left = lambda x: np.isclose(x[1], 0.0) & (x[0] <= 0.5 + 1e-12)  # noqa: E731
     right = lambda x: np.isclose(x[1], 0.0) & (x[0] >= 0.5 - 1e-12)  # noqa: E731
     top = lambda x: np.isclose(x[1], 1.0)  # noqa: E731
     plane = ob.Plane((0.0, -0.004), (0.0, -1.0))
-    disc = ob.Sphere((0.75, -2.0), 2.0)
+    disc = ob.Plane((0.0, -0.001), (0.0, -1.0))  # the same normal: the same contact frame
     bcs = {2: (0.0, -D)}
     split = ds.SignoriniProblem(msh, tagged(msh, {1: left, 5: right, 2: top}), contact=(1, 5),
                                 dirichlet=bcs, E=E, nu=NU, gap={1: plane, 5: disc})
@@ -495,13 +496,17 @@ def test_boundary_projection_puts_new_vertices_on_the_circle():
     assert abs(areas[True] - np.pi / 4) < abs(areas[False] - np.pi / 4) / 10
 
 
-def test_boundary_projection_refuses_to_invert_cells(square):
+def test_boundary_projection_refuses_to_invert_cells():
+    """A move within the allowed share of the local mesh size that still inverts a cell: flat
+    cells (0.25 x 0.1, after refinement 0.125 x 0.05) whose new bottom vertices rise by 0.06."""
     from dwr_signorini.refine import refine_marked
 
-    msh, tags = square
+    msh = dmesh.create_rectangle(COMM, [[0.0, 0.0], [1.0, 0.1]], [4, 1],
+                                 ghost_mode=dmesh.GhostMode.none)
+    tags = tagged(msh, {1: lambda x: np.isclose(x[1], 0.0), 2: lambda x: np.isclose(x[1], 0.1)})
     problem = ds.SignoriniProblem(
         msh, tags, contact=1, dirichlet=(2,),
-        boundary_projection={1: lambda x: x + np.array([[0.0], [0.8], [0.0]])},
+        boundary_projection={1: lambda x: x + np.array([[0.0], [0.06], [0.0]])},
     )
     with pytest.raises(RuntimeError, match=r"boundary_projection\[1\].*invert"):
         refine_marked(problem, None)
