@@ -84,6 +84,7 @@ from dolfinx import fem, la
 
 from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
+from . import finite_strain
 from .force import ForceControl
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
@@ -294,6 +295,8 @@ def solve(
         )
     _check_initial_guess(disc, initial_guess)
     check_options_on_ranks(disc.mesh, "solve", options, initial_guess=initial_guess is None)
+    if disc.problem.finite_strain:
+        return finite_strain.solve(disc, finite_strain.check_options(options), initial_guess)
     tic = time.perf_counter()
     sol = _solve(disc, initial_guess, options)
     _log_solution(sol, time.perf_counter() - tic)

@@ -1,0 +1,201 @@
+"""Finite strain: homogeneous compression of a block on a frictionless rigid plane, exactly.
+
+The block (0, 1)^d is pressed by a prescribed top displacement -c (compression c) onto the rigid
+plane y = 0 (z = 0 in 3D); x = 0 (and y = 0 in 3D) are symmetry planes, the other sides free.
+The exact state is homogeneous, F = diag(a, s) (diag(a, a, s) in 3D) with s = 1 - c and the
+lateral stretch a the root of P_xx(a, s) = 0, written here in closed form for each law and solved
+with scipy; the contact force per reference area is lambda = -P_yy (-P_zz in 3D). P1 elements
+hold the affine displacement exactly, so the discrete state is the exact one.
+"""
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import mesh
+from scipy.optimize import brentq
+
+import dwr_signorini as ds
+from dwr_signorini.semismooth import ConvergenceError
+
+E, NU = 10.0, 0.3
+MU = E / (2 * (1 + NU))
+LMBDA = E * NU / ((1 + NU) * (1 - 2 * NU))
+CONTACT, TOP, SYM, FREE, SYM2 = 1, 2, 3, 4, 5
+
+
+def _user_psi(F, mu, lmbda):
+    """A compressible law of the test: mu/2 (I_1 - d) - mu ln J + lmbda/2 (J - 1)^2."""
+    J = ufl.det(F)
+    d = F.ufl_shape[0]
+    return mu / 2 * (ufl.tr(F.T * F) - d) - mu * ufl.ln(J) + lmbda / 2 * (J - 1) ** 2
+
+
+def _principal_stress(law, stretches):
+    """The principal first Piola-Kirchhoff stresses of F = diag(stretches), in closed form."""
+    lam = np.asarray(stretches, float)
+    J = np.prod(lam)
+    if law == "neo_hookean":  # P = mu (F - F^-T) + lmbda ln J F^-T
+        return MU * (lam - 1 / lam) + LMBDA * np.log(J) / lam
+    if law == "svk":  # P = F S, S = 2 mu E + lmbda tr E I
+        Ed = (lam**2 - 1) / 2
+        return lam * (2 * MU * Ed + LMBDA * np.sum(Ed))
+    # the test's psi: P = mu F - mu F^-T + lmbda (J - 1) J F^-T
+    return MU * lam - MU / lam + LMBDA * (J - 1) * J / lam
+
+
+def exact_state(law, c, dim):
+    """(a, lambda): the lateral stretch and the contact force per reference area."""
+    s = 1.0 - c
+
+    def stretches(a):
+        return [a] * (dim - 1) + [s]
+
+    a = brentq(lambda a: _principal_stress(law, stretches(a))[0], 0.5, 3.0, xtol=1e-15)
+    return a, -_principal_stress(law, stretches(a))[-1]
+
+
+MATERIALS = {
+    "neo_hookean": ds.NeoHookean,
+    "svk": ds.SaintVenantKirchhoff,
+    "user": lambda: ds.Hyperelastic(_user_psi),
+}
+
+
+def block_problem(comm, dim, c, material, n=2, rotation=0.0):
+    """The compressed block (module docstring); ``rotation`` turns the whole 2D problem."""
+    if dim == 2:
+        msh = mesh.create_unit_square(comm, n, n, ghost_mode=mesh.GhostMode.none)
+    else:
+        msh = mesh.create_unit_cube(comm, n, n, n, ghost_mode=mesh.GhostMode.none)
+    up = dim - 1
+
+    def classify(x):
+        tags = np.full(x.shape[1], FREE, dtype=np.int32)
+        tags[np.isclose(x[0], 0.0)] = SYM
+        if dim == 3:
+            tags[np.isclose(x[1], 0.0)] = SYM2
+        tags[np.isclose(x[up], 1.0)] = TOP
+        tags[np.isclose(x[up], 0.0)] = CONTACT
+        return tags
+
+    fdim = dim - 1
+    msh.topology.create_connectivity(fdim, dim)
+    facets = mesh.exterior_facet_indices(msh.topology)
+    mid = mesh.compute_midpoints(msh, fdim, facets).T
+    tags = mesh.meshtags(msh, fdim, facets, classify(mid))
+    top = [None] * dim
+    top[up] = -c
+    sym = [None] * dim
+    sym[0] = 0.0
+    dirichlet = {TOP: tuple(top), SYM: tuple(sym)}
+    if dim == 3:
+        dirichlet[SYM2] = (None, 0.0, None)
+    normal = [0.0] * dim
+    normal[up] = -1.0
+    return ds.SignoriniProblem(
+        msh, tags, CONTACT, dirichlet=dirichlet, E=E, nu=NU, material=material,
+        gap=ds.obstacles.Plane([0.0] * dim, normal),
+    )
+
+
+def displacement_error(u, a, s, dim):
+    """Max over the dofs (all ranks) of |u - u_exact|, u_exact = (F - I) x."""
+    x = u.function_space.tabulate_dof_coordinates()[:, :dim]
+    stretch = np.array([a] * (dim - 1) + [s])
+    exact = (stretch - 1.0) * x
+    err = np.max(np.abs(u.x.array.reshape(-1, dim) - exact), initial=0.0)
+    return MPI.COMM_WORLD.allreduce(err, op=MPI.MAX)
+
+
+def multiplier_error(lam, value):
+    n = lam.function_space.dofmap.index_map.size_local
+    err = np.max(np.abs(lam.x.array[:n] - value), initial=0.0)
+    return MPI.COMM_WORLD.allreduce(err, op=MPI.MAX)
+
+
+def print_table(history):
+    """The Newton iteration table (pytest -s shows it)."""
+    for h in history:
+        print(f"  it {h['iteration']:2d}: |A| = {h['num_active']:3d}, changed "
+              f"{h['num_changed']:3d}, equilibrium {h['residual_equilibrium']:.3e}, "
+              f"NCP {h['residual_ncp']:.3e}")
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("law", sorted(MATERIALS))
+@pytest.mark.parametrize(
+    "c", [0.2, 0.4], ids=["20%", "40%"],
+)
+def test_homogeneous_compression_2d(law, c):
+    a, lam_exact = exact_state(law, c, 2)
+    problem = block_problem(MPI.COMM_WORLD, 2, c, MATERIALS[law]())
+    with ds.solve_path(problem, None, load_factors=[0.5, 1.0]) as path:
+        sol = path.solutions[-1]
+        print(f"\n{law}, c = {c}: a = {a:.12f}, lambda = {lam_exact:.12f}, cuts {path.cuts}")
+        print_table(sol.history)
+        assert displacement_error(sol.u, a, 1 - c, 2) < 1e-8
+        assert multiplier_error(sol.lam, lam_exact) < 1e-8 * lam_exact
+        assert sol.num_active == sol.disc.num_contact_elements
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("law", ["neo_hookean", "svk", "user"])
+def test_homogeneous_compression_3d(law):
+    c = 0.2
+    a, lam_exact = exact_state(law, c, 3)
+    problem = block_problem(MPI.COMM_WORLD, 3, c, MATERIALS[law](), n=1)
+    with ds.solve(problem) as sol:
+        print_table(sol.history)
+        assert displacement_error(sol.u, a, 1 - c, 3) < 1e-8
+        assert multiplier_error(sol.lam, lam_exact) < 1e-8 * lam_exact
+
+
+def test_quadratic_convergence_once_set_settles():
+    """The residuals of the last steps (the set fixed) fall quadratically."""
+    problem = block_problem(MPI.COMM_WORLD, 2, 0.2, ds.NeoHookean())
+    with ds.solve(problem) as sol:
+        print_table(sol.history)
+        res = [h["residual_equilibrium"] for h in sol.history if h["num_changed"] == 0]
+        big = [r for r in res if r > 1e-13]
+        assert len(big) >= 2
+        for r0, r1 in zip(big, big[1:], strict=False):
+            assert r1 < 10 * r0**2 or r1 < 1e-12
+
+
+def test_refusals():
+    comm = MPI.COMM_WORLD
+    problem = block_problem(comm, 2, 0.2, ds.NeoHookean())
+    msh, tags = problem.mesh, problem.facet_tags
+    with pytest.raises(ValueError, match="plane_stress"):
+        ds.SignoriniProblem(msh, tags, CONTACT, dirichlet=(TOP,), model="plane_stress",
+                            material=ds.NeoHookean(), gap=ds.obstacles.Plane([0, 0], [0, -1]))
+    with pytest.raises(ValueError, match="friction"):
+        ds.SignoriniProblem(msh, tags, CONTACT, dirichlet=(TOP,), friction=ds.Tresca(0.1),
+                            material=ds.NeoHookean(), gap=ds.obstacles.Plane([0, 0], [0, -1]))
+    with pytest.raises(ValueError, match="obstacles.Plane"):
+        ds.SignoriniProblem(msh, tags, CONTACT, dirichlet=(TOP,), gap=0.1,
+                            material=ds.SaintVenantKirchhoff())
+    with pytest.raises(TypeError, match="material"):
+        ds.SignoriniProblem(msh, tags, CONTACT, dirichlet=(TOP,), material="rubber")
+    with ds.solve(problem) as sol:
+        with pytest.raises(ValueError, match="finite-strain"):
+            ds.estimate(sol, lambda u, lam, m: lam * m.ds_contact)
+    with pytest.raises(ValueError, match="finite-strain"):
+        ds.solve_adaptive(problem, lambda u, lam, m: lam * m.ds_contact)
+    with pytest.raises(ValueError, match="method"):
+        ds.solve(problem, method="schur")
+
+
+def test_step_cut_reported():
+    """A load step too large for Newton's method is halved, and the cut is reported."""
+    problem = block_problem(MPI.COMM_WORLD, 2, 0.4, ds.NeoHookean())
+    with pytest.raises(ConvergenceError):
+        ds.solve(problem, max_iterations=2)
+    problem = block_problem(MPI.COMM_WORLD, 2, 0.6, ds.NeoHookean())
+    with ds.solve_path(problem, None, load_factors=[1.0]) as path:
+        print(f"\ncuts at {path.cuts}, steps {path.steps}")
+        assert path.steps[-1] == 1.0
+        assert len(path.steps) == len(path.cuts) + 1  # each cut adds one step
+        assert all(t < 1.0 for t in path.steps[:-1])
