@@ -40,8 +40,8 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
 from .fields import lame_parameters
-from .obstacles import Obstacle, Plane, Sphere
 from .lifetime import Releasable, destroy_attributes
+from .obstacles import Obstacle, Plane, Sphere
 from .semismooth import ConvergenceError
 
 __all__ = [
@@ -343,7 +343,7 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
             raise ConvergenceError(
                 f"finite strain: no convergence in max_iterations={max_iterations} Newton steps "
                 "(ds.solve_path with smaller load steps)", history)
-        key = (record["num_changed"] > 0, bytes(np.packbits(active)))
+        key = tuple(comm.allgather(bytes(np.packbits(active))))  # the global set
         if record["num_changed"] > 0 and key in seen:
             raise ConvergenceError(f"finite strain: active-set cycling at step {it}", history)
         seen.add(key)

@@ -90,7 +90,8 @@ class Hyperelastic(Material):
 
         Args:
             F: The deformation gradient as a ``ufl.variable``.
-            mu, lmbda: The Lame parameters.
+            mu: The shear modulus.
+            lmbda: The first Lame parameter.
 
         Returns:
             P as a UFL tensor.

@@ -82,9 +82,9 @@ import numpy as np
 import ufl
 from dolfinx import fem, la
 
+from . import finite_strain
 from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
-from . import finite_strain
 from .force import ForceControl
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
