@@ -82,7 +82,16 @@ class Hyperelastic(Material):
         return f"ds.Hyperelastic({name})"
 
     def energy(self, F: Any, mu: Any, lmbda: Any) -> Any:
-        """The strain energy density psi(F) per reference volume (UFL scalar)."""
+        """The strain energy density psi(F) per reference volume.
+
+        Args:
+            F: The deformation gradient (UFL tensor).
+            mu: The shear modulus.
+            lmbda: The first Lame parameter.
+
+        Returns:
+            psi as a UFL scalar.
+        """
         return self.psi(F, mu, lmbda)
 
     def first_piola(self, F: Any, mu: Any, lmbda: Any) -> Any:
