@@ -290,3 +290,29 @@ def test_large_sliding():
         err = comm.allreduce(np.max(np.abs(sol.u.x.array.reshape(-1, 2) - exact)), op=MPI.MAX)
         assert err < 1e-8
         assert multiplier_error(sol.lam, lam_exact) < 1e-8 * lam_exact
+
+
+@pytest.mark.mpi
+def test_disc_obstacle_newton_quadratic():
+    """A block pressed onto a rigid disc: the contact Jacobian holds the curvature of the
+    distance (its second derivative), so the residuals fall quadratically once the set settles."""
+    comm = MPI.COMM_WORLD
+    block = block_problem(comm, 2, 0.1, ds.NeoHookean(), n=4)
+    problem = ds.SignoriniProblem(
+        block.mesh, block.facet_tags, CONTACT, dirichlet={TOP: (None, -0.1), SYM: (0.0, None)},
+        E=E, nu=NU, material=ds.NeoHookean(), gap=ds.obstacles.Sphere([0.0, -2.0], 2.0),
+    )
+    with ds.solve_path(problem, None, load_factors=[0.5, 1.0]) as path:
+        sol = path.solutions[-1]
+        print_table(sol.history)
+        assert 0 < sol.num_active < sol.disc.num_contact_elements
+        settled = [h["residual_equilibrium"] for h in sol.history if h["num_changed"] == 0]
+        big = [r for r in settled if r > 1e-12]
+        assert len(big) >= 2
+        for r0, r1 in itertools.pairwise(big):
+            assert r1 < 10 * r0**2 or r1 < 1e-12
+        # the active facets touch the disc: their gaps vanish to round-off
+        G = sol.system.residuals()[1]
+        n = sol.lam.function_space.dofmap.index_map.size_local
+        active = sol.lam.x.array[:n] > 0
+        assert comm.allreduce(float(np.max(np.abs(G[active]), initial=0.0)), op=MPI.MAX) < 1e-12
