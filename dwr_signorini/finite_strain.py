@@ -38,7 +38,9 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
+from dolfinx.mesh import CellType
 
+from . import compat
 from .fields import lame_parameters
 from .lifetime import Releasable, destroy_attributes
 from .obstacles import Obstacle, Plane, Sphere
@@ -100,7 +102,7 @@ class FiniteStrainSystem:
         mu_q = ufl.TestFunction(Q)
         E, nu = disc.fields.material(m.x)
         mu, lmbda = lame_parameters(E, nu, problem.model)
-        simplex = disc.mesh.topology.cell_name() in ("triangle", "tetrahedron")
+        simplex = disc.mesh.topology.cell_type in (CellType.triangle, CellType.tetrahedron)
         dx = m.dx(metadata={"quadrature_degree": 2 if simplex else 4})
         dsc = m.ds_contact(metadata={"quadrature_degree": problem.quadrature_degree})
         gdim = disc.mesh.geometry.dim
@@ -109,7 +111,7 @@ class FiniteStrainSystem:
         self._J_cells = fem.Function(fem.functionspace(disc.mesh, ("DG", 0)))
         self._J_expr = fem.Expression(
             ufl.det(ufl.Identity(gdim) + ufl.grad(self.u)),
-            self._J_cells.function_space.element.interpolation_points(),
+            compat.interpolation_points(self._J_cells.function_space.element),
         )
         d = signed_distance(self.obstacle, m.x + self.u)
         internal = ufl.inner(P, ufl.grad(v)) * dx
