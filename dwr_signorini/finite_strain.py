@@ -377,17 +377,23 @@ def check_options(options: Any) -> Any:
     return options
 
 
-def refuse(what: str) -> None:
+def refuse(what: str, reason: str = "") -> None:
     """Raise the error of a function that does not take finite-strain problems yet.
+
+    Args:
+        what: The function (or combination) refused.
+        reason: Why; default: the error estimate with the nonlinear residuals is missing.
 
     Raises:
         ValueError: Always, naming ``what``.
     """
+    reason = reason or (
+        "the error estimate with the nonlinear residuals is not implemented; use ds.solve or "
+        "ds.solve_path(problem, None, load_factors=...)"
+    )
     raise ValueError(
         f"{what} does not take a finite-strain problem (material=NeoHookean/"
-        "SaintVenantKirchhoff/Hyperelastic) yet: the error estimate with the nonlinear "
-        "residuals is not implemented; use ds.solve or ds.solve_path(problem, "
-        "load_factors=...)"
+        f"SaintVenantKirchhoff/Hyperelastic) yet: {reason}"
     )
 
 

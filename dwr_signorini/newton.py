@@ -274,10 +274,14 @@ def solve(
             :class:`~dwr_signorini.settings.SolverOptions`, instead of the keywords.
 
     Returns:
-        The :class:`Solution`.
+        The :class:`Solution`; for a finite-strain problem (a hyperelastic ``material``) a
+        :class:`~dwr_signorini.finite_strain.FiniteStrainSolution` (the full load in one
+        Newton solve, :mod:`dwr_signorini.finite_strain`).
 
     Raises:
-        TypeError, ValueError: Arguments of the wrong type or value, naming the argument.
+        TypeError, ValueError: Arguments of the wrong type or value, naming the argument
+            (for a finite-strain problem: ``petsc_options``, ``method`` and the compiler
+            options are not taken yet).
         ConvergenceError: No convergence in ``max_iterations`` steps, active-set cycling that
             the safeguard could not break, a failed linear solve, NaN/Inf in the data (loads,
             gap) or in an iterate; with the iteration history. Raised on every rank.

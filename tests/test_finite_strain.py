@@ -186,6 +186,12 @@ def test_refusals():
     with ds.solve(problem) as sol:
         with pytest.raises(ValueError, match="finite-strain"):
             ds.estimate(sol, lambda u, lam, m: lam * m.ds_contact)
+        with pytest.raises(ValueError, match="stress_fields"):
+            ds.stress_fields(sol)
+        with pytest.raises(TypeError, match="Solution"):
+            ds.contact_summary(sol)
+    with pytest.raises(ValueError, match="goal"):
+        ds.solve_path(problem, lambda u, lam, m: lam * m.ds_contact, load_factors=[1.0])
     with pytest.raises(ValueError, match="finite-strain"):
         ds.solve_adaptive(problem, lambda u, lam, m: lam * m.ds_contact)
     with pytest.raises(ValueError, match="method"):
