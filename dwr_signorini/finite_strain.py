@@ -20,9 +20,10 @@ solves, with the Jacobian reassembled (UFL derivatives, the second derivative of
     [ -D_A B       D_I M  ] [dlam] = [ D_A G - D_I M lam ],   B_ij = G_i'(u)[phi_j],
 
 i.e. the linearised gap closes on A and lam = 0 off it. The distances are exact for
-:class:`~dwr_signorini.obstacles.Plane` and :class:`~dwr_signorini.obstacles.Sphere` (a disc
-in 2D); other obstacles are refused. Not covered yet (refused with a ValueError): friction,
-contact pairs, force control, plane stress, and the error estimate.
+:class:`~dwr_signorini.obstacles.Plane`, :class:`~dwr_signorini.obstacles.Sphere` (a disc
+in 2D) and :class:`~dwr_signorini.obstacles.Cylinder`; other gaps are refused. Not covered
+yet (refused with a ValueError): friction, contact pairs, force control, plane stress, and the
+error estimate.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from dolfinx.mesh import CellType
 from . import compat
 from .fields import lame_parameters
 from .lifetime import Releasable, destroy_attributes
-from .obstacles import Obstacle, Plane, Sphere
+from .obstacles import Cylinder, Obstacle, Plane, Sphere
 from .semismooth import ConvergenceError
 
 __all__ = [
@@ -57,17 +58,18 @@ MAX_CUTS = 6
 
 
 def check_obstacle(gap: Any) -> Obstacle:
-    """The rigid obstacle of a finite-strain problem's ``gap`` (Plane or Sphere).
+    """The rigid obstacle of a finite-strain problem's ``gap`` (Plane, Sphere or Cylinder).
 
     Raises:
         ValueError: Any other gap (a number, a callable, a gap per tag, another obstacle).
     """
-    if isinstance(gap, (Plane, Sphere)) and gap.force is None:
+    if isinstance(gap, (Plane, Sphere, Cylinder)) and gap.force is None:
         return gap
     raise ValueError(
-        "a finite-strain material needs gap=ds.obstacles.Plane(...) or ds.obstacles.Sphere(...) "
+        "a finite-strain material needs gap=ds.obstacles.Plane(...), Sphere(...) or Cylinder(...) "
         "(the signed distance of the deformed boundary to a rigid obstacle), got "
-        f"{gap!r}; numbers, callables, gaps per tag, Graph and Cylinder obstacles are not "
+        f"{gap!r}; numbers, callables, gaps per tag, Graph obstacles and obstacles under a given "
+        "force are not "
         "covered at finite strain yet"
     )
 
@@ -76,11 +78,17 @@ def signed_distance(obstacle: Obstacle, y: Any) -> Any:
     """The signed distance of the point ``y`` to the obstacle, positive outside, as UFL.
 
     Plane ``{(y - p) . n >= 0}``: d = (p - y) . n. Sphere (disc) of center c, radius r:
-    d = |y - c| - r.
+    d = |y - c| - r. Cylinder of axis point p, unit axis a, radius r: d = |w - (w . a) a| - r,
+    w = y - p.
     """
     if isinstance(obstacle, Plane):
         p = ufl.as_vector([float(c) for c in obstacle.point])
         return ufl.dot(p - y, ufl.as_vector([float(c) for c in obstacle.normal]))
+    if isinstance(obstacle, Cylinder):
+        a = ufl.as_vector([float(v) for v in obstacle.axis])
+        w = y - ufl.as_vector([float(v) for v in obstacle.point])
+        r = w - ufl.dot(w, a) * a
+        return ufl.sqrt(ufl.dot(r, r)) - float(obstacle.radius)
     c = ufl.as_vector([float(v) for v in obstacle.center])
     return ufl.sqrt(ufl.dot(y - c, y - c)) - float(obstacle.radius)
 

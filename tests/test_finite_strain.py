@@ -146,8 +146,8 @@ def test_homogeneous_compression_2d(law, c):
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("law", ["neo_hookean", "svk", "user"])
-def test_homogeneous_compression_3d(law):
-    c = 0.2
+@pytest.mark.parametrize("c", [0.2, 0.4], ids=["c20", "c40"])
+def test_homogeneous_compression_3d(law, c):
     a, lam_exact = exact_state(law, c, 3)
     problem = block_problem(MPI.COMM_WORLD, 3, c, MATERIALS[law](), n=1)
     with ds.solve(problem) as sol:
@@ -318,6 +318,30 @@ def test_disc_obstacle_newton_quadratic():
         for r0, r1 in itertools.pairwise(big):
             assert r1 < 10 * r0**2 or r1 < 1e-12
         # the active facets touch the disc: their gaps vanish to round-off
+        G = sol.system.residuals()[1]
+        n = sol.lam.function_space.dofmap.index_map.size_local
+        active = sol.lam.x.array[:n] > 0
+        assert comm.allreduce(float(np.max(np.abs(G[active]), initial=0.0)), op=MPI.MAX) < 1e-12
+
+
+@pytest.mark.mpi
+def test_cylinder_obstacle_newton_quadratic():
+    """A cube pressed onto a rigid cylinder (3D): quadratic Newton, active gaps closed."""
+    comm = MPI.COMM_WORLD
+    block = block_problem(comm, 3, 0.05, ds.NeoHookean(), n=2)
+    problem = ds.SignoriniProblem(
+        block.mesh, block.facet_tags, CONTACT,
+        dirichlet={TOP: (None, None, -0.05), SYM: (0.0, None, None), SYM2: (None, 0.0, None)},
+        E=E, nu=NU, material=ds.NeoHookean(),
+        gap=ds.obstacles.Cylinder([0.0, 0.0, -2.0], [0.0, 1.0, 0.0], 2.0),
+    )
+    with ds.solve(problem) as sol:
+        print_table(sol.history)
+        assert 0 < sol.num_active < sol.disc.num_contact_elements
+        settled = [h["residual_equilibrium"] for h in sol.history if h["num_changed"] == 0]
+        big = [r for r in settled if r > 1e-12]
+        for r0, r1 in itertools.pairwise(big):
+            assert r1 < 10 * r0**2 or r1 < 1e-12
         G = sol.system.residuals()[1]
         n = sol.lam.function_space.dofmap.index_map.size_local
         active = sol.lam.x.array[:n] > 0
