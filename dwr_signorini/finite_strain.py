@@ -45,6 +45,7 @@ from . import compat
 from .fields import lame_parameters
 from .lifetime import Releasable, destroy_attributes
 from .obstacles import Cylinder, Obstacle, Plane, Sphere
+from .quadrature import with_quadrature_degrees
 from .semismooth import ConvergenceError
 
 __all__ = [
@@ -111,7 +112,11 @@ class FiniteStrainSystem:
         E, nu = disc.fields.material(m.x)
         mu, lmbda = lame_parameters(E, nu, problem.model)
         simplex = disc.mesh.topology.cell_type in (CellType.triangle, CellType.tetrahedron)
-        dx = m.dx(metadata={"quadrature_degree": 2 if simplex else 4})
+        # P1 on simplices: P(F) is constant per cell for constant E, nu (degree 2 is exact);
+        # E or nu functions of x get the problem's data degree
+        varying = callable(problem.E) or callable(problem.nu)
+        degree = problem.quadrature_degree if varying or not simplex else 2
+        dx = m.dx(metadata={"quadrature_degree": degree})
         dsc = m.ds_contact(metadata={"quadrature_degree": problem.quadrature_degree})
         gdim = disc.mesh.geometry.dim
         F = ufl.variable(ufl.Identity(gdim) + ufl.grad(self.u))
@@ -123,7 +128,7 @@ class FiniteStrainSystem:
         )
         d = signed_distance(self.obstacle, m.x + self.u)
         internal = ufl.inner(P, ufl.grad(v)) * dx
-        load = self.t * disc.load_form(v)
+        load = self.t * with_quadrature_degrees(disc.load_form(v), problem.quadrature_degree)
         contact = -ufl.derivative(self.lam * d * dsc, self.u, v)
         residual = internal - load + contact
         gap = d * mu_q * dsc
