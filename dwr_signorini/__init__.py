@@ -12,6 +12,7 @@ from .adapt import solve_adaptive
 from .collective import CollectiveError
 from .estimator import Estimate, estimate
 from .laws import Coulomb, Frictionless, Tresca
+from .materials import Hyperelastic, LinearElastic, NeoHookean, SaintVenantKirchhoff
 from .mesh_io import read_mesh
 from .newton import Solution, solve
 from .pairs import ContactPair
@@ -42,9 +43,13 @@ __all__ = [
     "Discretization",
     "Estimate",
     "Frictionless",
+    "Hyperelastic",
     "LevelRecord",
+    "LinearElastic",
     "Measures",
+    "NeoHookean",
     "PathResult",
+    "SaintVenantKirchhoff",
     "SignoriniProblem",
     "Solution",
     "StepRecord",

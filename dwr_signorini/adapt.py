@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from . import finite_strain
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate
@@ -43,6 +44,8 @@ def _check_problem_and_goal(problem: Any, goal: Any, refinement: Any) -> None:
     """Check ``problem``, ``goal`` and ``refinement`` of :func:`solve_adaptive`."""
     if not isinstance(problem, SignoriniProblem):
         raise TypeError(f"problem must be a SignoriniProblem, got {type(problem).__name__}")
+    if problem.finite_strain:
+        finite_strain.refuse("solve_adaptive")
     if not callable(goal):
         raise TypeError(f"goal must be a callable goal(u, lam, m) -> ufl.Form, got {goal!r}")
     if refinement not in REFINEMENTS:

@@ -28,6 +28,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
+from .finite_strain import FiniteStrainSolution, refuse
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
@@ -461,6 +462,8 @@ def estimate(
         RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
             the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
+    if isinstance(sol, FiniteStrainSolution):
+        refuse("estimate")
     keywords = EstimateOptions(estimator, weights, petsc_options, quadrature_degree)
     if options is None:
         options = keywords

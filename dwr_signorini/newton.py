@@ -82,6 +82,7 @@ import numpy as np
 import ufl
 from dolfinx import fem, la
 
+from . import finite_strain
 from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
 from .force import ForceControl
@@ -273,10 +274,14 @@ def solve(
             :class:`~dwr_signorini.settings.SolverOptions`, instead of the keywords.
 
     Returns:
-        The :class:`Solution`.
+        The :class:`Solution`; for a finite-strain problem (a hyperelastic ``material``) a
+        :class:`~dwr_signorini.finite_strain.FiniteStrainSolution` (the full load in one
+        Newton solve, :mod:`dwr_signorini.finite_strain`).
 
     Raises:
-        TypeError, ValueError: Arguments of the wrong type or value, naming the argument.
+        TypeError, ValueError: Arguments of the wrong type or value, naming the argument
+            (for a finite-strain problem: ``petsc_options``, ``method`` and the compiler
+            options are not taken yet).
         ConvergenceError: No convergence in ``max_iterations`` steps, active-set cycling that
             the safeguard could not break, a failed linear solve, NaN/Inf in the data (loads,
             gap) or in an iterate; with the iteration history. Raised on every rank.
@@ -294,6 +299,8 @@ def solve(
         )
     _check_initial_guess(disc, initial_guess)
     check_options_on_ranks(disc.mesh, "solve", options, initial_guess=initial_guess is None)
+    if disc.problem.finite_strain:
+        return finite_strain.solve(disc, finite_strain.check_options(options), initial_guess)
     tic = time.perf_counter()
     sol = _solve(disc, initial_guess, options)
     _log_solution(sol, time.perf_counter() - tic)

@@ -45,6 +45,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from . import finite_strain
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate, estimate
@@ -178,6 +179,8 @@ def solve_path(
     verbose: bool = True,
     initial_guess: tuple[Any, ...] | None = None,
     history: bool | str | None = None,
+    *,
+    load_factors: Sequence[float] | None = None,
 ) -> PathResult:
     """Solve a quasi-static load path step by step, each step from the last (module docstring).
 
@@ -213,6 +216,11 @@ def solve_path(
             not estimated. Default: ``"last"`` on a path on one mesh with a frictional law,
             False with ``adaptive`` (not available there: the earlier steps live on other
             meshes) and for a frictionless law (its steps do not depend on the earlier ones).
+        load_factors: For a finite-strain problem (``problems`` one problem with a
+            hyperelastic ``material``, ``goal`` None): the increasing load factors t of its
+            loads and prescribed displacements; a failed step is halved and retried
+            (:func:`dwr_signorini.finite_strain.solve_path`, which returns a
+            :class:`~dwr_signorini.finite_strain.FiniteStrainPath`).
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -222,6 +230,10 @@ def solve_path(
         TypeError, ValueError: Bad arguments, naming them (before the first solve).
         ConvergenceError: As :func:`~dwr_signorini.solve`, on any step.
     """
+    if load_factors is not None or getattr(problems, "finite_strain", False):
+        return finite_strain.path_entry(
+            problems, goal, load_factors, ncp_scale, petsc_options, method, adaptive
+        )
     problems = _check_problems(problems)
     check_same_on_ranks(
         problems[0].mesh,

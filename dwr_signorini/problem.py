@@ -23,6 +23,7 @@ from ufl.domain import extract_unique_domain
 from .agreement import check_same_on_ranks
 from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
+from .materials import Material, check_material_law
 from .mesh_validation import check_cell_tags, check_mesh, check_projection_fits, check_tags
 from .obstacles import Obstacle
 from .pairs import ContactPair, check_contact_pairs, check_pair_bodies, check_pair_gap
@@ -71,6 +72,12 @@ class SignoriniProblem:
         E: Young's modulus, > 0: a number, a callable ``x -> UFL scalar`` (checked > 0 at the
             quadrature points), or ``{cell tag: number}`` with ``cell_tags``.
         nu: Poisson's ratio, in (-1, 0.5): as ``E``.
+        material: The material law (:mod:`dwr_signorini.materials`): ``None`` or
+            ``ds.LinearElastic()`` (the default, small strain), or a finite-strain law
+            (``ds.NeoHookean()``, ``ds.SaintVenantKirchhoff()``, ``ds.Hyperelastic(psi)``,
+            with the Lame parameters from ``E``, ``nu``): then the contact with the rigid
+            obstacle is measured in the deformed configuration
+            (:mod:`dwr_signorini.finite_strain`).
         model: ``"plane_strain"`` or ``"plane_stress"`` in 2D, ``"3d"`` in 3D; ``None`` picks
             plane strain in 2D and ``"3d"`` in 3D.
         body_force: Volume load f: ``None``, a constant sequence, or a callable ``x -> UFL vector``.
@@ -127,6 +134,7 @@ class SignoriniProblem:
         boundary_projection: Mapping[int, Callable[[np.ndarray], np.ndarray]] | None = None,
         friction: ContactLaw | None = None,
         quadrature_degree: int = DATA_QUADRATURE_DEGREE,
+        material: Material | None = None,
     ) -> None:
         check_mesh(mesh, facet_tags)
         check_same_on_ranks(
@@ -137,6 +145,7 @@ class SignoriniProblem:
                 "body_force": body_force, "traction": traction, "gap": gap,
                 "cell_tags": cell_tags is None, "boundary_projection": boundary_projection,
                 "friction": friction, "quadrature_degree": quadrature_degree,
+                "material": repr(material),
             },
             numeric=("boundary_projection",),
         )
@@ -177,6 +186,7 @@ class SignoriniProblem:
         check_pair_bodies(mesh, facet_tags, self.pairs)
         self.law = check_law(friction, self)
         self.friction = self.law if self.law.frictional else None
+        self.material_law = check_material_law(material, self)
         self._miss = _miss_gap(mesh, self.gap)  # collective: computed once, here
         self._frozen = True
 
@@ -204,6 +214,11 @@ class SignoriniProblem:
             not callable(v) and all(c in (None, 0.0) for c in v)
             for v in self.dirichlet_values.values()
         )
+
+    @property
+    def finite_strain(self) -> bool:
+        """Whether the material law is a finite-strain (hyperelastic) one."""
+        return self.material_law.finite_strain
 
     @property
     def homogeneous_material(self) -> bool:
@@ -359,6 +374,7 @@ class SignoriniProblem:
             boundary_projection=self.boundary_projection or None,
             friction=self.law if law is None else law,
             quadrature_degree=self.quadrature_degree,
+            material=self.material_law,
         )
 
 

@@ -55,7 +55,15 @@ def stress_fields(sol: Any) -> tuple[fem.Function, fem.Function]:
 
     Returns:
         ``(sigma, von_mises)``, named ``"sigma"`` (gdim x gdim) and ``"von_mises"``.
+
+    Raises:
+        ValueError: A finite-strain solution (its stress is not Hooke's law of u).
     """
+    if getattr(sol.disc.problem, "finite_strain", False):
+        from .finite_strain import refuse
+
+        refuse("stress_fields", "its stresses are P(F) and the Cauchy stress, not Hooke's law "
+               "of u, and are not provided as fields yet")
     disc = sol.disc
     msh = disc.mesh
     gdim = msh.geometry.dim

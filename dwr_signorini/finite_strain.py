@@ -1,0 +1,524 @@
+"""Finite strain: a hyperelastic body on a rigid obstacle, contact in the deformed configuration.
+
+With a hyperelastic law (:mod:`dwr_signorini.materials`) the problem is: find u in V_h (the
+prescribed values t u_D on Gamma_D at the load factor t) and lambda in Lambda_H (P0 on the macro
+facets of Gamma_C, a force per *reference* area) with
+
+    R(u, lam)[v] = int_Omega P(F(u)) : grad v dx - t l(v) - sum_i lam_i G_i'(u)[v] = 0,
+    C_i(u, lam) = M_i lam_i - max(0, M_i lam_i - c_i G_i(u)) = 0,
+
+where F = I + grad u, P = dpsi/dF, G_i(u) = int_{E_i} d(x + u(x)) ds the gap of macro facet E_i:
+the signed distance d of the deformed point x + u(x) to the obstacle (positive outside), M_i =
+|E_i| and c_i = E / H_i (``ncp_scale="physical"``) or a number. G_i'(u)[v] = int grad d(x + u) . v
+is the force along the obstacle's normal at the nearest point. This is the Lagrangian
+Pi(u) - sum_i lam_i G_i(u) with lam >= 0, G >= 0, lam G = 0.
+
+The semi-smooth Newton step at (u, lam) with the active set A = {i : M_i lam_i - c_i G_i > 0}
+solves, with the Jacobian reassembled (UFL derivatives, the second derivative of d included),
+
+    [ dR/du         -B^T  ] [du  ]   [ -R                ]
+    [ -D_A B       D_I M  ] [dlam] = [ D_A G - D_I M lam ],   B_ij = G_i'(u)[phi_j],
+
+i.e. the linearised gap closes on A and lam = 0 off it. The distances are exact for
+:class:`~dwr_signorini.obstacles.Plane`, :class:`~dwr_signorini.obstacles.Sphere` (a disc
+in 2D) and :class:`~dwr_signorini.obstacles.Cylinder`; other gaps are refused. Not covered
+yet (refused with a ValueError): friction, contact pairs, force control, plane stress, and the
+error estimate.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from dolfinx.mesh import CellType
+
+from . import compat
+from .fields import lame_parameters
+from .lifetime import Releasable, destroy_attributes
+from .obstacles import Cylinder, Obstacle, Plane, Sphere
+from .quadrature import with_quadrature_degrees
+from .semismooth import ConvergenceError
+
+__all__ = [
+    "FiniteStrainPath", "FiniteStrainSolution", "check_obstacle", "check_options", "refuse",
+    "signed_distance", "solve", "solve_path"]
+
+logger = logging.getLogger("dwr_signorini.newton")
+
+#: The most halvings of one load step of :func:`solve_path` before it gives up.
+MAX_CUTS = 6
+
+
+def check_obstacle(gap: Any) -> Obstacle:
+    """The rigid obstacle of a finite-strain problem's ``gap`` (Plane, Sphere or Cylinder).
+
+    Raises:
+        ValueError: Any other gap (a number, a callable, a gap per tag, another obstacle).
+    """
+    if isinstance(gap, (Plane, Sphere, Cylinder)) and gap.force is None:
+        return gap
+    raise ValueError(
+        "a finite-strain material needs gap=ds.obstacles.Plane(...), Sphere(...) or Cylinder(...) "
+        "(the signed distance of the deformed boundary to a rigid obstacle), got "
+        f"{gap!r}; numbers, callables, gaps per tag, Graph obstacles and obstacles under a given "
+        "force are not "
+        "covered at finite strain yet"
+    )
+
+
+def signed_distance(obstacle: Obstacle, y: Any) -> Any:
+    """The signed distance of the point ``y`` to the obstacle, positive outside, as UFL.
+
+    Plane ``{(y - p) . n >= 0}``: d = (p - y) . n. Sphere (disc) of center c, radius r:
+    d = |y - c| - r. Cylinder of axis point p, unit axis a, radius r: d = |w - (w . a) a| - r,
+    w = y - p.
+    """
+    if isinstance(obstacle, Plane):
+        p = ufl.as_vector([float(c) for c in obstacle.point])
+        return ufl.dot(p - y, ufl.as_vector([float(c) for c in obstacle.normal]))
+    if isinstance(obstacle, Cylinder):
+        a = ufl.as_vector([float(v) for v in obstacle.axis])
+        w = y - ufl.as_vector([float(v) for v in obstacle.point])
+        r = w - ufl.dot(w, a) * a
+        return ufl.sqrt(ufl.dot(r, r)) - float(obstacle.radius)
+    c = ufl.as_vector([float(v) for v in obstacle.center])
+    return ufl.sqrt(ufl.dot(y - c, y - c)) - float(obstacle.radius)
+
+
+class FiniteStrainSystem:
+    """The forms of the finite-strain Newton step on a discretisation (module docstring)."""
+
+    algebra = None  # the linear path's ContactAlgebra: none here
+
+    def __init__(self, disc: Any, ncp_scale: str | float = "physical") -> None:
+        self.disc = disc
+        problem = disc.problem
+        self.obstacle = check_obstacle(problem.gap)
+        V, Q, m = disc.V, disc.Q, disc.m
+        self.u = fem.Function(V, name="u")
+        self.lam = fem.Function(Q, name="lambda")
+        self.t = fem.Constant(disc.mesh, 1.0)
+        v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
+        mu_q = ufl.TestFunction(Q)
+        E, nu = disc.fields.material(m.x)
+        mu, lmbda = lame_parameters(E, nu, problem.model)
+        simplex = disc.mesh.topology.cell_type in (CellType.triangle, CellType.tetrahedron)
+        # P1 on simplices: P(F) is constant per cell for constant E, nu (degree 2 is exact);
+        # E or nu functions of x get the problem's data degree
+        varying = callable(problem.E) or callable(problem.nu)
+        degree = problem.quadrature_degree if varying or not simplex else 2
+        dx = m.dx(metadata={"quadrature_degree": degree})
+        dsc = m.ds_contact(metadata={"quadrature_degree": problem.quadrature_degree})
+        gdim = disc.mesh.geometry.dim
+        F = ufl.variable(ufl.Identity(gdim) + ufl.grad(self.u))
+        P = problem.material_law.first_piola(F, mu, lmbda)
+        self._J_cells = fem.Function(fem.functionspace(disc.mesh, ("DG", 0)))
+        self._J_expr = fem.Expression(
+            ufl.det(ufl.Identity(gdim) + ufl.grad(self.u)),
+            compat.interpolation_points(self._J_cells.function_space.element),
+        )
+        d = signed_distance(self.obstacle, m.x + self.u)
+        internal = ufl.inner(P, ufl.grad(v)) * dx
+        load = self.t * with_quadrature_degrees(disc.load_form(v), problem.quadrature_degree)
+        contact = -ufl.derivative(self.lam * d * dsc, self.u, v)
+        residual = internal - load + contact
+        gap = d * mu_q * dsc
+        coupling = ufl.derivative(gap, self.u, du)
+        self.forms = {
+            name: disc.form(f) for name, f in {
+                "internal": internal, "load": load, "contact": contact,
+                "J": ufl.derivative(residual, self.u, du),
+                "B": coupling, "BT": -ufl.adjoint(coupling), "G": gap,
+                "M": mu_q * m.ds_contact, "E": E * mu_q * m.ds_contact,
+            }.items()
+        }
+        self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        self.n_q = Q.dofmap.index_map.size_local
+        self.M = self._owned("M")
+        size = self.M if gdim == 2 else np.sqrt(self.M)
+        if ncp_scale == "physical":
+            self.c = np.divide(self._owned("E"), self.M * size, out=np.ones_like(self.M),
+                               where=self.M > 0)
+        else:
+            self.c = np.full(self.n_q, float(ncp_scale))
+        self.u_D = np.zeros_like(self.u.x.array)
+        for bc in disc.prescribed_bcs:
+            bc.set(self.u_D)
+        self.ksp = PETSc.KSP().create(disc.comm)
+        self.ksp.setType("preonly")
+        self.ksp.getPC().setType("lu")
+        self.ksp.getPC().setFactorSolverType("mumps")
+        self._J: PETSc.Mat | None = None
+
+    def destroy(self) -> None:
+        """Release the PETSc objects (collective; idempotent)."""
+        destroy_attributes(self, ("ksp", "_J"))
+
+    def _owned(self, name: str) -> np.ndarray:
+        """The owned entries of the assembled vector of form ``name``."""
+        vec = fem_petsc.assemble_vector(self.forms[name])
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = vec.array_r[: len(vec.array_r)].copy()
+        vec.destroy()
+        return out
+
+    def set_load(self, t: float) -> None:
+        """The load factor t: loads t l, prescribed values t u_D (reached by the next step)."""
+        self.t.value = t
+        self.target = t * self.u_D
+
+    def increment(self) -> np.ndarray:
+        """The owned displacement increment the prescribed values ask for (0 off Gamma_D)."""
+        w = np.zeros(self.n_u)
+        for bc in self.disc.bcs:
+            dofs, ghost = bc.dof_indices()
+            w[dofs[:ghost]] = self.target[dofs[:ghost]] - self.u.x.array[dofs[:ghost]]
+        return w
+
+    def update(self, du: np.ndarray, dlam: np.ndarray) -> None:
+        """(u, lam) += (du, dlam); the prescribed values exactly as set (no round-off)."""
+        self.u.x.array[: self.n_u] += du
+        self.lam.x.array[: self.n_q] += dlam
+        for bc in self.disc.bcs:
+            dofs = bc.dof_indices()[0]
+            self.u.x.array[dofs] = self.target[dofs]
+        self.u.x.scatter_forward()
+        self.lam.x.scatter_forward()
+
+    def min_det_F(self) -> float:
+        """The smallest det F over the cells' midpoints, on all ranks (collective)."""
+        self._J_cells.interpolate(self._J_expr)
+        n = self._J_cells.function_space.dofmap.index_map.size_local
+        local = float(np.min(self._J_cells.x.array[:n], initial=np.inf))
+        return self.disc.comm.allreduce(local, op=MPI.MIN)
+
+    def residuals(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """R (owned, zero on the Dirichlet rows), G (owned) and the size of R's terms."""
+        parts = [self._owned(k) for k in ("internal", "load", "contact")]
+        R = parts[0] - parts[1] + parts[2]
+        for bc in self.disc.bcs:
+            dofs, ghost = bc.dof_indices()
+            R[dofs[:ghost]] = 0.0
+        comm = self.disc.comm
+        scale = max(np.sqrt(comm.allreduce(float(p @ p), op=MPI.SUM)) for p in parts)
+        return R, self._owned("G"), max(scale, 1e-300)
+
+    def step(self, active: np.ndarray, R: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The Newton update (du, dlam) of the set ``active`` (owned rows), module docstring.
+
+        The step also moves the prescribed dofs to their values (the increment w on Gamma_D,
+        lifted: J w and B w enter the right-hand side), so that a load step does not distort
+        the cells at Gamma_D before the first solve.
+        """
+        comm = self.disc.comm
+        w = self.increment()
+        rhs_u, rhs_lam = -R, np.where(active, G, -self.M * self.lam.x.array[: self.n_q])
+        if comm.allreduce(bool(np.any(w != 0.0)), op=MPI.LOR):
+            lift_u, lift_lam = self._lifting(w)
+            rhs_u = rhs_u - lift_u
+            rhs_lam = np.where(active, rhs_lam + lift_lam, rhs_lam)
+            on_bc = w != 0.0
+            for bc in self.disc.bcs:
+                dofs, ghost = bc.dof_indices()
+                on_bc[dofs[:ghost]] = True
+            rhs_u[on_bc] = w[on_bc]
+        blocks = {k: self._matrix(k) for k in ("J", "B", "BT")}
+        scale = blocks["B"].createVecLeft()
+        scale.array_w[:] = -active.astype(float)
+        blocks["B"].diagonalScale(L=scale)
+        D = PETSc.Mat().createAIJ(((self.n_q, None), (self.n_q, None)), nnz=1, comm=comm)
+        scale.array_w[:] = np.where(active, 0.0, self.M)
+        D.setDiagonal(scale)
+        D.assemble()
+        nest = PETSc.Mat().createNest([[blocks["J"], blocks["BT"]], [blocks["B"], D]], comm=comm)
+        if self._J is not None:
+            self._J.destroy()
+        self._J = nest.convert("aij")
+        self.ksp.setOperators(self._J)
+        rhs = self._J.createVecLeft()
+        rhs.array_w[:] = np.concatenate([rhs_u, rhs_lam])
+        x = rhs.duplicate()
+        self.ksp.solve(rhs, x)
+        out = x.array_r.copy()
+        for obj in (*blocks.values(), D, nest, scale, rhs, x):
+            obj.destroy()
+        return out[: self.n_u], out[self.n_u:]
+
+    def _matrix(self, name: str, bcs: bool = True) -> PETSc.Mat:
+        A = fem_petsc.assemble_matrix(self.forms[name], bcs=self.disc.bcs if bcs else [])
+        A.assemble()
+        return A
+
+    def _lifting(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """J w and B w (owned rows) of the increment ``w`` on Gamma_D."""
+        J, B = self._matrix("J", bcs=False), self._matrix("B", bcs=False)
+        wv = J.createVecRight()
+        wv.array_w[:] = w
+        Jw, Bw = J.createVecLeft(), B.createVecLeft()
+        J.mult(wv, Jw)
+        B.mult(wv, Bw)
+        out = Jw.array_r.copy(), Bw.array_r.copy()
+        for obj in (J, B, wv, Jw, Bw):
+            obj.destroy()
+        return out
+
+
+@dataclass
+class FiniteStrainSolution(Releasable):
+    """A finite-strain solution (the fields of :class:`~dwr_signorini.Solution` it has).
+
+    Attributes:
+        u: Displacement on V_h.
+        lam: Normal contact force per reference area on Lambda_H.
+        active: The active set (owned multiplier rows).
+        newton_iterations: Newton steps of the last solve.
+        history: One record per iteration (residuals, active-set size and changes).
+        disc: The discretisation.
+        system: The :class:`FiniteStrainSystem` (release with :meth:`destroy`).
+        load_factor: The load factor t of the state.
+    """
+
+    u: fem.Function
+    lam: fem.Function
+    active: np.ndarray
+    newton_iterations: int
+    history: list[dict[str, Any]]
+    disc: Any
+    system: FiniteStrainSystem = field(repr=False)
+    load_factor: float = 1.0
+
+    @property
+    def num_active(self) -> int:
+        """Global number of active macro contact facets (collective)."""
+        return self.disc.comm.allreduce(int(self.active.sum()), op=MPI.SUM)
+
+    def destroy(self) -> None:
+        """Release the Newton system (collective)."""
+        self.system.destroy()
+
+
+def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: float
+           ) -> list[dict[str, Any]]:
+    """Semi-smooth Newton at load factor ``t`` from the system's current (u, lam).
+
+    Converged when the active set repeats and both residuals (equilibrium relative to its
+    terms, the NCP relative to M lam and c G per row) are below ``rtol``.
+
+    Raises:
+        ConvergenceError: No convergence in ``max_iterations`` steps, NaN/Inf, or a set cycle.
+    """
+    comm, n_q = system.disc.comm, system.n_q
+    system.set_load(t)
+    history: list[dict[str, Any]] = []
+    previous, seen = None, set()
+    for it in range(max_iterations + 1):
+        R, G, scale = system.residuals()
+        Mlam = system.M * system.lam.x.array[:n_q]
+        cG = system.c * G
+        u_max = comm.allreduce(float(np.max(np.abs(system.u.x.array), initial=0.0)), op=MPI.MAX)
+        noise = 1e-10 * (comm.allreduce(float(np.max(np.abs(Mlam), initial=0.0)), op=MPI.MAX)
+                         + system.c * system.M * u_max)
+        active = Mlam - cG > noise
+        ncp = np.abs(Mlam - np.maximum(0.0, Mlam - cG))
+        size = np.maximum(np.abs(Mlam), np.abs(cG)) + noise
+        record = {
+            "iteration": it,
+            "num_active": comm.allreduce(int(active.sum()), op=MPI.SUM),
+            "num_changed": comm.allreduce(
+                int(active.size if previous is None else (active != previous).sum()), op=MPI.SUM),
+            "residual_equilibrium": np.sqrt(comm.allreduce(float(R @ R), op=MPI.SUM)) / scale,
+            "residual_ncp": comm.allreduce(float(np.max(
+                np.divide(ncp, size, out=np.zeros_like(ncp), where=size > 0), initial=0.0)),
+                op=MPI.MAX),
+        }
+        history.append(record)
+        logger.info("finite strain t=%g Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
+                    t, it, record["num_active"], record["num_changed"],
+                    record["residual_equilibrium"], record["residual_ncp"])
+        if not all(np.isfinite([record["residual_equilibrium"], record["residual_ncp"]])):
+            raise ConvergenceError(f"NaN or Inf at Newton step {it} (J = det F <= 0?)", history)
+        settled = not comm.allreduce(bool(np.any(system.increment() != 0.0)), op=MPI.LOR)
+        if (settled and record["num_changed"] == 0 and record["residual_equilibrium"] <= rtol
+                and record["residual_ncp"] <= rtol):
+            if system.min_det_F() <= 0.0:  # an inverted cell: no physical state
+                raise ConvergenceError(
+                    f"finite strain: Newton converged to a state with det F <= 0 in a cell at "
+                    f"load factor {t:g} (an inverted configuration; smaller load steps)", history)
+            return history
+        if it == max_iterations:
+            raise ConvergenceError(
+                f"finite strain: no convergence in max_iterations={max_iterations} Newton steps "
+                "(ds.solve_path with smaller load steps)", history)
+        key = tuple(comm.allgather(bytes(np.packbits(active))))  # the global set
+        if record["num_changed"] > 0 and key in seen:
+            raise ConvergenceError(f"finite strain: active-set cycling at step {it}", history)
+        seen.add(key)
+        du, dlam = system.step(active, R, G)
+        if not comm.allreduce(bool(np.all(np.isfinite(du)) and np.all(np.isfinite(dlam))),
+                              op=MPI.LAND):
+            raise ConvergenceError(f"NaN or Inf in the Newton update of step {it}", history)
+        system.update(du, dlam)
+        previous = active
+    raise AssertionError("unreachable")
+
+
+def check_options(options: Any) -> Any:
+    """``options`` of :func:`~dwr_signorini.solve` that the finite-strain Newton method takes.
+
+    It factors its Jacobian with MUMPS in every step: ``petsc_options``, ``method`` and the
+    form compiler options are refused rather than ignored.
+
+    Raises:
+        ValueError: Any of these given.
+    """
+    given = [k for k in ("petsc_options", "method", "form_compiler_options", "jit_options")
+             if getattr(options, k) is not None]
+    if given:
+        raise ValueError(
+            f"{', '.join(given)}: not taken by the finite-strain Newton method yet (its "
+            "Jacobian is factored with MUMPS in every step); leave them unset"
+        )
+    return options
+
+
+def refuse(what: str, reason: str = "") -> None:
+    """Raise the error of a function that does not take finite-strain problems yet.
+
+    Args:
+        what: The function (or combination) refused.
+        reason: Why; default: the error estimate with the nonlinear residuals is missing.
+
+    Raises:
+        ValueError: Always, naming ``what``.
+    """
+    reason = reason or (
+        "the error estimate with the nonlinear residuals is not implemented; use ds.solve or "
+        "ds.solve_path(problem, None, load_factors=...)"
+    )
+    raise ValueError(
+        f"{what} does not take a finite-strain problem (material=NeoHookean/"
+        f"SaintVenantKirchhoff/Hyperelastic) yet: {reason}"
+    )
+
+
+def solve(disc: Any, options: Any, initial_guess: Any = None) -> FiniteStrainSolution:
+    """:func:`dwr_signorini.solve` for a finite-strain problem (the full load in one step)."""
+    system = FiniteStrainSystem(disc, options.ncp_scale)
+    try:
+        if initial_guess is not None:
+            system.u.x.array[:] = initial_guess[0].x.array
+            system.lam.x.array[:] = initial_guess[1].x.array
+        history = newton(system, 1.0, options.max_iterations, options.rtol)
+    except BaseException:
+        system.destroy()
+        raise
+    return _solution(system, history, 1.0)
+
+
+def _solution(system: FiniteStrainSystem, history: list[dict[str, Any]], t: float
+              ) -> FiniteStrainSolution:
+    n_q = system.n_q
+    u = fem.Function(system.disc.V, name="u")
+    lam = fem.Function(system.disc.Q, name="lambda")
+    u.x.array[:] = system.u.x.array
+    lam.x.array[:] = system.lam.x.array
+    active = system.lam.x.array[:n_q] > 0.0
+    return FiniteStrainSolution(u, lam, active, len(history) - 1, history, system.disc,
+                                system, t)
+
+
+@dataclass
+class FiniteStrainPath(Releasable):
+    """The states of :func:`solve_path` on a finite-strain problem.
+
+    Attributes:
+        solutions: One :class:`FiniteStrainSolution` per requested load factor.
+        factors: The requested load factors.
+        cuts: The load factors at which a step failed and was halved (in order).
+        steps: Every load factor solved, the intermediate ones of halved steps included.
+    """
+
+    solutions: list[FiniteStrainSolution]
+    factors: list[float]
+    cuts: list[float] = field(default_factory=list)
+    steps: list[float] = field(default_factory=list)
+
+    def destroy(self) -> None:
+        """Release the Newton system (collective)."""
+        if self.solutions:
+            self.solutions[0].system.destroy()
+
+
+def solve_path(problem: Any, load_factors: Any, options: Any, max_cuts: int = MAX_CUTS
+               ) -> FiniteStrainPath:
+    """Solve a finite-strain problem over increasing load factors t (loads t l, t u_D).
+
+    Each step starts from the last converged state; a step whose Newton method fails
+    (:class:`~dwr_signorini.ConvergenceError`) is halved and retried from that state, at most
+    ``max_cuts`` times per requested factor; the factors where a step was cut are reported.
+
+    Raises:
+        ValueError: Load factors not increasing in (0, inf).
+        ConvergenceError: A step still failing after ``max_cuts`` halvings.
+    """
+    from .spaces import discretize
+
+    factors = [float(t) for t in load_factors]
+    if not factors or any(b <= a for a, b in zip([0.0, *factors], factors, strict=False)):
+        raise ValueError(f"load_factors must increase from above 0, got {load_factors!r}")
+    system = FiniteStrainSystem(discretize(problem), options.ncp_scale)
+    path = FiniteStrainPath([], factors)
+    done = 0.0
+    try:
+        for target in factors:
+            cuts, h = 0, target - done
+            while done < target:
+                t = min(target, done + h / 2 ** cuts)
+                saved = system.u.x.array.copy(), system.lam.x.array.copy()
+                try:
+                    history = newton(system, t, options.max_iterations, options.rtol)
+                except ConvergenceError:
+                    system.u.x.array[:], system.lam.x.array[:] = saved
+                    cuts += 1
+                    path.cuts.append(t)
+                    if cuts > max_cuts:
+                        raise
+                    continue
+                path.steps.append(t)
+                done = t
+            path.solutions.append(_solution(system, history, target))
+    except BaseException:
+        system.destroy()
+        raise
+    return path
+
+
+def path_entry(problem: Any, goal: Any, load_factors: Any, ncp_scale: Any, petsc_options: Any,
+               method: Any, adaptive: bool) -> FiniteStrainPath:
+    """:func:`dwr_signorini.solve_path` with ``load_factors``: checks, then :func:`solve_path`.
+
+    Raises:
+        ValueError: ``problems`` not one finite-strain problem, no ``load_factors``, a goal
+            (not estimated at finite strain yet) or ``adaptive``.
+    """
+    from .settings import SolverOptions
+
+    if not getattr(problem, "finite_strain", False) or load_factors is None:
+        raise ValueError(
+            "solve_path(problem, None, load_factors=[...]) takes one finite-strain problem "
+            "(a hyperelastic material) and its load factors; a linear path is a sequence of "
+            "problems without load_factors"
+        )
+    if goal is not None or adaptive:
+        refuse("solve_path with a goal or adaptive=True")
+    options = check_options(SolverOptions(petsc_options, method, ncp_scale))
+    return solve_path(problem, load_factors, options)
