@@ -147,7 +147,7 @@ def _solve_dual(
         if force is None:
             system.solve_transpose(rhs, z)
         else:  # the bordered system's dual (dwr_signorini.force)
-            force.solve_transpose(rhs, z, force.goal_rate(goal.value))
+            force.solve_transpose(rhs, z, goal.rate(system.disc.fields.obstacle_displacement))
     y = fem.Function(system.V, name="y")
     y.x.array[: system.n_u] = z.array_r[: system.n_u]
     y.x.scatter_forward()
