@@ -343,7 +343,8 @@ def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution, rtol: 
     _finite(sol, out)
     xi1 = out[p2.n2 :]
     xi2 = sol.multiplier_functions(np.where(system.active, xi1 / system.c_n, xi1), "xi2")
-    return DualSolution(p2.function(out, "y2"), *xi2)
+    return DualSolution(p2.function(out, "y2"), *xi2,
+                        zeta=None if force is None else force.zeta)
 
 
 def _forward(

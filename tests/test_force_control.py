@@ -103,10 +103,48 @@ def test_dual_of_the_bordered_system(J_goal):
         assert abs(zeta * F) > 1e-3 * abs(J)  # the obstacle's entry contributes
 
 
-def test_estimate_takes_patch_weights_only():
+def p2_solutions(sol, J_goal, kind):
+    """The P2 dual and primal of the weights ``kind`` for the final active set."""
+    from dwr_signorini.dual import solve_dual
+    from dwr_signorini.estimator import _higher_order_solutions
+    from dwr_signorini.goal import GoalForms
+    from dwr_signorini.hierarchical import hierarchical_solutions
+    from dwr_signorini.reconstruction import Reconstructor
+
+    forms = GoalForms(J_goal, sol.u, sol.lam, sol.disc)
+    rec = Reconstructor(sol.disc)
+    if kind == "higher_order":
+        z2, w2 = _higher_order_solutions(sol, forms, rec, True, None)
+    else:  # to a tight tolerance, so that the identity holds to it
+        z = solve_dual(sol.system, forms)
+        z2, w2 = hierarchical_solutions(sol, forms, z, rec.V2h, True, rtol=1e-11)
+    return rec, z2, w2
+
+
+@pytest.mark.parametrize("kind", ["higher_order", "hierarchical"])
+def test_dual_of_the_bordered_p2_system(kind):
+    """The P2 weights' bordered systems: J(w^(2)) = z^(2) . r_2 + zeta_2 F for a goal linear in
+    (u, lambda), r_2 = [f_2; -g_hat on A] the P2 system's right-hand side at the final set, as
+    for the P1 dual; and w^(2)'s multipliers balance F."""
+    from dwr_signorini.algebra import ContactAlgebra
+
     with ds.solve(punch(ob.Plane((0.0, 0.0), (0.0, -1.0), force=F))) as sol:
-        with pytest.raises(ValueError, match="weights='patch'"):
-            ds.estimate(sol, goal, weights="higher_order")
+        rec, z2, w2 = p2_solutions(sol, goal, kind)
+        alg = ContactAlgebra(sol.disc, rec.V2h, sol.ncp_scale)
+        try:
+            g_hat = alg.g.array - alg.gap_rate * sol.obstacle_displacement
+            F_lam = np.where(sol.active, -sol.system.c_n * g_hat, 0.0)
+            n_u, n_lam = alg.n_u, sol.system.n_lam
+            y, xi = z2.y.x.array[:n_u], z2.xi.x.array[:n_lam]
+            identity = global_sum(y @ alg.f.array + xi @ F_lam) + z2.zeta * F
+        finally:
+            alg.destroy()
+            rec.destroy()
+        u2, (lam2,) = w2
+        J2 = integrate(sol, goal(u2, lam2, sol.disc.m))
+        assert identity == pytest.approx(J2, rel=1e-8)
+        assert integrate(sol, lam2 * sol.disc.m.ds_contact) == pytest.approx(F, rel=1e-8)
+        assert abs(z2.zeta * F) > 1e-3 * abs(J2)
 
 
 def test_hertz_line_contact_under_a_given_force():
