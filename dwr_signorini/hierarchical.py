@@ -53,6 +53,10 @@ __all__ = ["HIERARCHICAL_RTOL", "hierarchical_solutions"]
 #: Relative residual of the P2 systems at which ``weights="hierarchical"`` stops.
 HIERARCHICAL_RTOL = 1e-3
 
+#: The bordered systems of an obstacle under a given force solve each of their P2 systems to
+#: this fraction of the tolerance: z = z1 - zeta z2 (:mod:`~dwr_signorini.force`) may cancel.
+BORDERED_RTOL_FACTOR = 0.1
+
 #: Relative to the right-hand side: a residual of w_h below it counts as solved (round-off).
 ROUNDOFF = 1e-12
 
@@ -402,6 +406,7 @@ def _solutions(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution, p
     """The P2 dual (and primal), bordered where an obstacle is under a given force."""
     if sol.obstacle_displacement is None:
         return _dual(p2, sol, goal, z, rtol), _primal(p2, sol, rtol) if primal else None
+    rtol = BORDERED_RTOL_FACTOR * rtol
     bordered = _Bordered(p2, rtol)
     force = ForceControl(bordered, move=False)
     try:
