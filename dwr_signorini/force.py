@@ -56,13 +56,6 @@ __all__ = ["ForceControl"]
 class ForceControl:
     """The bordered Newton steps of a force-controlled obstacle (module docstring).
 
-    The same logic borders any system of the same layout: the Newton system of the primal
-    problem (block path), the P2 system of the factored higher-order weights (a Newton system
-    on the P2 space) and the two-level P2 system of the hierarchical weights
-    (:mod:`~dwr_signorini.hierarchical`). What it reads off ``system``: ``disc``, ``algebra``
-    (f, g, n_q, gap_rate, resultant, set_obstacle_displacement), the block vector ``x``,
-    ``split`` and ``solve_transpose``.
-
     Args:
         system: The system it borders.
         move: Whether a step moves the obstacle to the new delta (the gap reassembled, the
@@ -74,6 +67,13 @@ class ForceControl:
         change: The change of delta in the last step (its absolute value).
         x2: The response of the last step's system to a unit delta (block vector).
         zeta: The dual's entry for delta of the last dual solve (None before one).
+
+    The same logic borders any system of the same layout: the Newton system of the primal
+    problem (block path), the P2 system of the factored higher-order weights (a Newton system
+    on the P2 space) and the two-level P2 system of the hierarchical weights
+    (:mod:`~dwr_signorini.hierarchical`). What it reads off ``system``: ``disc``, ``algebra``
+    (f, g, n_q, gap_rate, resultant, set_obstacle_displacement), the block vector ``x``,
+    ``split`` and ``solve_transpose``.
     """
 
     def __init__(self, system: NewtonLinearSystem, move: bool = True) -> None:
