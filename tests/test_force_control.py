@@ -172,6 +172,21 @@ def test_hertz_line_contact_under_a_given_force():
     assert p_h == pytest.approx(p0, rel=0.015)
 
 
+def test_p2_weights_agree_on_a_curved_obstacle():
+    """A disc under a given force (its normal turns with delta): the two P2 solvers of the
+    bordered systems, factored and two-level, give the same estimate to the iteration's
+    tolerance (measured 2e-5) for a goal nonlinear in delta; "auto" runs."""
+    msh, tags = block(COMM, 8, 8)
+    disc = ob.Sphere((0.5, -2.0), 2.0, force=F, direction=(0.0, 1.0))
+    with ds.solve(make(msh, tags, gap=disc, E=1.0)) as sol:
+        etas = {}
+        for kind in ("hierarchical", "higher_order", "auto"):
+            with ds.estimate(sol, goal_nonlinear_in_delta, weights=kind) as est:
+                etas[kind] = est.eta
+        assert etas["hierarchical"] == pytest.approx(etas["higher_order"], rel=1e-3)
+        assert np.isfinite(etas["auto"])
+
+
 def hertz_2d(level):
     """The quarter disc of ``meshes/hertz_2d.py`` (R = 8, E = 200, nu = 0.3, top clamped,
     symmetry x = 0) pressed by a rigid flat under half of P = 10 per unit length, its mesh
