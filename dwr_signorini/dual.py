@@ -49,12 +49,17 @@ __all__ = ["DualSolution", "dual_rhs", "solve_dual"]
 
 @dataclass
 class DualSolution:
-    """z_h = (y_h, xi_H), the discrete dual solution (and xi_t, or xi_t1, xi_t2, with friction)."""
+    """z_h = (y_h, xi_H), the discrete dual solution (and xi_t, or xi_t1, xi_t2, with friction).
+
+    ``zeta`` is the dual's entry for the displacement of an obstacle under a given force (the
+    bordered system's, :mod:`~dwr_signorini.force`), else None.
+    """
 
     y: fem.Function
     xi: fem.Function
     xi_t: fem.Function | None = None
     xi_t2: fem.Function | None = None
+    zeta: float | None = None
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
@@ -147,7 +152,7 @@ def _solve_dual(
         if force is None:
             system.solve_transpose(rhs, z)
         else:  # the bordered system's dual (dwr_signorini.force)
-            force.solve_transpose(rhs, z, force.goal_rate(goal.value))
+            force.solve_transpose(rhs, z, goal.rate(system.disc.fields.obstacle_displacement))
     y = fem.Function(system.V, name="y")
     y.x.array[: system.n_u] = z.array_r[: system.n_u]
     y.x.scatter_forward()
@@ -165,4 +170,7 @@ def _solve_dual(
     finite = bool(np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi_all)))
     if not system.disc.comm.allreduce(finite, op=MPI.LAND):
         raise RuntimeError("NaN or Inf in the dual solution")
-    return DualSolution(y, *xis)
+    out = DualSolution(y, *xis)
+    if force is not None:
+        out.zeta = force.zeta
+    return out

@@ -29,6 +29,7 @@ from dolfinx.fem import petsc as fem_petsc
 from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
 from .finite_strain import FiniteStrainSolution, refuse
+from .force import ForceControl
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
@@ -235,11 +236,19 @@ def _higher_order_solutions(
             prefix=sol.system.prefix + "p2_",
             ncp_scale=sol.ncp_scale,
         )
+    force = None
     try:
         with timed("higher-order solve"):
-            system2.solve_active(
-                sol.system.active, sol.system.free, sol.system.couplings
-            )
+            active, couplings = sol.system.active, sol.system.couplings
+
+            def solve(act: np.ndarray, free: np.ndarray) -> None:
+                system2.solve_active(act, free, couplings)
+
+            if sol.obstacle_displacement is None:
+                solve(active, sol.system.free)
+            else:  # the bordered P2 system at w_h's delta (dwr_signorini.force)
+                force = system2.force_control = ForceControl(system2, move=False)
+                force.step(solve, active, sol.system.free)
             z2 = solve_dual(system2, goal)
         w2 = None
         if primal:
@@ -249,6 +258,8 @@ def _higher_order_solutions(
             u2.x.scatter_forward()
             w2 = (u2, sol.multiplier_functions(lam_arr, "lambda2"))
     finally:
+        if force is not None:
+            force.destroy()
         system2.destroy()
     return z2, w2
 
@@ -457,8 +468,7 @@ def estimate(
         TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution`, or ``goal`` is not
             callable or does not return a UFL form.
         ValueError: For an unknown ``estimator`` or ``weights``, or a goal that is not a scalar
-            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``; weights other
-            than ``"patch"`` with an obstacle under a given force.
+            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``.
         RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
             the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
@@ -484,12 +494,6 @@ def estimate(
     check_options_on_ranks(sol.disc.mesh, "estimate", options)
     if model_error is not None:
         check_richer(sol.disc.problem, model_error)
-    if sol.obstacle_displacement is not None and options.weights != "patch":
-        raise ValueError(
-            f"weights={options.weights!r}: with an obstacle under a given force the estimate "
-            "takes weights='patch' (the P2 solves of the other weights know no obstacle "
-            "displacement)"
-        )
     goal_forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.tangential or None)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)

@@ -35,7 +35,10 @@ The dual problem is the transposed bordered system (:meth:`ForceControl.solve_tr
 A^T z1 = j and A^T z2 = c, zeta = (x2 . j + j_delta) / (x2 . c) and z = z1 - zeta z2 (as
 b = -A x2, b^T z = -x2 . A^T z); a goal J(w_h) linear in (u, lam) then satisfies
 J = z . r + zeta F with the final set. A goal may use delta (``m.obstacle_displacement``);
-j_delta = dJ/ddelta is its central difference (:meth:`ForceControl.goal_rate`).
+j_delta = dJ/ddelta is differentiated by UFL (:meth:`~dwr_signorini.goal.GoalForms.rate`).
+
+The P2 weights of the estimate (``weights="higher_order"``, ``"hierarchical"``) solve the same
+bordered systems in P2 with the final active set, at w_h's delta (``move=False``).
 """
 
 from __future__ import annotations
@@ -54,17 +57,28 @@ class ForceControl:
     """The bordered Newton steps of a force-controlled obstacle (module docstring).
 
     Args:
-        system: The Newton system (block path).
+        system: The system it borders.
+        move: Whether a step moves the obstacle to the new delta (the gap reassembled, the
+            discretisation's Constant set): the Newton loop's; the P2 solves of the weights
+            keep w_h's delta (their linear system at it, exact for a plane).
 
     Attributes:
         delta: The obstacle's displacement along its direction (the current iterate).
         change: The change of delta in the last step (its absolute value).
         x2: The response of the last step's system to a unit delta (block vector).
         zeta: The dual's entry for delta of the last dual solve (None before one).
+
+    The same logic borders any system of the same layout: the Newton system of the primal
+    problem (block path), the P2 system of the factored higher-order weights (a Newton system
+    on the P2 space) and the two-level P2 system of the hierarchical weights
+    (:mod:`~dwr_signorini.hierarchical`). What it reads off ``system``: ``disc``, ``algebra``
+    (f, g, n_q, gap_rate, resultant, set_obstacle_displacement), the block vector ``x``,
+    ``split`` and ``solve_transpose``.
     """
 
-    def __init__(self, system: NewtonLinearSystem) -> None:
+    def __init__(self, system: NewtonLinearSystem, move: bool = True) -> None:
         self.system = system
+        self.move = move
         self.obstacle = system.disc.problem.force_obstacle
         self.comm: MPI.Comm = system.disc.comm
         self.delta = float(system.disc.fields.obstacle_displacement.value)
@@ -86,32 +100,47 @@ class ForceControl:
         return float(self.comm.allreduce(float(a @ b), op=MPI.SUM))
 
     def step(self, solve: object, active: np.ndarray, free: np.ndarray) -> None:
-        """One bordered Newton step into ``system.x``; delta and the gap updated.
+        """One bordered Newton step into ``system.x``; delta (and, with ``move``, the gap) updated.
 
         Args:
             solve: ``(active, free) -> None``, the linear solve of the loop for the step's sets
-                (:meth:`~dwr_signorini.semismooth.NewtonLoop.linear_solve`).
+                into ``system.x`` (:meth:`~dwr_signorini.semismooth.NewtonLoop.linear_solve`).
             active: The step's constrained rows.
             free: The free multiplier values.
         """
+        self.unit_response(solve, active, free)
+        solve(active, free)
+        self.balance()
+
+    def unit_response(self, solve: object, active: np.ndarray, free: np.ndarray) -> None:
+        """x2: the bordered system's response to a unit delta (f = 0, g = m, nothing free).
+
+        Args:
+            solve: ``(active, free) -> None``, a solve of the bordered system into
+                ``system.x`` with its algebra's f and g.
+            active: The step's constrained rows.
+            free: The free multiplier values (only their shape is used).
+        """
         system, alg = self.system, self.system.algebra
-        n_q = alg.n_q
-        m = alg.gap_rate.copy()
         f_now, g_now = alg.f.array.copy(), alg.g.array.copy()
         try:
-            alg.f.array_w[:] = 0.0  # the response to a unit delta: f = 0, g = m, nothing free
+            alg.f.array_w[:] = 0.0
             alg.g.array_w[:] = 0.0
-            alg.g.array_w[:n_q] = m
+            alg.g.array_w[: alg.n_q] = alg.gap_rate
             solve(active, np.zeros_like(free))
             system.x.copy(self.x2)
-            alg.f.array_w[:] = f_now
-            alg.g.array_w[:] = g_now
-            alg.g.array_w[:n_q] -= m * self.delta
-            solve(active, free)
         finally:
             alg.f.array_w[:] = f_now
             alg.g.array_w[:] = g_now
-        w = alg.resultant
+
+    def balance(self) -> None:
+        """The new delta from the force row, ``system.x`` holding x1, the solution at delta_k.
+
+        The bordered step in increments: d delta = (F - w^T lam1) / (w^T lam2), x = x1 +
+        d delta x2 (the same step as the module docstring's; x1 solved at delta_k).
+        """
+        system, n_q = self.system, self.system.algebra.n_q
+        w = system.algebra.resultant
         lam1 = system.split(system.x)[1][:n_q]
         lam2 = system.split(self.x2)[1][:n_q]
         response = self._dot(w, lam2)
@@ -120,11 +149,12 @@ class ForceControl:
                 "the force-controlled obstacle touches no active facet: its force cannot be "
                 "balanced"
             )
-        delta = (self.force - self._dot(w, lam1)) / response
-        system.x.axpy(delta, self.x2)
-        self.change = abs(delta - self.delta)
-        self.delta = delta
-        alg.set_obstacle_displacement(delta)
+        change = (self.force - self._dot(w, lam1)) / response
+        system.x.axpy(change, self.x2)
+        self.change = abs(change)
+        self.delta += change
+        if self.move:
+            system.algebra.set_obstacle_displacement(self.delta)
 
     def moving(self, rtol: float) -> bool:
         """Whether delta still changes by more than ``rtol`` of its size (Newton in delta)."""
@@ -147,6 +177,7 @@ class ForceControl:
         c.set(0.0)
         c.array_w[n_u : n_u + n_q] = system.algebra.resultant
         z2 = rhs.duplicate()
+        z2.set(0.0)  # an iterative system starts from it
         try:
             system.solve_transpose(rhs, z)
             system.solve_transpose(c, z2)
@@ -158,35 +189,6 @@ class ForceControl:
             c.destroy()
             z2.destroy()
         return zeta
-
-    def goal_rate(self, value: object) -> float:
-        """dJ/ddelta of a goal that uses delta (``m.obstacle_displacement``), collective.
-
-        By the central difference of J(w_h) at delta +- h with w_h fixed, h = 1e-3 max(abs(delta),
-        1e-3 of the mesh's size): exact to round-off for a goal polynomial of degree <= 2 in
-        delta (the difference's error is h^2 / 6 times the third derivative). The gap is not
-        reassembled: only the goal's form reads the Constant here.
-
-        Args:
-            value: ``() -> float``, J(w_h) at the Constant's current value.
-
-        Returns:
-            The derivative (0 for a goal that does not use delta).
-        """
-        constant = self.system.disc.fields.obstacle_displacement
-        delta = self.delta
-        size = self.comm.allreduce(
-            float(np.max(np.ptp(self.system.disc.macro_mesh.geometry.x, axis=0))), op=MPI.MAX
-        )
-        h = 1e-3 * max(abs(delta), 1e-3 * size)
-        values = []
-        try:
-            for shift in (h, -h):
-                constant.value = delta + shift
-                values.append(value())
-        finally:
-            constant.value = delta
-        return (values[0] - values[1]) / (2.0 * h)
 
     def destroy(self) -> None:
         """Release the work vector (collective)."""

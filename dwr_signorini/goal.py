@@ -167,6 +167,32 @@ class GoalForms:
             local = fem.assemble_scalar(self.disc.form(with_quadrature_degrees(self.J, degree)))
         return self.disc.comm.allreduce(local, op=MPI.SUM)
 
+    def rate(self, constant: fem.Constant) -> float:
+        """dJ/dc at w_h for a scalar Constant c of J, reduced over all ranks.
+
+        c is the displacement of a force-controlled obstacle, ``m.obstacle_displacement``.
+
+        By UFL's differentiation: c is replaced in J by ``ufl.variable(c)`` and every integrand
+        differentiated with ``ufl.diff`` (exact for any goal; 0 for a goal without c). The
+        quadrature degree is that of :meth:`value`.
+
+        Args:
+            constant: The scalar Constant.
+
+        Returns:
+            The derivative.
+        """
+        variable = ufl.variable(constant)
+        J = ufl.replace(self.J, {constant: variable})
+        dJ = ufl.Form([itg.reconstruct(integrand=ufl.diff(itg.integrand(), variable))
+                       for itg in J.integrals()])
+        if _is_empty(dJ):
+            return 0.0
+        degree = self.disc.problem.quadrature_degree
+        with timed("goal"):
+            local = fem.assemble_scalar(self.disc.form(with_quadrature_degrees(dJ, degree)))
+        return self.disc.comm.allreduce(local, op=MPI.SUM)
+
     def directional(self, du: Any, *dlams: Any) -> ufl.Form:
         """J'(w_h)(du, dlam[, dlam_t]) as a scalar form (any UFL functions on T_h)."""
         form = (ufl.replace(self.dJ_u, {self.dJ_u.arguments()[0]: du})

@@ -30,6 +30,7 @@ a seventh of their time on the indentation there; with hundreds of active multip
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -41,6 +42,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .algebra import ContactAlgebra
 from .dual import DualSolution, dual_rhs
+from .force import ForceControl
 from .goal import GoalForms
 from .lifetime import destroy_attributes
 from .newton import Solution
@@ -50,6 +52,10 @@ __all__ = ["HIERARCHICAL_RTOL", "hierarchical_solutions"]
 
 #: Relative residual of the P2 systems at which ``weights="hierarchical"`` stops.
 HIERARCHICAL_RTOL = 1e-3
+
+#: The bordered systems of an obstacle under a given force solve each of their P2 systems to
+#: this fraction of the tolerance: z = z1 - zeta z2 (:mod:`~dwr_signorini.force`) may cancel.
+BORDERED_RTOL_FACTOR = 0.1
 
 #: Relative to the right-hand side: a residual of w_h below it counts as solved (round-off).
 ROUNDOFF = 1e-12
@@ -202,20 +208,31 @@ class _P2System:
             vec.destroy()
         return d_2, d_lam
 
-    def solve(self, transpose: bool, u0: fem.Function, lam0: np.ndarray, b_u: np.ndarray,
-              b_lam: np.ndarray, rtol: float, atol: float = 0.0) -> tuple[fem.Function, np.ndarray]:
-        """FGMRES on A^T (``transpose``) or A from (P u0, lam0) to ``rtol`` (or ``atol``).
+    def written(self, u: fem.Function) -> np.ndarray:
+        """The owned values of a function of the P1 space written in P2 (P u)."""
+        out = self._u_vec(np.zeros(self.n2))
+        self.P.mult(u.x.petsc_vec, out)
+        values = out.array.copy()
+        out.destroy()
+        return values
+
+    def solve(self, transpose: bool, start: np.ndarray, b: np.ndarray, rtol: float,
+              atol: float = 0.0) -> np.ndarray:
+        """FGMRES on A^T (``transpose``) or A from ``start`` to ``rtol`` (or ``atol``).
+
+        Args:
+            transpose: Which of the two.
+            start: The initial iterate [u (P2); lambda] (owned values).
+            b: The right-hand side, laid out as ``start``.
+            rtol: The relative residual to reach (of the norm of ``b``).
+            atol: The absolute residual that suffices.
 
         Returns:
-            u on V2 and lambda on the owned multipliers.
+            The solution [u (P2); lambda] (owned values).
         """
         self.transpose = transpose
-        u_start = self._u_vec(self.x.array_w[: self.n2])
-        self.P.mult(u0.x.petsc_vec, u_start)
-        u_start.destroy()
-        self.x.array_w[self.n2 :] = lam0
-        self.b.array_w[: self.n2] = b_u
-        self.b.array_w[self.n2 :] = b_lam
+        self.x.array_w[:] = start
+        self.b.array_w[:] = b
         self.ksp.setTolerances(rtol=rtol, atol=atol, max_it=MAX_ITERATIONS)
         self.ksp.solve(self.b, self.x)
         if self.ksp.getConvergedReason() < 0:
@@ -223,10 +240,14 @@ class _P2System:
                 f"the hierarchical P2 solve did not converge (KSP reason "
                 f"{self.ksp.getConvergedReason()}, {self.ksp.getIterationNumber()} iterations)"
             )
-        u = fem.Function(self.V2)
-        u.x.array[: self.n2] = self.x.array_r[: self.n2]
+        return self.x.array_r.copy()
+
+    def function(self, values: np.ndarray, name: str) -> fem.Function:
+        """The P2 displacement of a solution's owned values [u; lambda]."""
+        u = fem.Function(self.V2, name=name)
+        u.x.array[: self.n2] = values[: self.n2]
         u.x.scatter_forward()
-        return u, self.x.array_r[self.n2 :].copy()
+        return u
 
     def destroy(self) -> None:
         """Destroy the PETSc objects (collective; idempotent)."""
@@ -268,64 +289,136 @@ class _TwoLevel:
         d.array_w[:] = out
 
 
-def _finite(sol: Solution, u: fem.Function, lam: np.ndarray) -> None:
-    finite = bool(np.all(np.isfinite(u.x.array)) and np.all(np.isfinite(lam)))
+class _Bordered:
+    """The two-level P2 system as the system a ForceControl borders.
+
+    An obstacle under a given force (:class:`~dwr_signorini.force.ForceControl`): its ``x``,
+    ``split`` and ``solve_transpose``.
+    """
+
+    def __init__(self, p2: _P2System, rtol: float) -> None:
+        self.p2, self.rtol = p2, rtol
+        self.disc, self.algebra, self.n_u = p2.disc, p2.algebra, p2.n2
+        self.x = p2.b.duplicate()
+
+    def split(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray]:
+        """Owned parts (u, lam) of a vector of the P2 system."""
+        return x.array_r[: self.n_u], x.array_r[self.n_u :]
+
+    def solve_transpose(self, rhs: PETSc.Vec, z: PETSc.Vec) -> None:
+        """A^T z = rhs by FGMRES from z's values."""
+        z.array_w[:] = self.p2.solve(True, z.array_r.copy(), rhs.array_r.copy(), self.rtol)
+
+    def destroy(self) -> None:
+        """Release the block vector (collective)."""
+        self.x.destroy()
+
+
+def _finite(sol: Solution, values: np.ndarray) -> None:
+    finite = bool(np.all(np.isfinite(values)))
     if not sol.disc.comm.allreduce(finite, op=MPI.LAND):
         raise RuntimeError("NaN or Inf in a hierarchical P2 solution")
 
 
-def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution,
-          rtol: float) -> DualSolution:
-    """z^(2) from z_h, with the right-hand side of :func:`~dwr_signorini.dual.dual_rhs` on V2."""
+def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution, rtol: float,
+          force: ForceControl | None = None) -> DualSolution:
+    """z^(2) from z_h, with the right-hand side of :func:`~dwr_signorini.dual.dual_rhs` on V2.
+
+    With ``force`` the bordered system's dual (:meth:`~dwr_signorini.force.ForceControl.
+    solve_transpose`, its unit response x2 solved before).
+    """
     system = sol.system
     b = p2.b.duplicate()
     dual_rhs(p2.algebra, goal, b)
-    b_u, b_lam = b.array_r[: p2.n2].copy(), b.array_r[p2.n2 :].copy()
-    b.destroy()
     xi = sol.stacked(z.multipliers)
     xi1 = np.where(system.active, xi * system.c_n, xi)
-    y, xi1 = p2.solve(True, z.y, xi1, b_u, b_lam, rtol)
-    _finite(sol, y, xi1)
-    y.name = "y2"
+    start = np.concatenate([p2.written(z.y), xi1])
+    try:
+        if force is None:
+            out = p2.solve(True, start, b.array_r.copy(), rtol)
+        else:
+            zvec = b.duplicate()
+            zvec.array_w[:] = start
+            force.solve_transpose(b, zvec, goal.rate(sol.disc.fields.obstacle_displacement))
+            out = zvec.array_r.copy()
+            zvec.destroy()
+    finally:
+        b.destroy()
+    _finite(sol, out)
+    xi1 = out[p2.n2 :]
     xi2 = sol.multiplier_functions(np.where(system.active, xi1 / system.c_n, xi1), "xi2")
-    return DualSolution(y, *xi2)
+    return DualSolution(p2.function(out, "y2"), *xi2,
+                        zeta=None if force is None else force.zeta)
+
+
+def _forward(
+    p2: _P2System, sol: Solution, free: np.ndarray, rtol: float, start: np.ndarray | None
+) -> np.ndarray:
+    """A x = [f_2; -D_A g; M_I free_I] of the P2 algebra's f and g, from ``start`` (or 0).
+
+    Solved as the correction of ``start``, so ``rtol`` is relative to the residual of the
+    start (its rows mix forces and gaps, whose right-hand sides differ by many orders of
+    magnitude). Where the start already solves the P2 system (a displacement linear in x, as in
+    a patch test) that residual is round-off: the solve then stops at ``ROUNDOFF`` times the
+    norm of the right-hand side.
+
+    Returns:
+        x = [u (P2); lambda] (owned values).
+    """
+    active, algebra = sol.system.active, p2.algebra
+    start = np.zeros(p2.n2 + p2.n_lam) if start is None else start
+    p2.transpose = False
+    residual = np.empty_like(start)
+    p2.apply(start, residual)
+    # the constrained rows -(B u)_A = -g_A, the free ones M_I lam_I = M_I free_I (0 inactive)
+    rhs = np.concatenate([algebra.f.array, np.where(active, -algebra.g.array,
+                                                     algebra.M.array * free)])
+    g_active = algebra.g.array[active]
+    rhs_norm = math.sqrt(sol.disc.comm.allreduce(
+        float(algebra.f.array @ algebra.f.array + g_active @ g_active), op=MPI.SUM))
+    correction = p2.solve(False, np.zeros_like(start), rhs - residual, rtol,
+                          atol=ROUNDOFF * rhs_norm)
+    return start + correction
 
 
 def _primal(
-    p2: _P2System, sol: Solution, rtol: float
+    p2: _P2System, sol: Solution, rtol: float, force: ForceControl | None = None
 ) -> tuple[fem.Function, tuple[fem.Function, ...]]:
     """w^(2) as the correction of w_h in the P2 Newton system of the final active set.
 
     A [u; lam] = [f_2; -D_A g], with the prescribed Dirichlet values lifted as in the P1 system
-    (:class:`~dwr_signorini.algebra.ContactAlgebra` on V2, as for ``weights="higher_order"``).
-    The correction starts from zero, so ``rtol`` is relative to the residual of w_h (its rows
-    mix forces and gaps, whose right-hand sides differ by many orders of magnitude). Where w_h
-    already solves the P2 system (a displacement linear in x, as in a patch test) that residual
-    is round-off: the solve then stops at ``ROUNDOFF`` times the norm of the right-hand side.
+    (:class:`~dwr_signorini.algebra.ContactAlgebra` on V2, as for ``weights="higher_order"``),
+    from w_h written in P2 (:func:`_forward`). With ``force`` the bordered step from w_h's
+    delta (:meth:`~dwr_signorini.force.ForceControl.balance`, its unit response solved before).
     """
-    system, algebra = sol.system, p2.algebra
-    start = np.zeros(p2.n2 + p2.n_lam)
-    u = fem.Function(p2.V2, name="u2")
-    p2.P.mult(sol.u.x.petsc_vec, u.x.petsc_vec)  # w_h written in P2 (the coarse step's P)
-    u.x.scatter_forward()
-    start[: p2.n2] = u.x.array[: p2.n2]
-    start[p2.n2 :] = sol.stacked()
-    p2.transpose = False
-    residual = np.empty_like(start)
-    p2.apply(start, residual)
-    residual[: p2.n2] = algebra.f.array - residual[: p2.n2]
-    # the constrained rows -(B u)_A = -g_A, the free ones M_I lam_I = M_I free_I (0 inactive)
-    rhs = np.where(system.active, -algebra.g.array, algebra.M.array * system.free)
-    residual[p2.n2 :] = rhs - residual[p2.n2 :]
-    zero = np.zeros(p2.n_lam)
-    rhs_norm = math.sqrt(sol.disc.comm.allreduce(
-        float(algebra.f.array @ algebra.f.array + algebra.g.array[system.active] @
-              algebra.g.array[system.active]), op=MPI.SUM))
-    du, dlam = p2.solve(False, fem.Function(sol.disc.V), zero, residual[: p2.n2],
-                        residual[p2.n2 :], rtol, atol=ROUNDOFF * rhs_norm)
-    _finite(sol, du, dlam)
-    u.x.array[:] += du.x.array
-    return u, sol.multiplier_functions(start[p2.n2 :] + dlam, "lambda2")
+    start = np.concatenate([p2.written(sol.u), sol.stacked()])
+    out = _forward(p2, sol, sol.system.free, rtol, start)
+    if force is not None:
+        force.system.x.array_w[:] = out
+        force.balance()
+        out = force.system.x.array_r.copy()
+    _finite(sol, out)
+    return p2.function(out, "u2"), sol.multiplier_functions(out[p2.n2 :], "lambda2")
+
+
+def _solutions(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution, primal: bool,
+               rtol: float) -> tuple[DualSolution, Any]:
+    """The P2 dual (and primal), bordered where an obstacle is under a given force."""
+    if sol.obstacle_displacement is None:
+        return _dual(p2, sol, goal, z, rtol), _primal(p2, sol, rtol) if primal else None
+    rtol = BORDERED_RTOL_FACTOR * rtol
+    bordered = _Bordered(p2, rtol)
+    force = ForceControl(bordered, move=False)
+    try:
+        def solve(active: np.ndarray, free: np.ndarray) -> None:
+            bordered.x.array_w[:] = _forward(p2, sol, free, rtol, None)
+
+        force.unit_response(solve, sol.system.active, sol.system.free)
+        z2 = _dual(p2, sol, goal, z, rtol, force)
+        return z2, _primal(p2, sol, rtol, force) if primal else None
+    finally:
+        force.destroy()
+        bordered.destroy()
 
 
 def hierarchical_solutions(
@@ -359,8 +452,7 @@ def hierarchical_solutions(
     loose = sol.system.set_loose(True)
     try:
         with timed("higher-order solve"):
-            z2 = _dual(p2, sol, goal, z, rtol)
-            w2 = _primal(p2, sol, rtol) if primal else None
+            z2, w2 = _solutions(p2, sol, goal, z, primal, rtol)
     finally:
         if loose:
             sol.system.set_loose(False)
