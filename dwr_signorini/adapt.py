@@ -146,7 +146,7 @@ def _levels(
     """The loop of :func:`solve_adaptive` over the levels, from ``problem``'s macro mesh."""
     result = AdaptiveResult(levels=[], meta=reporter.meta, comm=reporter.comm)
     previous: Solution | None = None
-    previous_rec = sol = est = macro_parent = None
+    previous_rec = sol = est = macro_parent = disc = None
     current = problem
     try:
         with reporter:
@@ -168,6 +168,7 @@ def _levels(
                 t_setup = time.perf_counter() - t_start
                 sol = est = None
                 sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal)
+                sol.owns_disc = True  # the level's master traces go with its solution
                 result.converged = stop.converged(est.interval)
                 result.stopped_by = "tol" if result.converged else "max_levels"
                 done = result.converged or level == stop.max_levels - 1
@@ -193,7 +194,7 @@ def _levels(
     except Exception:
         # Every rank raises (the package's errors are collective, dwr_signorini.collective):
         # release this level's and the last level's PETSc objects and options on all ranks.
-        for obj in (est, sol, previous_rec, previous):
+        for obj in (est, sol, previous_rec, previous, disc):
             if obj is not None:
                 obj.destroy()
         raise

@@ -150,6 +150,9 @@ class Solution(Releasable):
     stick: np.ndarray | None = None
     slip: np.ndarray | None = None
     tangential: tuple[fem.Function, ...] = ()
+    #: Whether :meth:`destroy` releases the discretisation too (its master traces): set where
+    #: :func:`solve` discretised the problem itself, and by the drivers for each level.
+    owns_disc: bool = False
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
@@ -170,8 +173,13 @@ class Solution(Releasable):
         return self.disc.comm.allreduce(int(rows.sum()), op=MPI.SUM)
 
     def destroy(self) -> None:
-        """Release the Newton system's PETSc objects and options (collective; idempotent)."""
+        """Release the Newton system and, if it owns it, the discretisation (collective).
+
+        Idempotent.
+        """
         self.system.destroy()
+        if self.owns_disc:
+            self.disc.destroy()
 
     def stacked(self, functions: tuple[fem.Function, ...] | None = None) -> np.ndarray:
         """The owned values of one function per component of the law, stacked.
@@ -280,7 +288,15 @@ def solve(
             "options must be a SolverOptions, given instead of the solver's keyword arguments"
         )
     _check_initial_guess(disc, initial_guess)
-    return _solve(disc, initial_guess, options)
+    if disc is problem_or_disc:  # the caller's: the caller releases it
+        return _solve(disc, initial_guess, options)
+    try:
+        sol = _solve(disc, initial_guess, options)
+    except BaseException:
+        disc.destroy()
+        raise
+    sol.owns_disc = True
+    return sol
 
 
 def _discretization(problem_or_disc: Any) -> Discretization:

@@ -25,14 +25,24 @@ coupling as the discrete problem (Galerkin orthogonality holds in both bodies). 
 same projection of g(x).
 
 **The master share.** A residual term (r, (P v) . e)_GC with a displacement weight v belongs to
-the master cells that v o Pi lives on. :meth:`MasterTrace.share` moves such a term, localised to
-the slave cells, to the master cells in proportion to the measure of the slave facet that
-Pi maps into each of them.
+the master cells that v o Pi lives on. :meth:`TraceGeometry.share` moves such a term, localised
+to the fine slave facets, from the slave cell beside each facet to the master cells, in
+proportion to the measure of the facet's covered part that Pi maps into each of them (each
+covered facet's shares sum to 1, so the moved indicators sum to the term).
+
+**One geometry per mesh.** The slave and master facets, the mortar rule (of degree
+2 :data:`MAX_DEGREE`, exact for every space of degree <= :data:`MAX_DEGREE`) and the share do not
+depend on the displacement space: :class:`TraceGeometry` holds them once per mesh, and the
+:class:`MasterTrace` of each space (P1 of the solves, P2 of the weights) adds its projection.
+The discretisation owns both and releases them in its ``destroy()``.
+
+**Images name what they project.** :meth:`MasterTrace.apply` returns P f as a function of W
+whose attribute ``trace_of`` is f; :func:`images_of` finds the images of f among a form's
+coefficients, so the part of a form linear in the trace of a weight is read off the form itself.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,6 +51,7 @@ from petsc4py import PETSc
 
 import basix
 import numpy as np
+import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
@@ -49,12 +60,16 @@ from .mortar import MortarRule, facet_normals, mortar_rule
 from .timing import timed
 
 __all__ = [
+    "MAX_DEGREE",
     "ContactPair",
     "MasterTrace",
-    "check_contact_pairs",
-    "check_pair_bodies",
-    "check_pair_gap",
+    "TraceGeometry",
+    "images_of",
 ]
+
+#: The highest degree of a displacement space that a master trace takes (Lagrange, no dof
+#: transformations); the one mortar rule of a mesh integrates degree 2 MAX_DEGREE exactly.
+MAX_DEGREE = 2
 
 
 @dataclass(frozen=True)
@@ -86,91 +101,6 @@ class ContactPair:
             )
 
 
-def check_contact_pairs(contact: Any) -> tuple[list[Any], tuple[ContactPair, ...]]:
-    """``contact`` split into its tags (pairs by their slave tag) and its pairs.
-
-    Args:
-        contact: A tag, a :class:`ContactPair`, or a sequence of them.
-
-    Returns:
-        The contact entries with each pair replaced by its slave tag (in the order given), and
-        the pairs.
-
-    Raises:
-        ValueError: A master tag that is also a contact tag or a slave tag of another pair.
-    """
-    entries = [contact] if isinstance(contact, ContactPair) else contact
-    if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):
-        return contact, ()
-    entries = list(entries)
-    pairs = tuple(e for e in entries if isinstance(e, ContactPair))
-    tags = [e.slave if isinstance(e, ContactPair) else e for e in entries]
-    slaves = {p.slave for p in pairs}
-    for p in pairs:
-        if p.master in tags or p.master in slaves:
-            raise ValueError(
-                f"ContactPair(slave={p.slave}, master={p.master}): the master tag {p.master} "
-                "is also a contact (slave) tag; a facet is on one side of the contact only"
-            )
-    return tags, pairs
-
-
-def check_pair_gap(gap: Any, pairs: tuple[ContactPair, ...], rigid_tags: tuple[int, ...]) -> Any:
-    """The ``gap`` of a problem with pairs: it is the rigid contact tags' gap only.
-
-    Raises:
-        ValueError: A gap given for a pair's slave tag, or a gap other than the default 0
-            without rigid contact tags.
-    """
-    slaves = sorted(p.slave for p in pairs)
-    if isinstance(gap, Mapping):
-        named = sorted(set(gap) & set(slaves))
-        if named:
-            raise ValueError(
-                f"gap is given for the ContactPair slave tag(s) {named}: the gap of a pair is "
-                "the distance to the master surface along the slave normal, measured from the "
-                "meshes; give gap for the rigid-obstacle contact tags only"
-            )
-        return gap
-    if not rigid_tags:
-        if isinstance(gap, (int, float)) and not isinstance(gap, bool) and gap == 0.0:
-            return gap
-        raise ValueError(
-            "gap applies to rigid-obstacle contact tags, and every contact tag here is the "
-            f"slave side of a ContactPair ({slaves}): the gap of a pair is measured from the "
-            "meshes; leave gap at its default"
-        )
-    return gap
-
-
-def check_pair_bodies(
-    mesh: dmesh.Mesh, facet_tags: dmesh.MeshTags, pairs: tuple[ContactPair, ...]
-) -> None:
-    """The slave and master facets of each pair share no vertex (two bodies, collective).
-
-    Raises:
-        ValueError: A pair whose sides touch in the mesh (one body, or glued bodies).
-    """
-    if not pairs:
-        return
-    fdim = mesh.topology.dim - 1
-    mesh.topology.create_connectivity(fdim, 0)
-    f2v = mesh.topology.connectivity(fdim, 0)
-
-    def vertices(tag: int) -> set[int]:
-        return {int(v) for f in facet_tags.find(tag) for v in f2v.links(f)}
-
-    comm = mesh.comm
-    for p in pairs:
-        shared = comm.allreduce(len(vertices(p.slave) & vertices(p.master)), op=MPI.SUM)
-        if shared:
-            raise ValueError(
-                f"ContactPair(slave={p.slave}, master={p.master}): {shared} vertices lie on "
-                "both sides; the two sides must belong to two bodies that share no vertex "
-                "(mesh them as separate volumes, e.g. gmsh surfaces without a common curve)"
-            )
-
-
 @dataclass
 class _Master:
     """The master facets of a pair, gathered on every rank."""
@@ -182,95 +112,165 @@ class _Master:
     cell: np.ndarray  # (m,): its global cell index
 
 
-class MasterTrace:
-    """The projection P of the master trace onto W, the gap, and the master share (module).
+class TraceGeometry:
+    """The degree-independent geometry of a mesh's pairs: facets, mortar rule, share (module).
 
-    Collective: every rank gathers the master facets of its pairs.
+    Built once per mesh by the discretisation (collective: every rank gathers the master
+    facets of its pairs) and shared by the :class:`MasterTrace` of each displacement space.
 
     Args:
         disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
-        V: A vector Lagrange space on T_h (P1 of the solves, P2 of the weights).
+
+    Attributes:
+        rule: The mortar rule of this rank's slave facets, of degree 2 :data:`MAX_DEGREE`.
+        vertices, normals: This rank's slave facets (owned cells of ``disc.slave_mesh``).
+        slave_cells: The fine cell beside each slave facet (global index).
+        master: The master facets of all pairs, gathered (without dofs).
+        Fs: DG0 on the slave facets: the space of indicators localised per facet.
+        share_weights: S^T (PETSc Mat, slave facets x fine cells): row F holds the part of
+            facet F's covered measure that Pi maps into each master cell; it sums to 1 on a
+            facet the master covers (at all), and is empty on one it misses.
+    """
+
+    #: How many geometries are alive (built and not destroyed), on this rank.
+    live = 0
+
+    def __init__(self, disc: Any) -> None:
+        self.disc = disc
+        self.Fs = fem.functionspace(disc.slave_mesh, ("DG", 0))
+        with timed("master trace"):
+            self._build(disc)
+        TraceGeometry.live += 1
+
+    def _build(self, disc: Any) -> None:
+        """The facets, the rule of every pair and the share (one pass over the slave facets)."""
+        vertices, normals, slave_cells, slave_tag = _slave_facets(disc)
+        self.vertices, self.normals, self.slave_cells = vertices, normals, slave_cells
+        rules, masters, self.master_cells = [], [], []
+        offset = 0
+        for pair in disc.problem.pairs:
+            master, local = _master_facets(disc, pair.master)
+            on = np.flatnonzero(slave_tag == pair.slave)
+            r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
+                            2 * MAX_DEGREE)
+            rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset, r.gap))
+            masters.append(master)
+            self.master_cells.append(local)
+            offset += len(master.cell)
+        self.rule = MortarRule(*(np.concatenate([getattr(r, f) for r in rules]) for f in (
+            "facet", "points", "weights", "master", "gap")))
+        self.master = _Master(*(np.concatenate([getattr(m, f) for m in masters]) for f in (
+            "vertices", "normals", "geometry", "dofs", "cell")))
+        self.share_weights, self._home = self._share_matrices()
+
+    def _share_matrices(self) -> tuple[PETSc.Mat, PETSc.Mat]:
+        """S^T (facet -> master cells, rows summing to 1 where covered) and H^T (its cell)."""
+        rule, fine, Fs = self.rule, self.disc.mesh, self.Fs
+        cells = fine.topology.index_map(fine.topology.dim)
+        fmap = Fs.dofmap.index_map
+        num = len(self.vertices)
+        hit = np.zeros(num)
+        np.add.at(hit, rule.facet, rule.weights)
+        rows = fmap.local_to_global(Fs.dofmap.list[:num, 0].astype(np.int32))
+        frac = rule.weights / np.where(hit > 0.0, hit, 1.0)[rule.facet]
+        covered = np.flatnonzero(hit > 0.0)
+        first = fmap.local_range[0]
+        row_sizes = (fmap.size_local, fmap.size_global)
+        col_sizes = (cells.size_local, cells.size_global)
+        comm = self.disc.comm
+        S = _csr(comm, [rows[rule.facet]], [self.master.cell[rule.master]], [frac], first,
+                 row_sizes, col_sizes)
+        H = _csr(comm, [rows[covered]], [self.slave_cells[covered]], [np.ones(len(covered))],
+                 first, row_sizes, col_sizes)
+        return S, H
+
+    def share(self, facet_part: np.ndarray, DG0: fem.FunctionSpace) -> np.ndarray:
+        """A term localised per slave facet, moved from the slave to the master cells.
+
+        Args:
+            facet_part: The term's indicators per owned slave facet (owned entries of ``Fs``).
+            DG0: The DG0 space of the cell indicators on T_h.
+
+        Returns:
+            S p - H p as DG0 entries (owned and ghost, ghosts zero): added to the indicators
+            of the term localised to the slave cells, it moves each covered facet's part
+            from the cell beside the facet to the master cells; it sums to zero.
+        """
+        fine = self.disc.mesh
+        n = fine.topology.index_map(fine.topology.dim).size_local
+        p = self.share_weights.createVecLeft()
+        p.array_w[:] = facet_part
+        out, home = self.share_weights.createVecRight(), self._home.createVecRight()
+        self.share_weights.multTranspose(p, out)
+        self._home.multTranspose(p, home)
+        moved = np.zeros(DG0.dofmap.index_map.size_local + DG0.dofmap.index_map.num_ghosts)
+        moved[DG0.dofmap.list[:n, 0]] = out.array - home.array
+        for v in (p, out, home):
+            v.destroy()
+        return moved
+
+    def destroy(self) -> None:
+        """Release the PETSc matrices (collective; idempotent)."""
+        if getattr(self, "share_weights", None) is not None:
+            TraceGeometry.live -= 1
+        for name in ("share_weights", "_home"):
+            mat = getattr(self, name, None)
+            if mat is not None:
+                mat.destroy()
+                setattr(self, name, None)
+
+
+class MasterTrace:
+    """The projection P of the master trace onto W and the gap, for one space (module).
+
+    Collective (every rank gathers the master dofs of its pairs).
+
+    Args:
+        disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
+        V: A vector Lagrange space on T_h of degree <= :data:`MAX_DEGREE` (P1 of the solves,
+            P2 of the weights).
+        geometry: The mesh's :class:`TraceGeometry`.
 
     Attributes:
         W: Vector DG of V's degree on Sigma_h; ``Ws`` the scalar one.
         P: The projection (PETSc Mat, W x V, the prescribed Dirichlet columns included).
         gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` where no
             master facet is met).
-        rule: The mortar rule of this rank's slave facets.
+        rule: The mortar rule of this rank's slave facets (the geometry's).
     """
 
-    def __init__(self, disc: Any, V: fem.FunctionSpace) -> None:
-        self.disc, self.V = disc, V
+    #: How many traces are alive (built and not destroyed), on this rank.
+    live = 0
+
+    def __init__(self, disc: Any, V: fem.FunctionSpace, geometry: TraceGeometry) -> None:
+        self.disc, self.V, self.geometry = disc, V, geometry
         sub = disc.slave_mesh
         gdim = sub.geometry.dim
         degree = V.ufl_element().embedded_superdegree
+        if degree > MAX_DEGREE:
+            raise NotImplementedError(
+                f"contact pairs take displacement spaces of degree <= {MAX_DEGREE}, got {degree}"
+            )
         self.W = fem.functionspace(sub, ("DG", degree, (gdim,)))
         self.Ws = fem.functionspace(sub, ("DG", degree))
-        self._images: dict[int, tuple[fem.Function, fem.Function]] = {}
         with timed("master trace"):
             self._build(disc, V, degree)
-
-    # -- geometry ----------------------------------------------------------------------------
-    def _slave_facets(self, disc: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """This rank's slave facets: vertices, normals, slave cells (global), slave tag."""
-        sub, fine = disc.slave_mesh, disc.mesh
-        tdim = fine.topology.dim
-        num = sub.topology.index_map(sub.topology.dim).size_local
-        facets = disc.slave_to_fine[:num]
-        x = sub.geometry.x[:, :sub.geometry.dim]
-        vertices = x[compat.geometry_dofmap(sub)[:num]]
-        f2c = fine.topology.connectivity(tdim - 1, tdim)
-        cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        inside = _entity_points(fine, tdim, cells).mean(axis=1)
-        normals = facet_normals(vertices, inside)
-        glob = fine.topology.index_map(tdim).local_to_global(cells)
-        tag = _facet_tag(disc.facet_tags, facets)
-        return vertices, normals, glob, tag
-
-    def _master_facets(self, disc: Any, V: fem.FunctionSpace, tag: int) -> _Master:
-        """The owned master facets of ``tag`` with their cells, gathered on every rank."""
-        fine = disc.mesh
-        tdim, gdim = fine.topology.dim, fine.geometry.dim
-        n_own = fine.topology.index_map(tdim - 1).size_local
-        facets = disc.facet_tags.find(tag)
-        facets = facets[facets < n_own].astype(np.int32)
-        f2c = fine.topology.connectivity(tdim - 1, tdim)
-        cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        vertices = _entity_points(fine, tdim - 1, facets)
-        geometry = fine.geometry.x[compat.geometry_dofmap(fine)[cells]][:, :, :gdim]
-        normals = facet_normals(vertices, geometry.mean(axis=1))
-        index_map = V.dofmap.index_map
-        local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32)
-        dofs = index_map.local_to_global(local.ravel()).reshape(local.shape) if len(cells) else (
-            np.zeros((0, V.dofmap.dof_layout.num_dofs), dtype=np.int64))
-        cell = fine.topology.index_map(tdim).local_to_global(cells)
-        parts = disc.comm.allgather((vertices, normals, geometry, dofs, cell))
-        return _Master(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
+        MasterTrace.live += 1
 
     # -- assembly ----------------------------------------------------------------------------
     def _build(self, disc: Any, V: fem.FunctionSpace, degree: int) -> None:
-        """The rule, P, the gap and the share weights (one pass over the slave facets)."""
-        vertices, normals, slave_cells, slave_tag = self._slave_facets(disc)
-        rules, masters = [], []
-        offset = 0
-        for pair in disc.problem.pairs:
-            master = self._master_facets(disc, V, pair.master)
-            on = np.flatnonzero(slave_tag == pair.slave)
-            r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
-                            2 * degree)
-            rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset, r.gap))
-            masters.append(master)
-            offset += len(master.cell)
-        self.rule = MortarRule(*(np.concatenate([getattr(r, f) for r in rules]) for f in (
-            "facet", "points", "weights", "master", "gap")))
-        master = _Master(*(np.concatenate([getattr(m, f) for m in masters]) for f in (
-            "vertices", "normals", "geometry", "dofs", "cell")))
+        """P and the gap from the geometry's rule (one pass over the rule's points)."""
+        geometry = self.geometry
+        vertices, normals = geometry.vertices, geometry.normals
+        self.rule = geometry.rule
+        master = geometry.master
+        master = _Master(master.vertices, master.normals, master.geometry,
+                         _master_dofs(disc, V, geometry.master_cells), master.cell)
         basis = _FacetBasis(self.Ws, vertices, self.rule)
         projected = self.rule.points + self.rule.gap[:, None] * normals[self.rule.facet]
         phi = _master_basis(disc.mesh, V, master, self.rule.master, projected)
         self.P = self._projection(basis, phi, master)
         self.gap = self._gap(basis)
-        self._share = self._share_matrix(slave_cells, master)
 
     def _projection(self, basis: _FacetBasis, phi: np.ndarray, master: _Master) -> PETSc.Mat:
         """P = M_F^{-1} sum_q w_q theta(x_q) phi(Pi(x_q))^T per facet and component.
@@ -325,35 +325,12 @@ class MasterTrace:
         gap.x.scatter_forward()
         return gap
 
-    def _share_matrix(self, slave_cells: np.ndarray, master: _Master) -> PETSc.Mat:
-        """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K."""
-        rule, fine = self.rule, self.disc.mesh
-        cells = fine.topology.index_map(fine.topology.dim)
-        hit = np.zeros(len(slave_cells))
-        np.add.at(hit, rule.facet, rule.weights)
-        frac = rule.weights / np.where(hit > 0.0, hit, 1.0)[rule.facet]
-        # a slave cell with several slave facets shares each facet's part equally
-        count = np.zeros(len(slave_cells))
-        _, inverse, counts = np.unique(slave_cells, return_inverse=True, return_counts=True)
-        count[:] = counts[inverse]
-        S = PETSc.Mat().createAIJ(
-            size=((cells.size_local, cells.size_global), (cells.size_local, cells.size_global)),
-            nnz=(8, 8), comm=self.disc.comm,
-        )
-        S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        rows = master.cell[rule.master].astype(PETSc.IntType)
-        cols = slave_cells[rule.facet].astype(PETSc.IntType)
-        for r, c, v in zip(rows, cols, frac / count[rule.facet], strict=True):
-            S.setValue(r, c, v, addv=PETSc.InsertMode.ADD_VALUES)
-        S.assemble()
-        return S
-
     # -- use -----------------------------------------------------------------------------------
     def apply(self, f: fem.Function) -> fem.Function:
         """P f: the projected master trace of ``f`` on the slave facets (a function of W).
 
-        The image is remembered for :meth:`image` (the estimator moves the terms of a weight's
-        trace to the master cells).
+        Each call returns a new function; its attribute ``trace_of`` is ``f`` (the estimator
+        finds the images of a weight in a form by it, :func:`images_of`).
 
         Args:
             f: A function of this trace's space V.
@@ -361,57 +338,36 @@ class MasterTrace:
         Returns:
             A new function of W holding P f.
         """
+        if f.function_space != self.V:
+            raise ValueError(
+                f"MasterTrace.apply: {f.name} is not a function of this trace's space"
+            )
         out = fem.Function(self.W, name=f"P_{f.name}")
-        vec = f.x.petsc_vec
-        self.P.mult(vec, out.x.petsc_vec)
+        self.P.mult(f.x.petsc_vec, out.x.petsc_vec)
         out.x.scatter_forward()
-        self._images[id(f)] = (f, out)
+        out.trace_of = f
         return out
 
-    def image(self, f: fem.Function) -> fem.Function | None:
-        """The last :meth:`apply` of ``f``.
-
-        Args:
-            f: A function of V.
-
-        Returns:
-            The function of W that :meth:`apply` returned for ``f`` last, or None.
-        """
-        found = self._images.get(id(f))
-        return found[1] if found is not None and found[0] is f else None
-
-    def share(self, slave_part: np.ndarray, DG0: fem.FunctionSpace) -> np.ndarray:
-        """A term localised to the slave cells, moved to the master cells (module docstring).
-
-        Args:
-            slave_part: The term's cell indicators (DG0 on T_h, owned and ghost entries).
-            DG0: The DG0 space of the indicators.
-
-        Returns:
-            The indicators of the same term on the master cells (DG0 entries; ghosts zero).
-        """
-        fine = self.disc.mesh
-        cells = fine.topology.index_map(fine.topology.dim)
-        n = cells.size_local
-        dof = DG0.dofmap.list[:n, 0]
-        p = self._share.createVecRight()
-        p.array_w[:] = slave_part[dof]
-        out = self._share.createVecLeft()
-        self._share.mult(p, out)
-        moved = np.zeros_like(slave_part)
-        moved[dof] = out.array
-        for v in (p, out):
-            v.destroy()
-        return moved
-
     def destroy(self) -> None:
-        """Release the PETSc matrices (collective)."""
-        for name in ("P", "_share"):
-            mat = getattr(self, name, None)
-            if mat is not None:
-                mat.destroy()
-                setattr(self, name, None)
-        self._images.clear()
+        """Release the projection (collective; idempotent; the geometry is the disc's)."""
+        if getattr(self, "P", None) is not None:
+            MasterTrace.live -= 1
+            self.P.destroy()
+            self.P = None
+
+
+def images_of(form: Any, f: fem.Function) -> list[fem.Function]:
+    """The master-trace images of ``f`` (:meth:`MasterTrace.apply`) among a form's coefficients.
+
+    Args:
+        form: A UFL form or expression.
+        f: A function of a displacement space.
+
+    Returns:
+        The functions P f in ``form`` whose ``trace_of`` is ``f`` (in UFL's order).
+    """
+    return [c for c in ufl.algorithms.extract_coefficients(form)
+            if getattr(c, "trace_of", None) is f]
 
 
 class _FacetBasis:
@@ -442,6 +398,64 @@ class _FacetBasis:
         covered = np.zeros(num)
         np.add.at(covered, rule.facet, rule.weights)
         self.partial = covered < (1.0 - 1e-9) * self.measure
+
+
+def _slave_facets(disc: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """This rank's slave facets: vertices, normals, slave cells (global), slave tag."""
+    sub, fine = disc.slave_mesh, disc.mesh
+    tdim = fine.topology.dim
+    num = sub.topology.index_map(sub.topology.dim).size_local
+    facets = disc.slave_to_fine[:num]
+    x = sub.geometry.x[:, :sub.geometry.dim]
+    vertices = x[compat.geometry_dofmap(sub)[:num]]
+    f2c = fine.topology.connectivity(tdim - 1, tdim)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    inside = _entity_points(fine, tdim, cells).mean(axis=1)
+    normals = facet_normals(vertices, inside)
+    glob = fine.topology.index_map(tdim).local_to_global(cells)
+    tag = _facet_tag(disc.facet_tags, facets)
+    return vertices, normals, glob, tag
+
+
+def _master_facets(disc: Any, tag: int) -> tuple[_Master, np.ndarray]:
+    """The owned master facets of ``tag`` gathered on every rank, and this rank's cells.
+
+    Returns:
+        The gathered facets (``dofs`` empty: :func:`_master_dofs` adds a space's), and the
+        local index of the cell beside each of this rank's owned facets of ``tag``.
+    """
+    fine = disc.mesh
+    tdim, gdim = fine.topology.dim, fine.geometry.dim
+    n_own = fine.topology.index_map(tdim - 1).size_local
+    facets = disc.facet_tags.find(tag)
+    facets = facets[facets < n_own].astype(np.int32)
+    f2c = fine.topology.connectivity(tdim - 1, tdim)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    vertices = _entity_points(fine, tdim - 1, facets)
+    geometry = fine.geometry.x[compat.geometry_dofmap(fine)[cells]][:, :, :gdim]
+    normals = facet_normals(vertices, geometry.mean(axis=1))
+    cell = fine.topology.index_map(tdim).local_to_global(cells)
+    parts = disc.comm.allgather((vertices, normals, geometry, cell))
+    vertices, normals, geometry, cell = (np.concatenate([p[k] for p in parts]) for k in range(4))
+    return _Master(vertices, normals, geometry, np.zeros((len(cell), 0), np.int64), cell), cells
+
+
+def _master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np.ndarray:
+    """V's global block dofs of the master cells, gathered in :class:`TraceGeometry`'s order.
+
+    Args:
+        disc: The discretisation.
+        V: The displacement space.
+        cells: Per pair, the local cells of this rank's owned master facets.
+    """
+    index_map = V.dofmap.index_map
+    width = V.dofmap.dof_layout.num_dofs
+    out = []
+    for local in cells:
+        dofs = np.array([V.dofmap.cell_dofs(c) for c in local], dtype=np.int32).reshape(-1, width)
+        dofs = index_map.local_to_global(dofs.ravel()).reshape(dofs.shape)
+        out.extend(disc.comm.allgather(dofs))
+    return np.concatenate(out) if out else np.zeros((0, width), np.int64)
 
 
 def _master_basis(
