@@ -30,11 +30,11 @@ to the fine slave facets, from the slave cell beside each facet to the master ce
 proportion to the measure of the facet's covered part that Pi maps into each of them (each
 covered facet's shares sum to 1, so the moved indicators sum to the term).
 
-**One geometry per mesh.** The slave and master facets, the mortar rule (of degree
-2 :data:`MAX_DEGREE`, exact for every space of degree <= :data:`MAX_DEGREE`) and the share do not
-depend on the displacement space: :class:`TraceGeometry` holds them once per mesh, and the
-:class:`MasterTrace` of each space (P1 of the solves, P2 of the weights) adds its projection.
-The discretisation owns both and releases them in its ``destroy()``.
+**One geometry per mesh.** The slave and master facets (the master facets gathered once), the
+mortar rule of each degree and the share do not depend on the displacement space:
+:class:`TraceGeometry` holds them once per mesh, and the :class:`MasterTrace` of each space (P1 of
+the solves, P2 of the weights) adds its projection. The discretisation owns both and releases
+them in its ``destroy()``.
 
 **Images name what they project.** :meth:`MasterTrace.apply` returns P f as a function of W
 whose attribute ``trace_of`` is f; :func:`images_of` finds the images of f among a form's
@@ -68,7 +68,7 @@ __all__ = [
 ]
 
 #: The highest degree of a displacement space that a master trace takes (Lagrange, no dof
-#: transformations); the one mortar rule of a mesh integrates degree 2 MAX_DEGREE exactly.
+#: transformations).
 MAX_DEGREE = 2
 
 
@@ -113,7 +113,7 @@ class _Master:
 
 
 class TraceGeometry:
-    """The degree-independent geometry of a mesh's pairs: facets, mortar rule, share (module).
+    """The geometry of a mesh's pairs: facets, mortar rules, share (module).
 
     Built once per mesh by the discretisation (collective: every rank gathers the master
     facets of its pairs) and shared by the :class:`MasterTrace` of each displacement space.
@@ -122,7 +122,6 @@ class TraceGeometry:
         disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
 
     Attributes:
-        rule: The mortar rule of this rank's slave facets, of degree 2 :data:`MAX_DEGREE`.
         vertices, normals: This rank's slave facets (owned cells of ``disc.slave_mesh``).
         slave_cells: The fine cell beside each slave facet (global index).
         master: The master facets of all pairs, gathered (without dofs).
@@ -143,29 +142,44 @@ class TraceGeometry:
         TraceGeometry.live += 1
 
     def _build(self, disc: Any) -> None:
-        """The facets, the rule of every pair and the share (one pass over the slave facets)."""
-        vertices, normals, slave_cells, slave_tag = _slave_facets(disc)
+        """The facets, the masters of every pair, the rule of the solves and the share."""
+        vertices, normals, slave_cells, self._slave_tag = _slave_facets(disc)
         self.vertices, self.normals, self.slave_cells = vertices, normals, slave_cells
-        rules, masters, self.master_cells = [], [], []
-        offset = 0
+        masters, self.master_cells = [], []
         for pair in disc.problem.pairs:
             master, local = _master_facets(disc, pair.master)
-            on = np.flatnonzero(slave_tag == pair.slave)
-            r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
-                            2 * MAX_DEGREE)
-            rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset, r.gap))
             masters.append(master)
             self.master_cells.append(local)
-            offset += len(master.cell)
-        self.rule = MortarRule(*(np.concatenate([getattr(r, f) for r in rules]) for f in (
-            "facet", "points", "weights", "master", "gap")))
+        self._masters = masters
         self.master = _Master(*(np.concatenate([getattr(m, f) for m in masters]) for f in (
             "vertices", "normals", "geometry", "dofs", "cell")))
-        self.share_weights, self._home = self._share_matrices()
+        self._rules: dict[int, MortarRule] = {}
+        self.share_weights, self._home = self._share_matrices(self.rule(1))
 
-    def _share_matrices(self) -> tuple[PETSc.Mat, PETSc.Mat]:
+    def rule(self, degree: int) -> MortarRule:
+        """The mortar rule for a space of ``degree`` (exact to degree 2 ``degree``), kept.
+
+        The pieces do not depend on the degree (the share is the same from any rule); the
+        Gauss points on them do. Each degree asked for runs the mortar search once per mesh.
+        """
+        if degree not in self._rules:
+            rules, offset = [], 0
+            vertices, normals = self.vertices, self.normals
+            for pair, master in zip(self.disc.problem.pairs, self._masters, strict=True):
+                on = np.flatnonzero(self._slave_tag == pair.slave)
+                r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
+                                2 * degree)
+                rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset,
+                                        r.gap))
+                offset += len(master.cell)
+            self._rules[degree] = MortarRule(*(np.concatenate([getattr(r, f) for r in rules])
+                                               for f in ("facet", "points", "weights",
+                                                         "master", "gap")))
+        return self._rules[degree]
+
+    def _share_matrices(self, rule: MortarRule) -> tuple[PETSc.Mat, PETSc.Mat]:
         """S^T (facet -> master cells, rows summing to 1 where covered) and H^T (its cell)."""
-        rule, fine, Fs = self.rule, self.disc.mesh, self.Fs
+        fine, Fs = self.disc.mesh, self.Fs
         cells = fine.topology.index_map(fine.topology.dim)
         fmap = Fs.dofmap.index_map
         num = len(self.vertices)
@@ -236,7 +250,7 @@ class MasterTrace:
         P: The projection (PETSc Mat, W x V, the prescribed Dirichlet columns included).
         gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` where no
             master facet is met).
-        rule: The mortar rule of this rank's slave facets (the geometry's).
+        rule: The mortar rule of this rank's slave facets (the geometry's of V's degree).
     """
 
     #: How many traces are alive (built and not destroyed), on this rank.
@@ -262,7 +276,7 @@ class MasterTrace:
         """P and the gap from the geometry's rule (one pass over the rule's points)."""
         geometry = self.geometry
         vertices, normals = geometry.vertices, geometry.normals
-        self.rule = geometry.rule
+        self.rule = geometry.rule(degree)
         master = geometry.master
         master = _Master(master.vertices, master.normals, master.geometry,
                          _master_dofs(disc, V, geometry.master_cells), master.cell)
