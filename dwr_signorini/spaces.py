@@ -96,6 +96,10 @@ class Measures:
 class Discretization:
     """Macro mesh, fine mesh, the spaces V_h and Lambda_H and the maps between them.
 
+    With contact pairs it owns the master traces of its mesh (:meth:`master_trace`): release
+    them with :meth:`destroy` (collective; a :class:`~dwr_signorini.Solution` does it for the
+    discretisation that :func:`~dwr_signorini.solve` or a driver made for it).
+
     Args:
         problem: The problem; its mesh is the macro mesh T_H (collective: T_h is refined on
             every rank).

@@ -3,7 +3,8 @@
 Pure functions: each ``check_*`` takes what it checks and the context it needs (the macro mesh
 T_H, the contact tags, ...) and returns the cleaned value, or raises a ValueError or TypeError
 naming the argument. :class:`~dwr_signorini.problem.SignoriniProblem` calls them in its
-constructor; the checks of the mesh and its tags are in :mod:`dwr_signorini.mesh_validation`.
+constructor; the checks of the mesh and its tags are in :mod:`dwr_signorini.mesh_validation`,
+except those of contact pairs, which are here with the pairs' other checks (the end of the module).
 :func:`call_user` calls a user's callable collectively.
 """
 
