@@ -56,7 +56,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from . import compat
-from .mortar import MortarRule, facet_normals, mortar_rule
+from .mortar import MortarRule, facet_normals
+from .search import candidate_rule
 from .timing import timed
 
 __all__ = [
@@ -167,8 +168,8 @@ class TraceGeometry:
             vertices, normals = self.vertices, self.normals
             for pair, master in zip(self.disc.problem.pairs, self._masters, strict=True):
                 on = np.flatnonzero(self._slave_tag == pair.slave)
-                r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
-                                2 * degree)
+                r = candidate_rule(vertices[on], normals[on], master.vertices, master.normals,
+                                   2 * degree)
                 rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset,
                                         r.gap))
                 offset += len(master.cell)
@@ -536,4 +537,5 @@ def _csr(
         csr=(indptr, uc.astype(PETSc.IntType), summed),
         comm=comm,
     )
+
 

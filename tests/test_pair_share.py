@@ -228,3 +228,75 @@ def test_two_bodies_sharing_a_vertex_are_refused_on_any_partition():
     with pytest.raises(ValueError, match="1 vertices lie on both sides"):
         ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=4, master=3),
                             dirichlet={1: 0.0, 2: 0.0})
+
+
+# --------------------------------------------------------------------------------------------------
+# The candidate search gives the rule of the full search
+# --------------------------------------------------------------------------------------------------
+
+
+def _surface(n: int, box: tuple[float, float, float, float], height, gdim: int):
+    """Flat facets of z = height(x, y) (y = height(x) in 2D) over ``box``, n cells a side.
+
+    Returns the facets' vertices and a point beside each, on the side of -z (-y).
+    """
+    x0, x1, y0, y1 = box
+    if gdim == 2:
+        xs = np.linspace(x0, x1, n + 1)
+        pts = np.stack([xs, height(xs, 0.0)], axis=1)
+        facets = np.stack([pts[:-1], pts[1:]], axis=1)
+    else:
+        xs, ys = np.linspace(x0, x1, n + 1), np.linspace(y0, y1, n + 1)
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        P = np.stack([X, Y, height(X, Y)], axis=-1)
+        tris = []
+        for i, j in itertools.product(range(n), range(n)):
+            tris += [[P[i, j], P[i + 1, j], P[i, j + 1]],
+                     [P[i + 1, j], P[i + 1, j + 1], P[i, j + 1]]]
+        facets = np.array(tris)
+    below = facets.mean(axis=1)
+    below[:, -1] -= 0.1
+    return facets, below
+
+
+def _moments(rule, gdim: int, normals: np.ndarray, num: int, num_master: int) -> dict:
+    """Per slave facet: measure covered, integrals of the gap and of x^a (Pi x)^b; per (facet,
+    master facet): the measure mapped."""
+    out = {}
+    pi = rule.points + rule.gap[:, None] * normals[rule.facet]
+    fields = {"measure": rule.weights, "gap": rule.weights * rule.gap,
+              "xy": rule.weights * rule.points[:, 0] * pi[:, gdim - 2] ** 2 * pi[:, 0]}
+    for name, values in fields.items():
+        total = np.zeros(num)
+        np.add.at(total, rule.facet, values)
+        out[name] = total
+    pairs = np.zeros(num * num_master)
+    np.add.at(pairs, rule.facet * num_master + rule.master, rule.weights)
+    out["pairs"] = pairs
+    return out
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_candidate_search_gives_the_rule_of_the_full_search(gdim):
+    """A curved master under a flat slave (non-matching), covering it in part; a far one."""
+    from dwr_signorini.mortar import facet_normals, mortar_rule
+    from dwr_signorini.search import candidate_rule
+
+    n_s, n_m = (40, 57) if gdim == 2 else (9, 13)
+    slave, above = _surface(n_s, (0.0, 1.0, 0.0, 1.0), lambda x, y: 0.0 * x, gdim)
+    above[:, -1] += 0.2  # the slave body lies above its facets
+    master, below = _surface(n_m, (-0.13, 0.83, -0.07, 0.71),
+                             lambda x, y: -0.02 - 0.1 * ((x - 0.4) ** 2 + (y - 0.3) ** 2), gdim)
+    # a far master under the corner that the near one leaves: met beyond the searched depth
+    far, far_below = _surface(3, (0.9, 1.1, 0.8, 1.1), lambda x, y: -3.0 + 0.0 * x, gdim)
+    master, below = np.concatenate([master, far]), np.concatenate([below, far_below])
+    sn, mn = facet_normals(slave, above), facet_normals(master, below)
+    full = mortar_rule(slave, sn, master, mn, 4)
+    fast = candidate_rule(slave, sn, master, mn, 4)
+    a = _moments(full, gdim, sn, len(slave), len(master))
+    b = _moments(fast, gdim, sn, len(slave), len(master))
+    covered = a["measure"] > 0.0
+    assert 0 < np.count_nonzero(covered) < len(slave)  # facets covered, in part, and missed
+    assert np.any(full.gap > 2.0)  # and the far master met (by the fallback)
+    for name in a:
+        assert np.allclose(b[name], a[name], rtol=1e-12, atol=1e-14), name
