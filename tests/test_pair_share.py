@@ -287,16 +287,16 @@ def test_candidate_search_gives_the_rule_of_the_full_search(gdim):
     above[:, -1] += 0.2  # the slave body lies above its facets
     master, below = _surface(n_m, (-0.13, 0.83, -0.07, 0.71),
                              lambda x, y: -0.02 - 0.1 * ((x - 0.4) ** 2 + (y - 0.3) ** 2), gdim)
-    # a far master under the corner that the near one leaves: met beyond the searched depth
-    far, far_below = _surface(3, (0.9, 1.1, 0.8, 1.1), lambda x, y: -3.0 + 0.0 * x, gdim)
+    # a far master beyond the searched depth, under the corner that the near one leaves (some
+    # facets meet both)
+    far, far_below = _surface(3, (0.84, 1.1, 0.70, 1.1), lambda x, y: -3.0 + 0.0 * x, gdim)
     master, below = np.concatenate([master, far]), np.concatenate([below, far_below])
     sn, mn = facet_normals(slave, above), facet_normals(master, below)
     full = mortar_rule(slave, sn, master, mn, 4)
     fast = candidate_rule(slave, sn, master, mn, 4)
     a = _moments(full, gdim, sn, len(slave), len(master))
     b = _moments(fast, gdim, sn, len(slave), len(master))
-    covered = a["measure"] > 0.0
-    assert 0 < np.count_nonzero(covered) < len(slave)  # facets covered, in part, and missed
+    assert np.any(a["measure"] < 0.99 * a["measure"].max())  # facets covered in part
     assert np.any(full.gap > 2.0)  # and the far master met (by the fallback)
     for name in a:
         assert np.allclose(b[name], a[name], rtol=1e-12, atol=1e-14), name
