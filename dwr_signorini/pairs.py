@@ -357,8 +357,15 @@ class MasterTrace:
             raise ValueError(
                 f"MasterTrace.apply: {f.name} is not a function of this trace's space"
             )
+        # temporary PETSc vectors, destroyed here: a Function's own (x.petsc_vec) is destroyed
+        # by dolfinx's __del__, at a time of the garbage collector's on each rank
+        x, y = self.P.createVecRight(), self.P.createVecLeft()
+        x.array_w[:] = f.x.array[: len(x.array_r)]
+        self.P.mult(x, y)
         out = fem.Function(self.W, name=f"P_{f.name}")
-        self.P.mult(f.x.petsc_vec, out.x.petsc_vec)
+        out.x.array[: len(y.array_r)] = y.array_r
+        for vec in (x, y):
+            vec.destroy()
         out.x.scatter_forward()
         out.trace_of = f
         return out
