@@ -162,6 +162,12 @@ class TraceGeometry:
 
         The pieces do not depend on the degree (the share is the same from any rule); the
         Gauss points on them do. Each degree asked for runs the mortar search once per mesh.
+
+        Args:
+            degree: The degree of the displacement space.
+
+        Returns:
+            The :class:`~dwr_signorini.mortar.MortarRule` of this rank's slave facets.
         """
         if degree not in self._rules:
             rules, offset = [], 0
@@ -245,6 +251,9 @@ class MasterTrace:
         V: A vector Lagrange space on T_h of degree <= :data:`MAX_DEGREE` (P1 of the solves,
             P2 of the weights).
         geometry: The mesh's :class:`TraceGeometry`.
+
+    Raises:
+        NotImplementedError: V of a degree above :data:`MAX_DEGREE`.
 
     Attributes:
         W: Vector DG of V's degree on Sigma_h; ``Ws`` the scalar one.
@@ -352,6 +361,9 @@ class MasterTrace:
 
         Returns:
             A new function of W holding P f.
+
+        Raises:
+            ValueError: ``f`` is not a function of V.
         """
         if f.function_space != self.V:
             raise ValueError(
