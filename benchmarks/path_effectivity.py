@@ -8,7 +8,8 @@ the J_h of the finest mesh, its uncertainty the change from the mesh before (fro
 estimate). A step of a level is judged when its error is at least 10 times that uncertainty;
 for each: J_h, the interval, whether it contains the reference, its width over the error, and
 the effectivity of eta, (J_ref - J_h) / eta (eta of the step's own residuals; the interval
-includes the error the history carries, ``StepRecord.eta_history``). Also per step: Newton
+includes the error the history carries, ``StepRecord.eta_history``, on every step:
+``history="every"``). Also per step: Newton
 steps and the times of the solve and of the estimate (the cost per step).
 
     scripts/fenicsx mpirun -n 2 python3 benchmarks/path_effectivity.py
@@ -42,7 +43,7 @@ def paths(
     runs = []
     for level in range(levels):
         with ds.solve_path(problems, ex.goal_friction_force(), weights=weights,
-                           verbose=False) as res:
+                           history="every", verbose=False) as res:
             rows = [r.as_dict() for r in res.steps]
         if comm.rank == 0:
             print(f"level {level}: {rows[0]['num_cells']} cells, "

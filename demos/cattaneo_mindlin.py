@@ -175,11 +175,14 @@ print0(f"Cattaneo-Mindlin in {dim}D on {comm.size} process(es): mu = {args.mu}, 
 # theory while its solution is alive and keeps the facets' tractions (numpy arrays, gathered on
 # rank 0) and, for the adaptive path in 2D, a snapshot of the macro mesh. In 3D the radii
 # $a_h$, $c_h$ are those of the discs of the areas in contact and sticking (the half body's
-# areas doubled), and `dc/h` counts in mean edges of the contact facets.
+# areas doubled), and `dc/h` counts in mean edges of the contact facets. `cS/a` is the stick
+# zone's half-width (radius) from the measure of the sticking facets that
+# `ds.contact_summary(sol)` returns (its `stick_area`; the 2D zone's extent 2c, the 3D half
+# disc's area pi c^2 / 2), beside `c_h/a` from the outermost sticking facets.
 
 # +
 HEADER = (f"{'step':>4} {'cells':>7} {'Q/muP':>6} {'a_h/a':>6} {'c/a':>6} {'c_h/a':>6} "
-          f"{'dc/h':>6} {'L2 q':>6} {'best':>6} {'L2 p':>6} {'coupl':>7} {'stick':>5} "
+          f"{'cS/a':>6} {'dc/h':>6} {'L2 q':>6} {'best':>6} {'L2 p':>6} {'coupl':>7} {'stick':>5} "
           f"{'slip':>5} {'J_h':>11} {'[J_low, J_high]':>25} {'it':>3} {'time':>6}")
 rows: list[dict] = []
 profiles: dict[str, list] = {}
@@ -196,6 +199,9 @@ def run(name: str, h_contact: float, adaptive: bool) -> None:
 
     def on_step(record: ds.StepRecord, sol: ds.Solution, est: ds.Estimate) -> None:
         m = cases.measure_cattaneo_mindlin(sol, **data)
+        summary = ds.contact_summary(sol)  # the stick zone's extent from its facets' measure
+        c_summary = (summary.stick_area / 2 if dim == 2
+                     else math.sqrt(2 * summary.stick_area / math.pi))  # the half body's
         profiles[name].append(cases.gather_contact_profile(sol) if dim == 2
                               else cm.gather_contact_patch(sol))
         if adaptive and dim == 2 and not args.no_plots:
@@ -205,10 +211,13 @@ def run(name: str, h_contact: float, adaptive: bool) -> None:
                "num_dofs": record.num_dofs, "M_C": record.num_contact_elements,
                "J_h": record.J_h, "J_low": record.J_low, "J_high": record.J_high,
                "eta": record.eta, "newton_iterations": record.newton_iterations,
-               **m.as_dict(), "time_cumulative": time.perf_counter() - tic}
+               **m.as_dict(), "P_summary": summary.normal_force,
+               "Q_summary": summary.friction_force[0], "c_summary": c_summary,
+               "time_cumulative": time.perf_counter() - tic}
         rows.append(row)
         print0(f"{record.step:4d} {record.num_cells:7d} {m.ratio:6.3f} {m.a_h / m.a:6.3f} "
-               f"{m.c / m.a:6.3f} {m.c_h / m.a:6.3f} {m.c_error_facets:+6.2f} "
+               f"{m.c / m.a:6.3f} {m.c_h / m.a:6.3f} {c_summary / m.a:6.3f} "
+               f"{m.c_error_facets:+6.2f} "
                f"{m.l2_lam_t:6.3f} {m.l2_best:6.3f} {m.l2_lam:6.3f} {m.coupling:+7.4f} "
                f"{m.num_stick:5d} {m.num_slip:5d} {record.J_h:11.4e} "
                f"[{record.J_low:.4e}, {record.J_high:.4e}] {record.newton_iterations:3d} "
@@ -233,8 +242,13 @@ wall = time.perf_counter() - tic
 #
 # `L2 q` is $\|\lambda_t - q\| / \|q\|$ on $\Gamma_C$, `best` the same for the best
 # facet-wise constant approximation of $q$ (what the multiplier space allows), `dc/h` the
-# error of the stick half-width in macro facets. On the meshes of the defaults `L2 q` falls
-# by a factor of about 1.4 per halving of $h_C$ (0.32, 0.22, 0.16 at the last step); the stick
+# error of the stick half-width in macro facets. The slip is measured in the flat's frame
+# (the horizontal displacement of the contact points, see the theory page's contact frame):
+# `L2 q` falls from 0.46 to 0.34 and 0.27 at the last step on facets of 0.02, 0.01 and 0.005,
+# and a part of it does not fall with $h_C$: the half-disc is not a half-plane, on a
+# frictionless flat its contact points move outwards (the half-plane's $\beta = 0.02$ would
+# move them inwards), so sticking needs an odd traction on the press step (0.17-0.21
+# $\mu P$ on each half) and the stick zone sits about $0.13\,a$ off centre under shear. The stick
 # zone comes out a little small, by 0.2 to 1.2 facets: the discrete traction undershoots $q$'s
 # square-root rise at the stick boundary. On top of it $\lambda_t$ oscillates from facet to
 # facet by about $\pm 0.08\,\mu p_0$ in the stick zone: the response of P1 displacements to
@@ -243,7 +257,9 @@ wall = time.perf_counter() - tic
 #
 # In 3D ($h_C = 0.03, 0.02$) the contact radius comes out within half a facet of Hertz's
 # ($-0.36$, $-0.43$ facets) and the stick radius small by about one facet ($-0.74$ and
-# $-1.23$ facets at the last step): $\lambda_n$ oscillates from facet to facet by about
+# $-1.23$ facets at the last step, measured with the slip along each slave facet's tangent; in
+# the flat's frame the finite sphere shows as the half-disc does, $-1.54$ facets at the second
+# shear step on $h_C = 0.03$): $\lambda_n$ oscillates from facet to facet by about
 # $\pm 0.3\,p_0$ (rms; half that at $\nu = 0.3$), a sticking facet with a low $\lambda_n$
 # reaches its Coulomb limit and slips, and $\lambda_t = \mu \lambda_n$ on the slipping facets
 # carries the oscillation: `L2 q` is about 0.67 on both meshes, against 0.18 and 0.15 for the

@@ -21,6 +21,8 @@ from .report import AdaptiveResult, LevelRecord
 from .semismooth import ConvergenceError
 from .settings import ESTIMATORS, WEIGHTS
 from .spaces import Discretization, Measures, discretize
+from .stress import stress_fields
+from .summary import ContactSummary, contact_summary
 
 # Each FFCx JIT module is loaded from the disk cache once per process, for every form compiled
 # from here on (compat.memoize_jit_modules): the one place the memo is switched on.
@@ -34,6 +36,7 @@ __all__ = [
     "AdaptiveResult",
     "CollectiveError",
     "ContactPair",
+    "ContactSummary",
     "ConvergenceError",
     "Coulomb",
     "Discretization",
@@ -47,6 +50,7 @@ __all__ = [
     "StepRecord",
     "Tresca",
     "__version__",
+    "contact_summary",
     "discretize",
     "estimate",
     "obstacles",
@@ -54,4 +58,5 @@ __all__ = [
     "solve",
     "solve_adaptive",
     "solve_path",
+    "stress_fields",
 ]

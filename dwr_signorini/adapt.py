@@ -18,10 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
+from .model_choice import ModelChoice, check_models, explain
+from .model_error import check_richer
 from .newton import Solution
 from .problem import SignoriniProblem
 from .refine import RULES, fine_cells
@@ -55,6 +58,19 @@ def _check_refinement(problem: SignoriniProblem, refinement: str, rule: Any, exa
     check_simplex(problem, refinement)
 
 
+def _model_choice(
+    problem: SignoriniProblem, model_error: Any, models: Any, tol: Any, share: Any
+) -> ModelChoice | None:
+    """Check ``model_error`` or ``models`` of :func:`solve_adaptive`; the run's model choice."""
+    if model_error is not None:
+        check_richer(problem, model_error)
+    if models is None:
+        return None
+    if model_error is not None:
+        raise ValueError("give models or model_error, not both")
+    return ModelChoice(check_models(problem, models, tol, share), tol, share)
+
+
 def solve_adaptive(
     problem: SignoriniProblem,
     goal: Goal,
@@ -75,6 +91,9 @@ def solve_adaptive(
     ncp_scale: str | float = "physical",
     refinement_rule: str = "edges",
     growth: float | None = None,
+    model_error: SignoriniProblem | None = None,
+    models: list[SignoriniProblem] | None = None,
+    model_share: float = 0.5,
 ) -> AdaptiveResult:
     """Goal-oriented adaptive (or uniform) refinement for Signorini's problem.
 
@@ -105,6 +124,19 @@ def solve_adaptive(
             ``"longest_edge"`` (:func:`~dwr_signorini.refine.marked_edges`).
         growth: Instead of ``fraction``, the wanted ratio of macro cells from one level to the
             next (> 1, :func:`~dwr_signorini.marking.mark_for_growth`).
+        model_error: ``problem`` with a richer contact law (as for
+            :func:`~dwr_signorini.estimate`): every level also estimates the change of J from
+            the law of ``problem`` to that one (``LevelRecord.model_error`` and its interval);
+            it does not drive the refinement.
+        models: Mesh and model adaptivity (:mod:`~dwr_signorini.model_choice`): problems from
+            the simplest law to the richest, each the one before with a richer law (the same
+            mesh and data), ``models[0]`` being ``problem``; needs ``tol``. Each level solves
+            the model in force and estimates its model error against the next richer one; where
+            the bound of that error exceeds ``model_share * tol`` the level is solved again with
+            the richer model, which stays in force (eq. (M2)). The run converges when half the
+            interval of J plus the bound of the model error is at most ``tol`` (eq. (M3)).
+            ``LevelRecord.model`` names the law that ran. Not with ``model_error``.
+        model_share: s of (M2), in (0, 1): the share of ``tol`` a left-out law may change J by.
 
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level (collective;
@@ -118,6 +150,19 @@ def solve_adaptive(
         RuntimeError: As :func:`~dwr_signorini.estimate`.
     """
     _check_problem_and_goal(problem, goal, refinement)
+    check_same_on_ranks(
+        problem.mesh,
+        "solve_adaptive",
+        {
+            "refinement": refinement, "fraction": fraction, "strategy": strategy,
+            "max_levels": max_levels, "max_cells": max_cells, "tol": tol,
+            "estimator": estimator, "weights": weights, "exact": exact,
+            "output_dir": None if output_dir is None else str(output_dir),
+            "callback": callback is None, "petsc_options": petsc_options, "method": method,
+            "ncp_scale": ncp_scale, "refinement_rule": refinement_rule, "growth": growth,
+            "models": None if models is None else len(models), "model_share": model_share,
+        },
+    )
     marking = (  # a uniform run records what it was given
         marking_defaults(problem, fraction, growth, strategy)
         if refinement == "adaptive"
@@ -126,14 +171,19 @@ def solve_adaptive(
     stop = StopRule(max_levels, max_cells, tol)
     solver = SolverOptions(petsc_options, method, ncp_scale)
     estimate_options = EstimateOptions(estimator, weights, petsc_options)
-    settings = LevelSettings(solver, estimate_options, marking, refinement, refinement_rule, exact)
+    settings = LevelSettings(
+        solver, estimate_options, marking, refinement, refinement_rule, exact, model_error
+    )
     _check_refinement(problem, refinement, refinement_rule, exact)
+    choice = _model_choice(problem, model_error, models, tol, model_share)
     meta = {"refinement": refinement, "fraction": marking.fraction, "strategy": marking.strategy,
             "max_growth": marking.max_growth, "estimator": estimator, "weights": weights,
             "method": method, "ncp_scale": solver.ncp_scale, "refinement_rule": refinement_rule,
-            "growth": marking.growth, "exact": exact, "num_processes": problem.mesh.comm.size}
+            "growth": marking.growth, "exact": exact, "num_processes": problem.mesh.comm.size,
+            "models": None if models is None else [m.law.name for m in models],
+            "model_share": None if models is None else model_share}
     reporter = Reporter(problem.mesh.comm, refinement, meta, output_dir, callback, verbose)
-    return _levels(problem, goal, settings, stop, reporter)
+    return _levels(problem, goal, settings, stop, reporter, choice)
 
 
 def _levels(
@@ -142,8 +192,13 @@ def _levels(
     settings: LevelSettings,
     stop: StopRule,
     reporter: Reporter,
+    choice: ModelChoice | None = None,
 ) -> AdaptiveResult:
-    """The loop of :func:`solve_adaptive` over the levels, from ``problem``'s macro mesh."""
+    """The loop of :func:`solve_adaptive` over the levels, from ``problem``'s macro mesh.
+
+    With ``choice`` each level runs the model it chooses (:meth:`ModelChoice.solve_level`)
+    and the run converges by its rule (M3).
+    """
     result = AdaptiveResult(levels=[], meta=reporter.meta, comm=reporter.comm)
     previous: Solution | None = None
     previous_rec = sol = est = macro_parent = disc = None
@@ -167,9 +222,16 @@ def _levels(
                     previous_rec.destroy()
                 t_setup = time.perf_counter() - t_start
                 sol = est = None
-                sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal)
+                if choice is None:
+                    sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal)
+                    result.converged = stop.converged(est.interval)
+                else:
+                    sol, est, t_solve, disc = choice.solve_level(
+                        settings, disc, guess, goal, reporter.say, level
+                    )
+                    current = disc.problem
+                    result.converged = choice.converged(est)
                 sol.owns_disc = True  # the level's master traces go with its solution
-                result.converged = stop.converged(est.interval)
                 result.stopped_by = "tol" if result.converged else "max_levels"
                 done = result.converged or level == stop.max_levels - 1
                 marked = np.zeros(0, dtype=np.int32)
@@ -190,7 +252,8 @@ def _levels(
                 previous, previous_rec, current = sol, est.reconstructor, next_problem
             last = result.levels[-1]
             reporter.say(stop.explain(len(result.levels), last.J_high - last.J_low,
-                                      result.stopped_by, result.next_cells))
+                                      result.stopped_by, result.next_cells)
+                         + explain(choice, result.estimate))
     except Exception:
         # Every rank raises (the package's errors are collective, dwr_signorini.collective):
         # release this level's and the last level's PETSc objects and options on all ranks.

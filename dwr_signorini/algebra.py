@@ -96,6 +96,11 @@ class ContactAlgebra:
             lifting -K u_D on the free rows and u_D on the Dirichlet rows, g is g - N u_D.
         K, N, NT, f, M, g: The assembled pieces (PETSc Mat/Vec; M and g on the multiplier rows).
         c_n: c_n,i on the owned multiplier rows.
+        gap_rate: With a force-controlled obstacle, m_i = int dg/ddelta psi_i on the owned normal
+            rows at its current displacement (:meth:`set_obstacle_displacement`); else None.
+        resultant: With a force-controlled obstacle, w_i = int (-n . d) psi_i on the owned
+            normal rows: w . lam is the contact force on the obstacle against its direction d
+            of approach; else None.
         ncp_scale: The validated ``ncp_scale``.
         n_u, n_lam: Owned displacement dofs and multiplier rows of this rank.
     """
@@ -130,10 +135,8 @@ class ContactAlgebra:
         a = fields.elastic_form(u, v, m.dx)
         if callable(problem.E) or callable(problem.nu):
             a = with_quadrature_degrees(a, degree)
-        couplings = [
-            ufl.inner(mu, ufl.dot(u, comp.direction(m.n))) * m.ds_contact
-            for comp in self.components
-        ]
+        directions = disc.directions(self.components)  # in the contact frame
+        couplings = [ufl.inner(mu, ufl.dot(u, e)) * m.ds_contact for e in directions]
         forms = {
             "a": form(a),
             "L": form(with_quadrature_degrees(disc.load_form(v), degree)),
@@ -141,22 +144,30 @@ class ContactAlgebra:
             "NT": [form(ufl.adjoint(c)) for c in couplings],
             "M": form(mu * m.ds_contact),
             "g": form(
-                with_quadrature_degrees(fields.gap(m.x, m.n) * mu * m.ds_contact, degree)
+                with_quadrature_degrees(
+                    disc.normal_gap(self.components, fields.gap(m.x, m.n)) * mu * m.ds_contact,
+                    degree)
             ),
         }
         self.trace = disc.master_trace(V)
         if self.trace is not None:  # the master side: B_W of (mu, w . e_k), w in W
             w = ufl.TrialFunction(self.trace.W)
             forms["B"] = [
-                form(ufl.inner(mu, ufl.dot(w, comp.direction(m.n))) * m.ds_contact)
-                for comp in self.components
+                form(ufl.inner(mu, ufl.dot(w, e)) * m.ds_contact) for e in directions
             ]
         if disc.u_old is not None:  # the slip increment of a load step: g_k = B_k u_old
             u_old = disc.relative(disc.u_old)
             forms["u_old"] = [
-                form(ufl.dot(u_old, comp.direction(m.n)) * mu * m.ds_contact)
-                for comp in self.components[1:]
+                form(ufl.dot(u_old, e) * mu * m.ds_contact) for e in directions[1:]
             ]
+        if problem.force_obstacle is not None:  # m_i = int dg_c/ddelta psi_i (force control)
+            normal = self.components[0]
+            rate = fields.gap_rate(m.x, m.n, lambda g, frame: normal.offset_in(g, m.n, frame))
+            forms["g_rate"] = form(with_quadrature_degrees(rate * mu * m.ds_contact, degree))
+            d = ufl.as_vector([float(c) for c in problem.force_obstacle.direction])
+            forms["resultant"] = form(
+                -ufl.dot(disc.contact_frame(), d) * mu * m.ds_contact
+            )
         bound = problem.law.bound_expr(fields, m.x)
         if bound is not None:
             forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact, degree))
@@ -201,6 +212,13 @@ class ContactAlgebra:
                                forms["u_old"][k - 1] if "u_old" in forms else None)
                   for k in range(1, len(self.components))]
             M_owned = M.array.copy()
+            self._gap_forms = (forms["g"], forms["N"][0] if lift else None, forms.get("g_rate"))
+            self.gap_rate = self._gap_rate()
+            self.resultant = None
+            if "resultant" in forms:
+                vec = self._vector(forms["resultant"])
+                self.resultant = vec.array.copy()
+                vec.destroy()
             self.M = self._stacked_vector([M] * len(self.components))
             self.g = self._stacked_vector(g)
             if self.trace is not None:
@@ -219,6 +237,32 @@ class ContactAlgebra:
         else:
             c_n = np.full(len(M_owned), self.ncp_scale)
         self.c_n = np.tile(c_n, len(self.components))
+
+    def _gap_rate(self) -> np.ndarray | None:
+        """M = int dg/ddelta psi on the owned normal rows (force control), else None."""
+        if self._gap_forms[2] is None:
+            return None
+        vec = self._vector(self._gap_forms[2])
+        out = vec.array.copy()
+        vec.destroy()
+        return out
+
+    def set_obstacle_displacement(self, delta: float) -> None:
+        """Move the force-controlled obstacle to ``delta``: g and :attr:`gap_rate` anew.
+
+        Sets the Constant of the discretisation's fields (so every form of the gap, the
+        estimator's too, sees the obstacle there) and reassembles the normal rows of g (with
+        the lifting -N u_D, as in the constructor) and m = int dg/ddelta psi. Collective.
+
+        Args:
+            delta: The obstacle's rigid displacement along its direction of approach.
+        """
+        self.disc.fields.obstacle_displacement.value = delta
+        g_form, lifting, _ = self._gap_forms
+        vec = self._vector(g_form, lifting, self.prescribed_bcs)
+        self.g.array_w[: self.n_q] = vec.array[: self.n_q]
+        vec.destroy()
+        self.gap_rate = self._gap_rate()
 
     def _couple_master(self, B: list[PETSc.Mat], lift: bool) -> None:
         """N <- N (I - P) and N^T its transpose, g <- g + B_W P u_D (:mod:`~.pairs`).

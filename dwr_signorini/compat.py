@@ -27,6 +27,9 @@ Differences the package meets, in short:
   :func:`interpolation_points`; ``ufl.Cell.is_simplex`` likewise (ufl 2026): :func:`is_simplex`.
 * ``Geometry.dofmap`` / ``Geometry.cmap`` are deprecated for ``dofmaps[0]`` / ``cmaps[0]``
   (0.11): :func:`geometry_dofmap`, :func:`geometry_cmap`.
+* ``dolfinx.io.VTXWriter`` exists where dolfinx was built with ADIOS2 (``common.has_adios2``);
+  in 0.9 all functions of one writer need the same element (degree and continuity), in 0.11
+  not: :func:`has_vtx` (the writers group the functions by element on every version).
 
 The wrappers only the tests use (``LinearProblem``, ``create_vector``, block assembly,
 ``bb_tree``, ``PointOwnershipData``) are in the tests (``tests/fem_compat.py``).
@@ -59,6 +62,7 @@ __all__ = [
     "geometry_cmap",
     "geometry_dofmap",
     "gmsh_model_to_mesh",
+    "has_vtx",
     "interpolation_points",
     "is_simplex",
     "memoize_jit_modules",
@@ -417,3 +421,14 @@ def is_simplex(cell: Any) -> bool:
     """
     value = cell.is_simplex
     return bool(value() if callable(value) else value)
+
+
+def has_vtx() -> bool:
+    """Whether ``dolfinx.io.VTXWriter`` (ADIOS2) is available.
+
+    What differs: dolfinx built without ADIOS2 has no ``VTXWriter`` (``common.has_adios2`` is
+    False or missing).
+    """
+    from dolfinx import common, io
+
+    return bool(getattr(common, "has_adios2", False)) and hasattr(io, "VTXWriter")

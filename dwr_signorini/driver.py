@@ -60,6 +60,8 @@ class LevelSettings:
         refinement_rule: ``"edges"`` or ``"longest_edge"``
             (:func:`~dwr_signorini.refine.marked_edges`).
         exact: The exact J, if known: fills the rows' rel_error and effectivity indices.
+        model_error: The problem with a richer contact law whose model error every level
+            estimates (:mod:`~dwr_signorini.model_error`), or None.
     """
 
     solver: SolverOptions
@@ -68,6 +70,24 @@ class LevelSettings:
     refinement: str = "adaptive"
     refinement_rule: str = "edges"
     exact: float | None = None
+    model_error: SignoriniProblem | None = None
+
+    def richer(self, problem: SignoriniProblem) -> SignoriniProblem | None:
+        """The richer problem of :attr:`model_error` on ``problem``'s macro mesh, or None.
+
+        Args:
+            problem: The level's problem.
+
+        Returns:
+            :attr:`model_error` itself on its own mesh, else the same data with its law on
+            ``problem``'s (refined) mesh.
+        """
+        rich = self.model_error
+        if rich is None or rich.mesh is problem.mesh:
+            return rich
+        return problem.with_mesh(
+            problem.mesh, problem.facet_tags, problem.cell_tags, law=rich.law
+        )
 
     def solve_and_estimate(
         self, disc: Discretization, guess: tuple[Any, ...] | None, goal: Goal
@@ -87,7 +107,9 @@ class LevelSettings:
         sol = solve(disc, initial_guess=guess, options=self.solver)
         t_solve = time.perf_counter() - tic
         try:
-            est = estimate(sol, goal, options=self.estimate)
+            est = estimate(
+                sol, goal, options=self.estimate, model_error=self.richer(disc.problem)
+            )
         except BaseException:
             sol.destroy()
             raise

@@ -142,8 +142,12 @@ def _solve_dual(
     """:func:`solve_dual` into the work vectors ``rhs`` and ``z`` (the caller destroys them)."""
     with timed("goal"):
         dual_rhs(system, goal, rhs)
+    force = getattr(system, "force_control", None)  # an obstacle under a given force
     with timed("dual solve"), collective(system.disc.comm, "the dual solve"):
-        system.solve_transpose(rhs, z)
+        if force is None:
+            system.solve_transpose(rhs, z)
+        else:  # the bordered system's dual (dwr_signorini.force)
+            force.solve_transpose(rhs, z, force.goal_rate(goal.value))
     y = fem.Function(system.V, name="y")
     y.x.array[: system.n_u] = z.array_r[: system.n_u]
     y.x.scatter_forward()

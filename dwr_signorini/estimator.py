@@ -26,11 +26,14 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
 from .lifetime import Releasable
+from .model_error import ModelError, check_richer
+from .model_error import model_error as model_error_estimate
 from .newton import Solution
 from .pairs import images_of
 from .quadrature import with_quadrature_degrees
@@ -102,6 +105,9 @@ class Estimate(Releasable):
         weights_fallback: Why ``weights="auto"`` kept the patch weights where it would have
             taken P2 ones (the P2 problem's predicted memory does not fit,
             :func:`~dwr_signorini.weights.p2_weights_fit`), else ``None``.
+        model: With ``estimate(..., model_error=richer)``: the estimate of J(richer) -
+            J(simpler) at w_h, its interval and indicators
+            (:class:`~dwr_signorini.model_error.ModelError`), else ``None``.
     """
 
     J_h: float
@@ -121,6 +127,17 @@ class Estimate(Releasable):
     resolved: bool = True
     roundoff: float = 0.0
     weights_fallback: str | None = None
+    model: ModelError | None = field(default=None, repr=False)
+
+    @property
+    def model_error(self) -> float | None:
+        """The estimate of J(richer) - J(simpler) at w_h (theory, eq. (M1)), or ``None``."""
+        return None if self.model is None else self.model.value
+
+    @property
+    def model_error_interval(self) -> tuple[float, float] | None:
+        """The interval of J(richer) - J(simpler), or ``None`` (:func:`.model_interval`)."""
+        return None if self.model is None else self.model.interval
 
     def destroy(self) -> None:
         """Release the PETSc objects of the reconstruction (collective; idempotent)."""
@@ -403,6 +420,7 @@ def estimate(
     quadrature_degree: int | str | None = "problem",
     *,
     options: EstimateOptions | None = None,
+    model_error: Any = None,
 ) -> Estimate:
     """Estimate J(w) - J(w_h) by eta_p or eta (Section 4), and an interval for J(w).
 
@@ -431,6 +449,9 @@ def estimate(
             estimate every degree (as :class:`~dwr_signorini.settings.EstimateOptions`).
         options: ``estimator``, ``weights``, ``petsc_options`` and ``quadrature_degree`` as
             one :class:`~dwr_signorini.settings.EstimateOptions`, instead of the keywords.
+        model_error: ``None``, or the same problem with a richer contact law (frictionless <
+            Tresca < Coulomb): ``Estimate.model`` then holds the estimate of J(richer) -
+            J(simpler) at ``sol`` (:mod:`~dwr_signorini.model_error`, theory eq. (M1)).
 
     Returns:
         The :class:`Estimate` (collective; release it with ``destroy()`` or ``with``);
@@ -440,7 +461,8 @@ def estimate(
         TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution`, or ``goal`` is not
             callable or does not return a UFL form.
         ValueError: For an unknown ``estimator`` or ``weights``, or a goal that is not a scalar
-            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``.
+            form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``; weights other
+            than ``"patch"`` with an obstacle under a given force.
         RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
             the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
@@ -461,6 +483,15 @@ def estimate(
             "sol has been destroyed (Solution.destroy(), or the end of its `with` block): "
             "estimate a Solution before releasing it"
         )
+    check_options_on_ranks(sol.disc.mesh, "estimate", options)
+    if model_error is not None:
+        check_richer(sol.disc.problem, model_error)
+    if sol.obstacle_displacement is not None and options.weights != "patch":
+        raise ValueError(
+            f"weights={options.weights!r}: with an obstacle under a given force the estimate "
+            "takes weights='patch' (the P2 solves of the other weights know no obstacle "
+            "displacement)"
+        )
     goal_forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.tangential or None)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
@@ -468,10 +499,30 @@ def estimate(
     with timed("reconstruct"):
         rec = Reconstructor(sol.disc)
     try:  # on a failure the reconstruction's PETSc objects are released
-        return _estimate(_Inputs(sol, goal_forms, z, rec, options), tic, t_dual)
+        est = _estimate(_Inputs(sol, goal_forms, z, rec, options), tic, t_dual)
+        if model_error is not None:
+            est.model = _model_error(est, sol, goal, model_error, options)
+        return est
     except BaseException:
         rec.destroy()
         raise
+
+
+def _model_error(
+    est: Estimate, sol: Solution, goal: Goal, richer: Any, options: EstimateOptions
+) -> ModelError:
+    """The model error of ``sol``'s law against ``richer``'s, its cell indicators as est's."""
+    disc = sol.disc
+    DG0 = est.indicators.function_space
+    degree = options.degree(disc.problem)
+    tic = time.perf_counter()
+    out = model_error_estimate(
+        sol, goal, richer,
+        lambda form: _assemble_indicators(disc, [form], DG0, degree)[0],
+        est.roundoff,
+    )
+    est.timings["model_error"] = time.perf_counter() - tic
+    return out
 
 
 def _estimate(inp: _Inputs, tic: float, t_dual: float) -> Estimate:

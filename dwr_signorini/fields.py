@@ -114,6 +114,8 @@ class MeshFields:
             facets, needed by data given per contact tag (with several contact tags).
         pair_gap: With contact pairs, returns the gap of the pairs on this mesh (the
             projected gap of its master trace, :mod:`~dwr_signorini.pairs`).
+        pair_frame: With contact pairs, returns the normal of their contact frame on this
+            mesh (of the master trace, :attr:`~dwr_signorini.pairs.MasterTrace.frame`).
 
     Attributes:
         problem: The problem.
@@ -129,9 +131,11 @@ class MeshFields:
         cell_tags: dmesh.MeshTags | None = None,
         contact_indicators: Mapping[int, fem.Function] | None = None,
         pair_gap: Callable[[], fem.Function] | None = None,
+        pair_frame: Callable[[], fem.Function] | None = None,
     ) -> None:
         self.problem = problem
         self.pair_gap = pair_gap
+        self.pair_frame = pair_frame
         self.mesh = mesh
         self.cell_tags = cell_tags
         self.contact_indicators = (
@@ -139,6 +143,11 @@ class MeshFields:
         )
         #: The DG0 fields of E and nu given per cell tag, made when first used.
         self._materials: dict[str, fem.Function] = {}
+        #: The rigid displacement delta of a force-controlled obstacle along its direction (a
+        #: Constant on this mesh, set by the Newton method; None without force control).
+        self.obstacle_displacement = (
+            None if problem.force_obstacle is None else fem.Constant(mesh, 0.0)
+        )
 
     def call_user(self, where: str, function: Callable[..., Any], *args: Any) -> Any:
         """A user's callable of the problem's data, called collectively (naming ``where``)."""
@@ -238,7 +247,7 @@ class MeshFields:
         miss = self.problem.miss_gap
 
         def value(g: Any) -> Any:
-            return gap_value(g, x, n, miss)
+            return gap_value(g, self._seen_by(g, x), n, miss)
 
         problem = self.problem
         if not problem.pairs:
@@ -254,6 +263,83 @@ class MeshFields:
         chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)
         rigid = self.contact_expr(problem.gap, x, "gap", value, problem.rigid_tags)
         return chi * rigid + (1.0 - chi) * pairs
+
+    def frame_normal(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
+        """The normal of the contact frame: the tangential slip is measured normal to it.
+
+        A rigid obstacle's own normal where the body's normal ray enters it
+        (:meth:`~dwr_signorini.obstacles.Obstacle.surface_normal`); the body's normal ``n``
+        where the gap is a number or a function (no surface to take a normal of); for a
+        contact pair the normalised mean of the slave normal and the master's opposite normal
+        (``pair_frame``, :mod:`~dwr_signorini.pairs`). So the normal approach of a curved
+        surface is not read as slip (``docs/theory.md``, the contact frame).
+
+        Args:
+            x: The spatial coordinate of this mesh.
+            n: The outward unit normal; ``None`` takes the ``ufl.FacetNormal`` of the mesh.
+
+        Returns:
+            A UFL unit vector on Gamma_C.
+        """
+        n = ufl.FacetNormal(extract_unique_domain(x)) if n is None else n
+        miss = self.problem.miss_gap
+
+        def value(g: Any) -> Any:
+            return g.surface_normal(self._seen_by(g, x), n, miss) if isinstance(g, Obstacle) else n
+
+        problem = self.problem
+        if not problem.pairs:
+            return self.contact_expr(problem.gap, x, "gap", value)
+        pairs = self.pair_frame()
+        if not problem.rigid_tags:
+            return pairs
+        chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)
+        rigid = self.contact_expr(problem.gap, x, "gap", value, problem.rigid_tags)
+        return chi * rigid + (1.0 - chi) * pairs
+
+    def _seen_by(self, gap: Any, x: Any, delta: Any = None) -> Any:
+        """``x`` as the gap ``gap`` sees it: the force-controlled obstacle at its displacement.
+
+        Args:
+            gap: One gap of the problem (a number, a callable or an obstacle).
+            x: The point (UFL vector).
+            delta: The obstacle's displacement (``None``: :attr:`obstacle_displacement`).
+
+        Returns:
+            ``gap.moved(x, delta)`` for the force-controlled obstacle, else ``x``.
+        """
+        if gap is not self.problem.force_obstacle:
+            return x
+        return gap.moved(x, self.obstacle_displacement if delta is None else delta)
+
+    def gap_rate(
+        self, x: ufl.SpatialCoordinate, n: Any, offset: Callable[[Any, Any], Any]
+    ) -> ufl.core.expr.Expr:
+        """The normal condition's offset per unit displacement of the force-controlled obstacle.
+
+        The offset of the normal condition in the contact frame, ``offset(g, n_c)`` (the
+        normal component's :meth:`~dwr_signorini.laws.Component.offset_in`, g (n . n_c)),
+        differentiated in delta with both the gap g and the frame normal n_c of the moved
+        obstacle, so the bordered Newton step (:mod:`~dwr_signorini.force`) is exact.
+
+        Args:
+            x: The spatial coordinate of this mesh.
+            n: The outward unit normal.
+            offset: ``(g, n_c) -> `` the normal condition's offset (UFL).
+
+        Returns:
+            The derivative at the current :attr:`obstacle_displacement`, a UFL scalar.
+
+        Raises:
+            ValueError: The problem has no force-controlled obstacle.
+        """
+        obstacle = self.problem.force_obstacle
+        if obstacle is None:
+            raise ValueError("the problem has no obstacle under a given force")
+        delta = ufl.variable(self.obstacle_displacement)
+        y, miss = self._seen_by(obstacle, x, delta), self.problem.miss_gap
+        g = gap_value(obstacle, y, n, miss)
+        return ufl.diff(offset(g, obstacle.surface_normal(y, n, miss)), delta)
 
     def contact_expr(
         self,

@@ -20,6 +20,7 @@ import ufl
 from dolfinx import fem
 from ufl.algorithms import expand_derivatives
 
+from .agreement import check_form_on_ranks
 from .collective import call_collectively, shadow
 from .laws import tangent_basis
 from .pairs import images_of
@@ -108,7 +109,8 @@ class GoalForms:
         elif len(tangential) == 1:
             lam_t = tangential[0]
         else:  # 3D: the traction vector from its coordinates in the tangent basis
-            lam_t = sum(f * t for f, t in zip(tangential, tangent_basis(disc.m.n), strict=True))
+            basis = tangent_basis(disc.contact_frame())
+            lam_t = sum(f * t for f, t in zip(tangential, basis, strict=True))
         args = (u, lam, disc.m, lam_t) if lam_t is not None and four else (u, lam, disc.m)
         J = call_collectively(disc.comm, "goal", goal, *args)
         if not isinstance(J, ufl.Form):
@@ -121,6 +123,7 @@ class GoalForms:
                 "goal(u, lam, m) must return a scalar functional (a form without test or trial "
                 f"functions); it has {len(J.arguments())} argument(s)"
             )
+        check_form_on_ranks(disc.comm, "estimate", "goal", J)
         multipliers = (lam, *tangential)
         for itg in J.integrals():
             _check_integral(itg, disc, multipliers)

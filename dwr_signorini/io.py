@@ -1,11 +1,14 @@
-"""Output of an adaptive run: table rows (CSV, JSON) and fields for ParaView (XDMF).
+"""Output of an adaptive run: table rows (CSV, JSON) and fields for ParaView (XDMF, VTX).
 
 Every row is written as soon as its level ends, so a run that is interrupted later keeps every
 finished level: the CSV is appended and flushed, the JSON is rewritten atomically (temporary file
-and rename), and each level's fields go to their own XDMF files, written before its row (a level
-in the table has its fields on disk). Rank 0 writes the tables; an error there (a full disk, a
-directory removed meanwhile) is raised on every rank (:func:`~dwr_signorini.collective.on_root`),
-so the other ranks do not wait for it in the next collective.
+and rename), and each level's fields are written before its row (a level in the table has its
+fields on disk): an adaptive run's levels to their own XDMF files, a load path's steps to one
+time series (Time = the step; a step on a refined mesh adds its mesh to the file). Where dolfinx
+has ADIOS2 the same fields also go to VTX files (``.bp``). Rank 0 writes the tables; an error
+there (a full disk, a directory removed meanwhile) is raised on every rank
+(:func:`~dwr_signorini.collective.on_root`), so the other ranks do not wait for it in the next
+collective.
 """
 
 from __future__ import annotations
@@ -21,8 +24,9 @@ from typing import Any
 
 from mpi4py import MPI
 
-from dolfinx import io
+from dolfinx import fem, io
 
+from . import compat
 from .collective import on_root
 
 __all__ = ["OutputDirectory", "check_output_dir", "write_csv", "write_json"]
@@ -131,6 +135,9 @@ class OutputDirectory:
         self.name = name
         self.rows: list[dict[str, Any]] = []
         self._created = False
+        #: The mesh last written to each XDMF file (by stem) and its name there.
+        self._meshes: dict[str, tuple[Any, str]] = {}
+        self._vtx = _VTXFiles(self.path, comm) if compat.has_vtx() else None
 
     def _create(self) -> None:
         if self._created:
@@ -180,23 +187,109 @@ class OutputDirectory:
         write_json(self.json_path, {"meta": meta or {}, "levels": self.rows})
 
     def write_fields(
-        self, level: int, fields: Sequence[Any], contact_fields: Sequence[Any]
+        self,
+        level: int,
+        fields: Sequence[Any],
+        contact_fields: Sequence[Any],
+        series: bool = False,
     ) -> None:
-        """Write the fine-mesh fields and the contact-facet fields of one level (XDMF).
+        """Write the fine-mesh fields and the contact-facet fields of one level (XDMF, VTX).
 
         Args:
-            level: The level, in the file names ``level_<level>.xdmf`` and
-                ``level_<level>_contact.xdmf``.
+            level: The level (or load step).
             fields: Functions on the fine mesh.
             contact_fields: Functions on the contact facets' mesh.
+            series: Append to one time series, ``<name>.xdmf`` and ``<name>_contact.xdmf``
+                at Time = ``level`` (a load path); a mesh that differs from the last one
+                written there is added to the file. Otherwise (the levels of an adaptive run,
+                each on its own mesh) ``level_<level>.xdmf`` and ``level_<level>_contact.xdmf``,
+                at Time = ``level`` as well.
+
+        Where dolfinx has ADIOS2 (:func:`~dwr_signorini.compat.has_vtx`) the same fields go to
+        VTX files (``.bp``, for ParaView's ADIOS2 reader), one per mesh and element (P1, DG0).
         """
         self._create()
         for suffix, funcs in (("", fields), ("_contact", contact_fields)):
             if not funcs:
                 continue
-            msh = funcs[0].function_space.mesh
-            path = self.path / f"level_{level:02d}{suffix}.xdmf"
-            with io.XDMFFile(self.comm, path, "w") as xdmf:
-                xdmf.write_mesh(msh)
-                for f in funcs:
-                    xdmf.write_function(f)
+            stem = f"{self.name}{suffix}" if series else f"level_{level:02d}{suffix}"
+            self._write_xdmf(stem, level, funcs)
+            if self._vtx is not None:
+                self._vtx.write(stem, level, funcs)
+        if self._vtx is not None and not series:  # a level's files are complete
+            self._vtx.close()
+
+    def _write_xdmf(self, stem: str, level: int, funcs: Sequence[Any]) -> None:
+        """Write ``funcs`` at Time = ``level`` to ``<stem>.xdmf``, its mesh once (collective)."""
+        msh = funcs[0].function_space.mesh
+        key = getattr(msh, "_cpp_object", msh)
+        path = self.path / f"{stem}.xdmf"
+        known = self._meshes.get(stem)
+        new_file = known is None
+        new_mesh = new_file or known[0] is not key
+        # the first mesh of a file under its own name (read_mesh() finds it), later ones
+        # (a refined mesh in a time series) under <name>_<level>
+        name = msh.name if new_file else f"{msh.name}_{level}" if new_mesh else known[1]
+        with io.XDMFFile(self.comm, path, "w" if new_file else "a") as xdmf:
+            if new_mesh:
+                old, msh.name = msh.name, name
+                try:
+                    xdmf.write_mesh(msh)
+                finally:
+                    msh.name = old
+                self._meshes[stem] = (key, name)
+            xpath = f"/Xdmf/Domain/Grid[@Name='{name}'][1]"
+            for f in funcs:
+                xdmf.write_function(f, float(level), mesh_xpath=xpath)
+
+    def close(self) -> None:
+        """Close the open VTX files (collective; idempotent)."""
+        if self._vtx is not None:
+            self._vtx.close()
+        self._meshes.clear()
+
+
+class _VTXFiles:
+    """VTX (ADIOS2) files of the fields: one writer per stem, mesh and element, kept open.
+
+    A writer is bound to the functions it was made with, so it holds copies that each call
+    refreshes while the mesh stays; a new mesh closes it and starts the next file,
+    ``<stem>_<element>.bp`` for the first mesh, ``<stem>_<element>_<level>.bp`` after.
+    """
+
+    def __init__(self, path: Path, comm: MPI.Comm) -> None:
+        self.path, self.comm = path, comm
+        self.writers: dict[tuple[str, str], tuple[Any, Any, list[Any]]] = {}
+
+    def write(self, stem: str, level: int, funcs: Sequence[Any]) -> None:
+        groups: dict[str, list[Any]] = {}
+        for f in funcs:
+            element = f.function_space.ufl_element()
+            kind = f"{'dg' if element.discontinuous else 'p'}{element.embedded_superdegree}"
+            groups.setdefault(kind, []).append(f)
+        for kind, group in groups.items():
+            self._write_group(stem, kind, level, group)
+
+    def _write_group(self, stem: str, kind: str, level: int, group: list[Any]) -> None:
+        msh = group[0].function_space.mesh
+        key = getattr(msh, "_cpp_object", msh)
+        entry = self.writers.get((stem, kind))
+        fits = entry is not None and entry[0] is key and [c.name for c in entry[2]] == [
+            f.name for f in group
+        ] and all(c.x.array.size == f.x.array.size for c, f in zip(entry[2], group, strict=True))
+        if not fits:
+            suffix = "" if entry is None else f"_{level:02d}"
+            if entry is not None:
+                entry[1].close()
+            copies = [fem.Function(f.function_space, name=f.name) for f in group]
+            writer = io.VTXWriter(self.comm, self.path / f"{stem}_{kind}{suffix}.bp", copies,
+                                  engine="BP4")
+            entry = self.writers[(stem, kind)] = (key, writer, copies)
+        for copy, f in zip(entry[2], group, strict=True):
+            copy.x.array[:] = f.x.array
+        entry[1].write(float(level))
+
+    def close(self) -> None:
+        for _, writer, _ in self.writers.values():
+            writer.close()
+        self.writers.clear()

@@ -58,6 +58,17 @@ def _check_model(model: Any) -> None:
             "path_or_model: the gmsh model has no mesh; generate it first "
             "(gmsh.model.mesh.generate(dim)) or pass a .msh file"
         )
+    dims = {d for d, _ in model.getPhysicalGroups()}
+    if _model_dimension(model) not in dims:  # dolfinx cannot read the cells without them
+        raise _no_groups("cell")
+
+
+def _no_groups(name: str) -> ValueError:
+    """The error of a mesh without physical groups of ``name`` (``"cell"``, ``"facet"``)."""
+    return ValueError(
+        f"read_mesh: the mesh has no physical groups of {name}s; add them in gmsh "
+        "(gmsh.model.addPhysicalGroup) to get tags for the materials and boundaries"
+    )
 
 
 def _open(comm: MPI.Comm, rank: int, path: str) -> None:
@@ -136,8 +147,5 @@ def read_mesh(
     for name, tags in (("cell", cell_tags), ("facet", facet_tags)):
         count = 0 if tags is None else len(tags.values)
         if comm.allreduce(count, op=MPI.SUM) == 0:
-            raise ValueError(
-                f"read_mesh: the mesh has no physical groups of {name}s; add them in gmsh "
-                "(gmsh.model.addPhysicalGroup) to get tags for the materials and boundaries"
-            )
+            raise _no_groups(name)
     return msh, cell_tags, facet_tags

@@ -2,7 +2,8 @@
 
 Pure functions as in :mod:`dwr_signorini.validation`: the mesh and its facet tags, the cell tags
 (and that a material given per cell tag covers every cell), that every tag the data use marks a
-boundary facet, and that a plane obstacle faces some contact facet.
+boundary facet, that a plane obstacle faces some contact facet, and that a boundary projection
+moves no vertex far (:data:`MAX_PROJECTION_MOVE`).
 """
 
 from __future__ import annotations
@@ -16,15 +17,20 @@ import numpy as np
 from dolfinx import mesh as dmesh
 
 from . import compat
-from .collective import shadow
+from .collective import collective, shadow
 from .obstacles import Plane
 
 __all__ = [
+    "MAX_PROJECTION_MOVE",
     "check_cell_tags",
     "check_cells_covered",
     "check_mesh",
     "check_plane_faces_body",
+    "check_projection_fits",
+    "check_projection_moves",
     "check_tags",
+    "projected_points",
+    "projection_nodes",
 ]
 
 
@@ -211,3 +217,123 @@ def check_tags(
                 f"contact tags {contact_tags} overlap: {shared} facets carry two of "
                 "them; each contact facet must belong to one contact tag"
             )
+
+
+#: The largest move of a vertex by ``boundary_projection``, as a fraction of the local mesh
+#: size (the largest diameter of the cells at the vertex). A new vertex of a refined edge on a
+#: circle of radius R moves by the sagitta, about h^2 / (8 R) for a chord h: beyond half the mesh
+#: size the mesh does not resolve the surface, or the projection is not onto it.
+MAX_PROJECTION_MOVE = 0.5
+
+
+def _vertex_sizes(msh: dmesh.Mesh) -> np.ndarray:
+    """The largest diameter of the local cells at each geometry node (local)."""
+    dofmap = compat.geometry_dofmap(msh)
+    x = msh.geometry.x[dofmap]  # (cells, nodes, 3)
+    diameters = np.zeros(len(dofmap))
+    for i in range(dofmap.shape[1]):
+        for j in range(i + 1, dofmap.shape[1]):
+            diameters = np.maximum(diameters, np.linalg.norm(x[:, i] - x[:, j], axis=1))
+    sizes = np.zeros(len(msh.geometry.x))
+    np.maximum.at(sizes, dofmap.ravel(), np.repeat(diameters, dofmap.shape[1]))
+    return sizes
+
+
+def projected_points(
+    f: Any, points: np.ndarray, tag: int, gdim: int
+) -> np.ndarray:
+    """``f(points)`` as a checked array of shape (gdim or 3, n) (local; ValueError naming it).
+
+    Args:
+        f: The projection of ``boundary_projection[tag]``.
+        points: The points, shape (3, n).
+        tag: Its facet tag, for the message.
+        gdim: The geometric dimension.
+
+    Raises:
+        ValueError: A result of the wrong shape, or NaN/Inf (naming the first such point).
+    """
+    new = np.asarray(f(points), dtype=float)
+    if new.ndim != 2 or new.shape[1] != points.shape[1] or new.shape[0] not in (gdim, 3):
+        raise ValueError(
+            f"boundary_projection[{tag}] must return an array of shape (3, n) or "
+            f"({gdim}, n) for points of shape (3, n), got {new.shape}"
+        )
+    finite = np.all(np.isfinite(new[:gdim]), axis=0)
+    if not np.all(finite):
+        where = tuple(float(c) for c in points[:gdim, int(np.flatnonzero(~finite)[0])])
+        raise ValueError(
+            f"boundary_projection[{tag}] returned NaN or Inf for the vertex at {where} (a "
+            "point where the surface's projection is undefined, such as a sphere's centre: "
+            "is the tag or the surface the right one?)"
+        )
+    return new
+
+
+def check_projection_moves(
+    msh: dmesh.Mesh, tag: int, nodes: np.ndarray, new: np.ndarray
+) -> None:
+    """Refuse a projection that moves a vertex by more than :data:`MAX_PROJECTION_MOVE` h.
+
+    Collective (one ``allgather``): every rank raises the same error, for the vertex with the
+    largest move relative to its local mesh size h.
+
+    Args:
+        msh: The mesh, its vertices not yet moved.
+        tag: The facet tag of the projection, for the message.
+        nodes: The geometry nodes to be moved (local indices).
+        new: Their new coordinates, shape (len(nodes), gdim).
+
+    Raises:
+        ValueError: Naming the tag, the vertex, the distance and the local mesh size.
+    """
+    gdim = msh.geometry.dim
+    worst = (0.0, (), 0.0, 0.0)
+    if len(nodes):
+        old = msh.geometry.x[nodes, :gdim]
+        distance = np.linalg.norm(new - old, axis=1)
+        h = _vertex_sizes(msh)[nodes]
+        ratio = distance / np.maximum(h, np.finfo(float).tiny)
+        k = int(np.argmax(ratio))
+        worst = (float(ratio[k]), tuple(float(c) for c in old[k]), float(distance[k]), float(h[k]))
+    gathered = shadow(msh.comm).allgather(worst) if msh.comm.size > 1 else [worst]
+    ratio, vertex, distance, h = max(gathered, key=lambda w: w[0])
+    if ratio > MAX_PROJECTION_MOVE:
+        raise ValueError(
+            f"boundary_projection[{tag}] moves the vertex at {vertex} by {distance:.6g}, "
+            f"{ratio:.3g} times the local mesh size {h:.6g} (at most {MAX_PROJECTION_MOVE} "
+            "allowed): the projection is not onto the surface these facets lie on (a wrong "
+            "radius or centre?), or the mesh is far too coarse for it"
+        )
+
+
+def check_projection_fits(
+    msh: dmesh.Mesh, facet_tags: dmesh.MeshTags, projection: Mapping[int, Any]
+) -> None:
+    """Check ``boundary_projection`` on the vertices T_H has: they must lie on the surfaces.
+
+    Collective. The mesh is not changed; each projection is applied to the vertices of its
+    facets and :func:`check_projection_moves` refuses a large move.
+
+    Raises:
+        ValueError: As :func:`projected_points` and :func:`check_projection_moves` (on every
+            rank; an exception of the projection itself, too, naming it).
+    """
+    gdim = msh.geometry.dim
+    for tag, f in projection.items():
+        nodes = projection_nodes(msh, facet_tags, tag)
+        new = np.zeros((0, gdim))
+        with collective(msh.comm, f"boundary_projection[{tag}]"):
+            if nodes.size:
+                points = msh.geometry.x[nodes].T.copy()
+                new = projected_points(f, points, tag, gdim)[:gdim].T
+        check_projection_moves(msh, tag, nodes, new)
+
+
+def projection_nodes(msh: dmesh.Mesh, facet_tags: dmesh.MeshTags, tag: int) -> np.ndarray:
+    """The local geometry nodes of the facets tagged ``tag`` (local)."""
+    fdim = msh.topology.dim - 1
+    facets = facet_tags.find(tag).astype(np.int32)
+    if not len(facets):  # (entities_to_geometry divides by the count)
+        return np.zeros(0, dtype=np.int32)
+    return np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False))

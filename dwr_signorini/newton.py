@@ -70,7 +70,9 @@ initial guess against the gap, and the iterates from a zero initial guess do not
 
 from __future__ import annotations
 
+import functools
 import logging
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -80,7 +82,9 @@ import numpy as np
 import ufl
 from dolfinx import fem, la
 
+from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
+from .force import ForceControl
 from .laws import multiplier_names, tangent_basis
 from .lifetime import Releasable
 from .linalg import (
@@ -92,6 +96,7 @@ from .linalg import (
     memory,
     system_class,
 )
+from .rigid import RigidHold, free_motions, held_method
 from .semismooth import ConvergenceError, NewtonLoop
 from .settings import SolverOptions
 from .spaces import Discretization
@@ -134,6 +139,10 @@ class Solution(Releasable):
             (:func:`~dwr_signorini.laws.tangent_basis`); () without.
         stick, slip: With friction, the macro contact facets in contact that stick
             (``|lambda_t| < s``) and that slip (owned rows); None without.
+        obstacle_displacement: With an obstacle under a given force
+            (``ds.obstacles.Plane(..., force=F)``), its rigid displacement delta along its
+            direction of approach, an unknown of the discrete problem
+            (:mod:`dwr_signorini.force`); None without.
     """
 
     u: fem.Function
@@ -150,6 +159,7 @@ class Solution(Releasable):
     stick: np.ndarray | None = None
     slip: np.ndarray | None = None
     tangential: tuple[fem.Function, ...] = ()
+    obstacle_displacement: float | None = None
     #: Whether :meth:`destroy` releases the discretisation too (its master traces): set where
     #: :func:`solve` discretised the problem itself, and by the drivers for each level.
     owns_disc: bool = False
@@ -173,10 +183,13 @@ class Solution(Releasable):
         return self.disc.comm.allreduce(int(rows.sum()), op=MPI.SUM)
 
     def destroy(self) -> None:
-        """Release the Newton system and, if it owns it, the discretisation (collective).
+        """Release the Newton system, its force control and, if owned, the discretisation.
 
-        Idempotent.
+        Collective; idempotent.
         """
+        force = getattr(self.system, "force_control", None)
+        if force is not None:
+            force.destroy()
         self.system.destroy()
         if self.owns_disc:
             self.disc.destroy()
@@ -288,15 +301,34 @@ def solve(
             "options must be a SolverOptions, given instead of the solver's keyword arguments"
         )
     _check_initial_guess(disc, initial_guess)
+    check_options_on_ranks(disc.mesh, "solve", options, initial_guess=initial_guess is None)
+    tic = time.perf_counter()
     if disc is problem_or_disc:  # the caller's: the caller releases it
-        return _solve(disc, initial_guess, options)
-    try:
         sol = _solve(disc, initial_guess, options)
-    except BaseException:
-        disc.destroy()
-        raise
-    sol.owns_disc = True
+    else:
+        try:
+            sol = _solve(disc, initial_guess, options)
+        except BaseException:
+            disc.destroy()
+            raise
+        sol.owns_disc = True
+    _log_solution(sol, time.perf_counter() - tic)
     return sol
+
+
+def _log_solution(sol: Solution, seconds: float) -> None:
+    """One INFO line on rank 0 for a finished solve (the logger ``dwr_signorini.newton``).
+
+    Collective with friction (the stick and slip counts are reduced on every rank).
+    """
+    friction = "" if sol.stick is None else f", stick {sol.num_stick}, slip {sol.num_slip}"
+    if sol.disc.comm.rank != 0:
+        return
+    logger.info(
+        "solve: %d DoFs, %d contact elements: %d Newton steps (%s), %d active%s, %.2f s",
+        sol.disc.num_dofs, sol.disc.num_contact_elements, sol.newton_iterations, sol.method,
+        sol.num_active, friction, seconds,
+    )
 
 
 def _discretization(problem_or_disc: Any) -> Discretization:
@@ -347,6 +379,15 @@ def _solve(
     symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
     assembled = None
     method = options.method
+    motions = free_motions(disc)
+    obstacle = disc.problem.force_obstacle
+    if obstacle is not None and not symmetric:
+        raise ValueError(
+            f"an obstacle under a given force ({obstacle!r}) takes a frictionless or 2D Tresca "
+            "law (a symmetric Newton matrix)"
+        )
+    if motions.count or obstacle is not None:
+        method = held_method(method, motions.count)
     if method is None:
         if options.petsc_options is not None:
             method = "block"
@@ -365,9 +406,22 @@ def _solve(
         )
     except LinearSolveError as err:
         raise ConvergenceError(str(err), []) from err
+    hold = force = None
     try:
-        return _semismooth_newton(system, initial_guess, options.max_iterations, options.rtol)
+        if obstacle is not None:
+            force = ForceControl(system)
+            system.force_control = force  # the dual problem is the bordered system's
+        if motions.count or obstacle is not None:
+            hold = RigidHold(
+                motions, system.N, system.algebra.n_q, system.algebra.c_n, system.M.array,
+                disc.problem, None if force is None else (force.rate(), force.force),
+            )
+        return _semismooth_newton(
+            system, initial_guess, options.max_iterations, options.rtol, hold, force
+        )
     except BaseException:
+        if force is not None:
+            force.destroy()
         system.destroy()
         raise
 
@@ -420,8 +474,14 @@ def _semismooth_newton(
     initial_guess: tuple[fem.Function, ...] | None,
     max_iterations: int,
     rtol: float,
+    hold: RigidHold | None = None,
+    force: ForceControl | None = None,
 ) -> Solution:
-    """The loop of :func:`solve` on a set-up Newton system (see there)."""
+    """The loop of :func:`solve` on a set-up Newton system (see there).
+
+    With ``hold`` (a body held only by contact) a step's set that leaves a free rigid motion
+    unheld is completed by :meth:`~dwr_signorini.rigid.RigidHold.complete`.
+    """
     disc = system.disc
     if not _all_finite(disc.comm, system.f.array, system.g.array):
         raise ConvergenceError(
@@ -438,7 +498,14 @@ def _semismooth_newton(
             if loop.finished(it):
                 break
             new, new_free, couplings = loop.next_set(it, wanted, free)
-            loop.linear_solve(it, new, new_free, couplings)
+            if hold is not None:
+                new = hold.apply(loop, system, u, new)
+            if force is None:
+                loop.linear_solve(it, new, new_free, couplings)
+            else:
+                force.step(functools.partial(loop.linear_solve, it, couplings=couplings),
+                           new, new_free)
+                loop.moving = force.moving(rtol)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):
                 loop.history[-1]["nonfinite"] = True
@@ -454,7 +521,10 @@ def _semismooth_newton(
     finally:
         loop.destroy()
     system.set_loose(False)  # the dual problem reuses the system: at full accuracy
-    return _solution(system, u, lams, loop.history)
+    out = _solution(system, u, lams, loop.history)
+    if force is not None:
+        out.obstacle_displacement = force.delta
+    return out
 
 
 def _update(f: fem.Function, values: np.ndarray, theta: float) -> None:
@@ -559,7 +629,7 @@ def traction_vector(disc: Discretization, tangential: list[fem.Function]) -> fem
     m = disc.m
     Qv = fem.functionspace(disc.Q.mesh, ("DG", 0, (disc.mesh.geometry.dim,)))
     mu = ufl.TestFunction(Qv)
-    t = tangent_basis(m.n)
+    t = tangent_basis(disc.contact_frame())
     traction = sum(f * t_k for f, t_k in zip(tangential, t, strict=True))
     b = fem.assemble_vector(disc.form(ufl.inner(traction, mu) * m.ds_contact))
     M = fem.assemble_vector(disc.form(ufl.inner(ufl.as_vector([1.0] * Qv.num_sub_spaces), mu)

@@ -86,9 +86,54 @@ class Obstacle:
 
     Attributes:
         dim: The space dimension the obstacle is defined in (2 or 3).
+        force: The resultant F > 0 it presses the body with along :attr:`direction` (force
+            control: its rigid displacement along the direction is then an unknown of the
+            discrete problem), or None (the obstacle stays where it is given).
+        direction: The unit direction of approach of a force-controlled obstacle, or None.
     """
 
     dim: int
+    force: float | None = None
+    direction: np.ndarray | None = None
+
+    def _set_force(self, force: float | None, direction: Sequence[float] | None,
+                   default: np.ndarray | None) -> None:
+        """Check and set :attr:`force` and :attr:`direction` (``default``: the direction)."""
+        name = type(self).__name__
+        if force is None:
+            if direction is not None:
+                raise ValueError(f"{name} direction is the direction of a force: give force=")
+            return
+        self.force = _positive(force, f"{name} force")
+        if direction is None and default is None:
+            raise ValueError(
+                f"{name} with force= needs direction=, the direction in which it approaches "
+                "the body"
+            )
+        self.direction = _unit(default if direction is None else direction, f"{name} direction")
+        if self.direction.size != self.dim:
+            raise ValueError(f"{name} direction must have {self.dim} components")
+
+    def moved(self, x: Expr, displacement: Expr) -> Expr:
+        """The point ``x`` seen from the obstacle moved by ``displacement`` along its direction.
+
+        A rigid translation by delta d: the gap of the moved obstacle at x is the gap of the
+        obstacle at x - delta d.
+
+        Args:
+            x: The point (UFL vector).
+            displacement: delta, a UFL scalar (a dolfinx Constant).
+
+        Returns:
+            x - delta d as a UFL vector.
+        """
+        d = [float(c) for c in self.direction]
+        return ufl.as_vector([x[i] - displacement * d[i] for i in range(self.dim)])
+
+    def _force_repr(self) -> str:
+        if self.force is None:
+            return ""
+        return f", force={self.force}, direction={self.direction.tolist()}"
 
     @property
     def size(self) -> float:
@@ -120,6 +165,37 @@ class Obstacle:
         """
         raise NotImplementedError
 
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:
+        """The obstacle's unit normal where the ray ``x + t n`` enters it, as UFL.
+
+        It points into the obstacle (the way the body's outward normal faces it): the normal
+        of the contact frame in which the tangential slip against the obstacle is measured
+        (:meth:`~dwr_signorini.spaces.Discretization.contact_frame`). Where the ray misses,
+        ``n`` itself.
+
+        Args:
+            x: The boundary point.
+            n: The body's outward unit normal at ``x``.
+            miss: The finite gap where the ray misses the obstacle.
+
+        Returns:
+            A UFL unit vector.
+
+        Raises:
+            NotImplementedError: On the base class; every obstacle defines it.
+        """
+        raise NotImplementedError
+
+    def _towards(self, point: Expr, x: Expr, n: Expr, miss: float) -> Expr:
+        """The unit vector from the ray's entry point to ``point`` (n where the ray misses)."""
+        g = self.gap(x, n, miss)
+        d = [p - (xi + g * ni) for p, xi, ni in zip(
+            point, _components(x, self.dim), _components(n, self.dim), strict=True)]
+        length = ufl.sqrt(_dot(d, d))
+        safe = ufl.conditional(ufl.gt(length, 0.0), length, 1.0)
+        hit = ufl.And(ufl.lt(g, miss), ufl.gt(length, 0.0))
+        return ufl.conditional(hit, ufl.as_vector([di / safe for di in d]), n)
+
 
 class Plane(Obstacle):
     """The rigid half-space ``{y : (y - point) . normal >= 0}`` (the body on the other side).
@@ -130,18 +206,24 @@ class Plane(Obstacle):
     Args:
         point: A point of the plane.
         normal: The direction into the obstacle (normalised here).
+        force: A resultant F > 0 pressing the obstacle onto the body (force control), or None.
+        direction: Its direction of approach (default ``-normal``).
 
     Raises:
         ValueError: If ``point`` or ``normal`` is not a finite vector of 2 or 3 components,
             ``normal`` is zero, or the two differ in length.
     """
 
-    def __init__(self, point: Sequence[float], normal: Sequence[float]) -> None:
+    def __init__(
+        self, point: Sequence[float], normal: Sequence[float], force: float | None = None,
+        direction: Sequence[float] | None = None,
+    ) -> None:
         self.point = _point(point, "Plane point")
         self.normal = _unit(normal, "Plane normal")
         if self.point.size != self.normal.size:
             raise ValueError("Plane point and normal must have the same number of components")
         self.dim = self.point.size
+        self._set_force(force, direction, -self.normal)
 
     @property
     def reference_point(self) -> np.ndarray:  # noqa: D102
@@ -156,8 +238,16 @@ class Plane(Obstacle):
         t = ufl.max_value(ufl.min_value(dist / safe, miss), -miss)
         return ufl.conditional(ufl.gt(n_dot, 0.0), t, miss)
 
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        n_dot = _dot(_components(n, self.dim), [float(c) for c in self.normal])
+        normal = ufl.as_vector([float(c) for c in self.normal])
+        return ufl.conditional(ufl.gt(n_dot, 0.0), normal, n)
+
     def __repr__(self) -> str:
-        return f"Plane(point={self.point.tolist()}, normal={self.normal.tolist()})"
+        return (
+            f"Plane(point={self.point.tolist()}, normal={self.normal.tolist()}"
+            f"{self._force_repr()})"
+        )
 
 
 class Sphere(Obstacle):
@@ -169,6 +259,8 @@ class Sphere(Obstacle):
     Args:
         center: The center, 2 or 3 coordinates.
         radius: The radius, > 0.
+        force: A resultant F > 0 pressing the obstacle onto the body (force control), or None.
+        direction: Its direction of approach (needed with ``force``).
 
     Raises:
         ValueError: If ``center`` is not a finite point of 2 or 3 coordinates, or ``radius`` is
@@ -176,10 +268,14 @@ class Sphere(Obstacle):
         TypeError: If ``radius`` is not a number.
     """
 
-    def __init__(self, center: Sequence[float], radius: float) -> None:
+    def __init__(
+        self, center: Sequence[float], radius: float, force: float | None = None,
+        direction: Sequence[float] | None = None,
+    ) -> None:
         self.center = _point(center, "Sphere center")
         self.radius = _positive(radius, "Sphere radius")
         self.dim = self.center.size
+        self._set_force(force, direction, None)
 
     @property
     def size(self) -> float:  # noqa: D102
@@ -194,8 +290,13 @@ class Sphere(Obstacle):
         nn = _components(n, self.dim)
         return _ray_quadric(_dot(nn, nn), _dot(nn, d), _dot(d, d) - self.radius**2, miss)
 
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        return self._towards([float(c) for c in self.center], x, n, miss)
+
     def __repr__(self) -> str:
-        return f"Sphere(center={self.center.tolist()}, radius={self.radius})"
+        return (
+            f"Sphere(center={self.center.tolist()}, radius={self.radius}{self._force_repr()})"
+        )
 
 
 class Cylinder(Obstacle):
@@ -208,6 +309,8 @@ class Cylinder(Obstacle):
         point: A point of the axis (3 coordinates).
         axis: The axis direction (normalised here).
         radius: The radius, > 0.
+        force: A resultant F > 0 pressing the obstacle onto the body (force control), or None.
+        direction: Its direction of approach (needed with ``force``).
 
     Raises:
         ValueError: If ``point`` or ``axis`` is not a finite vector of 3 components, ``axis``
@@ -215,13 +318,17 @@ class Cylinder(Obstacle):
         TypeError: If ``radius`` is not a number.
     """
 
-    def __init__(self, point: Sequence[float], axis: Sequence[float], radius: float) -> None:
+    def __init__(
+        self, point: Sequence[float], axis: Sequence[float], radius: float,
+        force: float | None = None, direction: Sequence[float] | None = None,
+    ) -> None:
         self.point = _point(point, "Cylinder point")
         self.axis = _unit(axis, "Cylinder axis")
         if self.point.size != 3 or self.axis.size != 3:
             raise ValueError("Cylinder is a 3D obstacle: point and axis need 3 components")
         self.radius = _positive(radius, "Cylinder radius")
         self.dim = 3
+        self._set_force(force, direction, None)
 
     @property
     def size(self) -> float:  # noqa: D102
@@ -241,10 +348,19 @@ class Cylinder(Obstacle):
         A = _dot(n_perp, n_perp)
         return _ray_quadric(A, _dot(n_perp, d_perp), _dot(d_perp, d_perp) - self.radius**2, miss)
 
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        # the point of the axis level with the entry point y: p + ((y - p) . a) a
+        a = [float(c) for c in self.axis]
+        y = [xi + self.gap(x, n, miss) * ni
+             for xi, ni in zip(_components(x, 3), _components(n, 3), strict=True)]
+        along = _dot([yi - float(p) for yi, p in zip(y, self.point, strict=True)], a)
+        foot = [float(p) + along * ai for p, ai in zip(self.point, a, strict=True)]
+        return self._towards(foot, x, n, miss)
+
     def __repr__(self) -> str:
         return (
             f"Cylinder(point={self.point.tolist()}, axis={self.axis.tolist()}, "
-            f"radius={self.radius})"
+            f"radius={self.radius}{self._force_repr()})"
         )
 
 
@@ -290,6 +406,15 @@ class Graph(Obstacle):
         g = (ufl.as_ufl(self.psi(x)) - x[axis]) * n_axis
         g = ufl.max_value(ufl.min_value(g, miss), -miss)
         return ufl.conditional(ufl.gt(n_axis, 0.0), g, miss)
+
+    def surface_normal(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
+        # the graph's upward normal (e_axis - grad psi) / |.| at x, to first order in the gap
+        # as the gap itself (psi does not depend on x[axis])
+        dim = ufl.shape(x)[0]
+        axis = self.axis % dim
+        grad = ufl.grad(ufl.as_ufl(self.psi(x)) + 0.0 * x[axis])
+        up = ufl.as_vector([1.0 if i == axis else -grad[i] for i in range(dim)])
+        return ufl.conditional(ufl.gt(n[axis], 0.0), up / ufl.sqrt(ufl.dot(up, up)), n)
 
     def __repr__(self) -> str:
         return f"Graph(psi={self.psi!r}, axis={self.axis})"

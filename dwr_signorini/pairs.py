@@ -11,30 +11,35 @@ conditions (2) hold for the normal relative displacement
 with the friction laws acting on the tangential part of the same relative displacement.
 
 **The master trace.** For a displacement space V on T_h, :class:`MasterTrace` assembles once per
-mesh the matrix P of the L2 projection of v o Pi, per fine slave facet, onto the discontinuous
-polynomials W of V's degree on the fine slave facets Sigma_h:
+mesh the matrix P of the L2 projection, per fine slave facet, onto the discontinuous polynomials
+W of V's degree on the fine slave facets Sigma_h of what the slave side is compared with: v o Pi
+where the master covers F (chi = 1, the mortar rule's pieces) and v itself where it does not,
 
-    (P v)|_F = argmin_{w in P_k(F)} ||w - v o Pi||_{L2(F)},
+    (P v)|_F = argmin_{w in P_k(F)} ||w - (chi v o Pi + (1 - chi) v)||_{L2(F)},
 
-from the exact integrals of the mortar rule. Every form of the package writes the relative
+from the exact integrals of the mortar rule (onto constants on a facet covered in part). So the
+relative displacement v - P v vanishes where the master is not there, and the conditions of a
+macro facet hold on its covered part. Every form of the package writes the relative
 displacement as ``v - P v`` (:meth:`~dwr_signorini.spaces.Discretization.relative`), P v a
 function of W. For a multiplier piecewise constant on the macro facets and a normal constant on
 each flat facet, (mu, (P v) . n)_GC = (mu, (v o Pi) . n)_GC exactly: the coupling matrix
 N (I - P) of the algebra is the mortar matrix, and the residuals of the estimators use the same
 coupling as the discrete problem (Galerkin orthogonality holds in both bodies). The gap is the
-same projection of g(x).
+same projection of chi g(x); a macro facet that no master facet covers gets ``miss_gap``.
 
 **The master share.** A residual term (r, (P v) . e)_GC with a displacement weight v belongs to
 the master cells that v o Pi lives on. :meth:`TraceGeometry.share` moves such a term, localised
 to the fine slave facets, from the slave cell beside each facet to the master cells, in
-proportion to the measure of the facet's covered part that Pi maps into each of them (each
-covered facet's shares sum to 1, so the moved indicators sum to the term).
+proportion to the measure of the facet that Pi maps into each of them; the uncovered part of a
+facet stays on its slave cell (P v is v there). Each facet's shares sum to its covered
+fraction, and what leaves the slave cell is that fraction, so the moved indicators sum to the
+term.
 
 **One geometry per mesh.** The slave and master facets (the master facets gathered once), the
-mortar rule of each degree and the share do not depend on the displacement space:
-:class:`TraceGeometry` holds them once per mesh, and the :class:`MasterTrace` of each space (P1 of
-the solves, P2 of the weights) adds its projection. The discretisation owns both and releases
-them in its ``destroy()``.
+mortar rule of each degree, the contact frame and the share do not depend on the displacement
+space: :class:`TraceGeometry` holds them once per mesh, and the :class:`MasterTrace` of each space
+(P1 of the solves, P2 of the weights) adds its projection. The discretisation owns both and
+releases them in its ``destroy()``.
 
 **Images name what they project.** :meth:`MasterTrace.apply` returns P f as a function of W
 whose attribute ``trace_of`` is f; :func:`images_of` finds the images of f among a form's
@@ -49,19 +54,27 @@ from typing import Any
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import basix
 import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from . import compat
-from .mortar import MortarRule, facet_normals
+from .mortar import (
+    FacetBasis,
+    FacetMap,
+    MortarRule,
+    check_planar,
+    facet_normals,
+    tabulate,
+    warp,
+)
 from .search import candidate_rule
 from .timing import timed
 
 __all__ = [
     "MAX_DEGREE",
+    "MIN_MACRO_COVER",
     "ContactPair",
     "MasterTrace",
     "TraceGeometry",
@@ -71,6 +84,9 @@ __all__ = [
 #: The highest degree of a displacement space that a master trace takes (Lagrange, no dof
 #: transformations).
 MAX_DEGREE = 2
+
+#: The covered fraction of a macro facet below which it counts as uncovered (``miss_gap``).
+MIN_MACRO_COVER = 1e-3
 
 
 @dataclass(frozen=True)
@@ -84,10 +100,18 @@ class ContactPair:
     Args:
         slave: The facet tag of the slave side.
         master: The facet tag of the master side.
+        window: The penetration window, a length > 0; None (default): the diameter of each
+            slave macro facet (twice that of its fine facets).
+
+    A slave point's partner is the first crossing of its normal ray with a master facet that
+    faces it, in front of the point or behind it by at most ``window``
+    (:mod:`~dwr_signorini.mortar`): master facets on the far side of the master body, or farther
+    behind, are no partners, so the tags may be whole boundaries.
     """
 
     slave: int
     master: int
+    window: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("slave", "master"):
@@ -95,6 +119,13 @@ class ContactPair:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise TypeError(f"ContactPair: {name} must be an integer facet tag, got {value!r}")
             object.__setattr__(self, name, int(value))
+        w = self.window
+        if w is not None:
+            if isinstance(w, bool) or not isinstance(w, (int, float, np.floating, np.integer)):
+                raise TypeError(f"ContactPair: window must be a number or None, got {w!r}")
+            if not (0.0 < float(w) < np.inf):
+                raise ValueError(f"ContactPair: window must be a finite length > 0, got {w!r}")
+            object.__setattr__(self, "window", float(w))
         if self.slave == self.master:
             raise ValueError(
                 f"ContactPair: slave and master must be different facet tags, got {self.slave} "
@@ -103,8 +134,8 @@ class ContactPair:
 
 
 @dataclass
-class _Master:
-    """The master facets of a pair, gathered on every rank."""
+class _Side:
+    """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
 
     vertices: np.ndarray  # (m, nv, gdim)
     normals: np.ndarray  # (m, gdim)
@@ -112,9 +143,15 @@ class _Master:
     dofs: np.ndarray  # (m, ndofs): its global block dofs of V
     cell: np.ndarray  # (m,): its global cell index
 
+    @staticmethod
+    def fields() -> tuple[str, ...]:
+        """The attributes in order."""
+        return ("vertices", "normals", "geometry", "dofs", "cell")
+
+
 
 class TraceGeometry:
-    """The geometry of a mesh's pairs: facets, mortar rules, share (module).
+    """The geometry of a mesh's pairs: facets, mortar rules, contact frame, share (module).
 
     Built once per mesh by the discretisation (collective: every rank gathers the master
     facets of its pairs) and shared by the :class:`MasterTrace` of each displacement space.
@@ -122,14 +159,22 @@ class TraceGeometry:
     Args:
         disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
 
+    Raises:
+        ValueError: Warped quadrilateral facets on a pair (on every rank).
+
     Attributes:
         vertices, normals: This rank's slave facets (owned cells of ``disc.slave_mesh``).
+        slave: Those facets with their cells (``dofs`` empty: each trace adds its space's).
         slave_cells: The fine cell beside each slave facet (global index).
-        master: The master facets of all pairs, gathered (without dofs).
+        master: The master facets of all pairs, gathered (``dofs`` empty likewise).
+        facets: The slave facets' coordinate map (:class:`~dwr_signorini.mortar.FacetMap`).
+        measure, covered: The measure of each slave facet and of its covered part.
+        frame: The normal of the contact frame on the fine slave facets (vector DG0,
+            :meth:`_frame`), in which the tangential slip is measured.
         Fs: DG0 on the slave facets: the space of indicators localised per facet.
-        share_weights: S^T (PETSc Mat, slave facets x fine cells): row F holds the part of
-            facet F's covered measure that Pi maps into each master cell; it sums to 1 on a
-            facet the master covers (at all), and is empty on one it misses.
+        share_weights: S^T (PETSc Mat, slave facets x fine cells): row F holds the fraction of
+            F's measure that Pi maps into each master cell; it sums to F's covered fraction (1 on a
+            facet the master covers, 0 on one it misses).
     """
 
     #: How many geometries are alive (built and not destroyed), on this rank.
@@ -143,25 +188,35 @@ class TraceGeometry:
         TraceGeometry.live += 1
 
     def _build(self, disc: Any) -> None:
-        """The facets, the masters of every pair, the rule of the solves and the share."""
-        vertices, normals, slave_cells, self._slave_tag = _slave_facets(disc)
-        self.vertices, self.normals, self.slave_cells = vertices, normals, slave_cells
+        """The facets, the masters of every pair, the rule of the solves, frame and share."""
+        _check_planar(disc)
+        self.slave, self.slave_local, self._slave_tag = _slave_facets(disc)
+        self.vertices, self.normals = self.slave.vertices, self.slave.normals
+        self.slave_cells = self.slave.cell
+        self.facets = FacetMap(self.vertices)
         masters, self.master_cells = [], []
         for pair in disc.problem.pairs:
             master, local = _master_facets(disc, pair.master)
             masters.append(master)
             self.master_cells.append(local)
         self._masters = masters
-        self.master = _Master(*(np.concatenate([getattr(m, f) for m in masters]) for f in (
-            "vertices", "normals", "geometry", "dofs", "cell")))
+        self.master = _Side(*(np.concatenate([getattr(m, f) for m in masters])
+                              for f in _Side.fields()))
         self._rules: dict[int, MortarRule] = {}
-        self.share_weights, self._home = self._share_matrices(self.rule(1))
+        rule = self.rule(1)
+        f, _, _, w = self.facets.quadrature(1)
+        num = len(self.vertices)
+        self.measure = np.bincount(f, weights=w, minlength=num)[:num]
+        self.covered = np.bincount(rule.facet, weights=rule.weights, minlength=num)[:num]
+        self.frame = self._frame(rule)
+        self.share_weights, self._home = self._share_matrices(rule)
 
     def rule(self, degree: int) -> MortarRule:
         """The mortar rule for a space of ``degree`` (exact to degree 2 ``degree``), kept.
 
         The pieces do not depend on the degree (the share is the same from any rule); the
-        Gauss points on them do. Each degree asked for runs the mortar search once per mesh.
+        Gauss points on them do. Each degree asked for runs the mortar search once per mesh,
+        with each pair's penetration window (:func:`_windows`).
 
         Args:
             degree: The degree of the displacement space.
@@ -175,7 +230,7 @@ class TraceGeometry:
             for pair, master in zip(self.disc.problem.pairs, self._masters, strict=True):
                 on = np.flatnonzero(self._slave_tag == pair.slave)
                 r = candidate_rule(vertices[on], normals[on], master.vertices, master.normals,
-                                   2 * degree)
+                                   2 * degree, _windows(pair, vertices[on]))
                 rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset,
                                         r.gap))
                 offset += len(master.cell)
@@ -184,25 +239,59 @@ class TraceGeometry:
                                                          "master", "gap")))
         return self._rules[degree]
 
+    def _frame(self, rule: MortarRule) -> fem.Function:
+        """The normal of the contact frame per fine slave facet (vector DG0 on Sigma_h).
+
+        n_c = (n_s - <n_m>) / |n_s - <n_m>|, <n_m> the mean of the master normals over the
+        part of the facet the master covers (weights of the rule): the bisector of the two
+        surfaces, which does not change when the bodies swap sides (up to its sign). Where
+        no master facet is met, or the surfaces do not face each other (n_s . <n_m> >= 0), the
+        slave normal n_s.
+
+        Args:
+            rule: The mortar rule of this rank's slave facets.
+        """
+        slave, master = self.normals, self.master.normals[rule.master]
+        mean = np.zeros_like(slave)
+        np.add.at(mean, rule.facet, master * rule.weights[:, None])
+        covered = np.zeros(len(slave))
+        np.add.at(covered, rule.facet, rule.weights)
+        mean /= np.where(covered > 0.0, covered, 1.0)[:, None]
+        bisector = slave - mean
+        length = np.linalg.norm(bisector, axis=1)
+        facing = (covered > 0.0) & (np.einsum("fi,fi->f", slave, mean) < 0.0)
+        frame = np.where(facing[:, None], bisector / np.where(facing, length, 1.0)[:, None],
+                         slave)
+        gdim = slave.shape[1]
+        V0 = fem.functionspace(self.disc.slave_mesh, ("DG", 0, (gdim,)))
+        out = fem.Function(V0, name="contact_frame")
+        cells = np.array([V0.dofmap.cell_dofs(f)[0] for f in range(len(slave))], dtype=np.int64)
+        out.x.array[(cells[:, None] * gdim + np.arange(gdim)).ravel()] = frame.ravel()
+        out.x.scatter_forward()
+        return out
+
     def _share_matrices(self, rule: MortarRule) -> tuple[PETSc.Mat, PETSc.Mat]:
-        """S^T (facet -> master cells, rows summing to 1 where covered) and H^T (its cell)."""
+        """S^T (facet -> master cells) and H^T (facet -> its cell), rows: the covered fraction.
+
+        The uncovered part of a facet stays with its slave cell (P v is v there): neither
+        matrix moves it.
+        """
         fine, Fs = self.disc.mesh, self.Fs
         cells = fine.topology.index_map(fine.topology.dim)
         fmap = Fs.dofmap.index_map
         num = len(self.vertices)
-        hit = np.zeros(num)
-        np.add.at(hit, rule.facet, rule.weights)
+        measure = np.where(self.measure > 0.0, self.measure, 1.0)
         rows = fmap.local_to_global(Fs.dofmap.list[:num, 0].astype(np.int32))
-        frac = rule.weights / np.where(hit > 0.0, hit, 1.0)[rule.facet]
-        covered = np.flatnonzero(hit > 0.0)
+        frac = rule.weights / measure[rule.facet]
+        covered = np.flatnonzero(self.covered > 0.0)
         first = fmap.local_range[0]
         row_sizes = (fmap.size_local, fmap.size_global)
         col_sizes = (cells.size_local, cells.size_global)
         comm = self.disc.comm
         S = _csr(comm, [rows[rule.facet]], [self.master.cell[rule.master]], [frac], first,
                  row_sizes, col_sizes)
-        H = _csr(comm, [rows[covered]], [self.slave_cells[covered]], [np.ones(len(covered))],
-                 first, row_sizes, col_sizes)
+        H = _csr(comm, [rows[covered]], [self.slave_cells[covered]],
+                 [self.covered[covered] / measure[covered]], first, row_sizes, col_sizes)
         return S, H
 
     def share(self, facet_part: np.ndarray, DG0: fem.FunctionSpace) -> np.ndarray:
@@ -214,8 +303,9 @@ class TraceGeometry:
 
         Returns:
             S p - H p as DG0 entries (owned and ghost, ghosts zero): added to the indicators
-            of the term localised to the slave cells, it moves each covered facet's part
-            from the cell beside the facet to the master cells; it sums to zero.
+            of the term localised to the slave cells, it moves the covered part of each
+            facet's indicator from the cell beside the facet to the master cells (the
+            uncovered part stays); it sums to zero.
         """
         fine = self.disc.mesh
         n = fine.topology.index_map(fine.topology.dim).size_local
@@ -258,9 +348,11 @@ class MasterTrace:
     Attributes:
         W: Vector DG of V's degree on Sigma_h; ``Ws`` the scalar one.
         P: The projection (PETSc Mat, W x V, the prescribed Dirichlet columns included).
-        gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` where no
-            master facet is met).
+        gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` on the
+            macro facets that no master facet covers).
         rule: The mortar rule of this rank's slave facets (the geometry's of V's degree).
+        frame: The normal of the contact frame on the fine slave facets (the geometry's,
+            :meth:`TraceGeometry._frame`), in which the tangential slip is measured.
     """
 
     #: How many traces are alive (built and not destroyed), on this rank.
@@ -277,6 +369,7 @@ class MasterTrace:
             )
         self.W = fem.functionspace(sub, ("DG", degree, (gdim,)))
         self.Ws = fem.functionspace(sub, ("DG", degree))
+        self.frame = geometry.frame
         with timed("master trace"):
             self._build(disc, V, degree)
         MasterTrace.live += 1
@@ -285,69 +378,107 @@ class MasterTrace:
     def _build(self, disc: Any, V: fem.FunctionSpace, degree: int) -> None:
         """P and the gap from the geometry's rule (one pass over the rule's points)."""
         geometry = self.geometry
-        vertices, normals = geometry.vertices, geometry.normals
-        self.rule = geometry.rule(degree)
+        self.rule = rule = geometry.rule(degree)
         master = geometry.master
-        master = _Master(master.vertices, master.normals, master.geometry,
-                         _master_dofs(disc, V, geometry.master_cells), master.cell)
-        basis = _FacetBasis(self.Ws, vertices, self.rule)
-        projected = self.rule.points + self.rule.gap[:, None] * normals[self.rule.facet]
-        phi = _master_basis(disc.mesh, V, master, self.rule.master, projected)
-        self.P = self._projection(basis, phi, master)
+        master = _Side(master.vertices, master.normals, master.geometry,
+                       _master_dofs(disc, V, geometry.master_cells), master.cell)
+        basis = FacetBasis(self.Ws.ufl_element().basix_element, geometry.facets, rule)
+        projected = rule.points + rule.gap[:, None] * geometry.normals[rule.facet]
+        phi = _cell_basis(disc.mesh, V, master.geometry, rule.master, projected)
+        terms = [(rule.facet, rule.weights, basis.theta, phi, master.dofs[rule.master])]
+        terms += self._uncovered(basis, _cell_dofs(V, geometry.slave_local))
+        self.P = self._projection(basis, terms)
         self.gap = self._gap(basis)
 
-    def _projection(self, basis: _FacetBasis, phi: np.ndarray, master: _Master) -> PETSc.Mat:
-        """P = M_F^{-1} sum_q w_q theta(x_q) phi(Pi(x_q))^T per facet and component.
+    def _uncovered(self, basis: FacetBasis, slave_dofs: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+        """The slave's own trace on the uncovered part of each facet: + int_F, - int_covered.
 
-        On a facet the master covers in part, the projection onto constants instead (as the
-        gap, :meth:`_gap`).
+        P v = v o Pi where a master facet is met and v itself where none is, so that the
+        relative displacement v - P v vanishes where the master is not there.
+
+        Args:
+            basis: W's basis on the slave facets.
+            slave_dofs: V's global block dofs of the cell beside each slave facet.
         """
-        rule, W, V = self.rule, self.W, self.V
+        part = np.flatnonzero(~basis.full)
+        if len(part) == 0:
+            return []
+        on = np.isin(basis.full_facet, part)
+        f_full = basis.full_facet[on]
+        at = np.isin(self.rule.facet, part)
+        f_rule = self.rule.facet[at]
+        facet = np.concatenate([f_full, f_rule])
+        x = np.concatenate([basis.full_points[on], self.rule.points[at]])
+        phi = _cell_basis(self.disc.mesh, self.V, self.geometry.slave.geometry, facet, x)
+        theta = np.concatenate([basis.full_theta[on], basis.theta[at]])
+        weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
+        return [(facet, weights, theta, phi, slave_dofs[facet])]
+
+    def _projection(self, basis: FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
+        """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
+
+        Args:
+            basis: W's basis on the slave facets.
+            terms: (facet, weight, theta(x_q), phi(y_q), global dofs of phi's cell) per point:
+                the master points y_q = Pi(x_q) of the rule, and the slave's own points on the
+                uncovered parts (:meth:`_uncovered`).
+        """
+        W, V = self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
         inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
-        # per point: the facet's rows (a) times the master cell's columns (j)
-        local = np.einsum("qab,qb->qa", inv[rule.facet], basis.theta) * rule.weights[:, None]
-        # a facet the master covers in part: the mean of the trace (no polynomial through the
-        # master's end); its integral against a constant is the same
-        part = basis.partial[rule.facet]
-        local[part] = (rule.weights[part] / basis.measure[rule.facet[part]])[:, None]
         w_dofs = wmap.local_to_global(
             np.array([W.dofmap.cell_dofs(int(f)) for f in range(len(basis.mass))],
                      dtype=np.int32).ravel()
         ).reshape(len(basis.mass), -1) if len(basis.mass) else np.zeros((0, 1), np.int64)
         rows, cols, vals = [], [], []
-        r_q, c_q = w_dofs[rule.facet], master.dofs[rule.master]  # (q, a), (q, j)
-        v_q = np.einsum("qa,qj->qaj", local, phi)
-        shape = v_q.shape
-        for c in range(bs):
-            rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
-            cols.append(np.broadcast_to((c_q * bs + c)[:, None, :], shape).ravel())
-            vals.append(v_q.ravel())
+        for facet, weights, theta, phi, dofs in terms:
+            # per point: the facet's rows (a) times the cell's columns (j)
+            local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
+            # a facet the master covers in part: the mean (no polynomial through the jump at
+            # the master's end); its integral against a constant is the same
+            part = basis.partial[facet]
+            local[part] = (weights[part] / basis.measure[facet[part]])[:, None]
+            r_q = w_dofs[facet]
+            v_q = np.einsum("qa,qj->qaj", local, phi)
+            shape = v_q.shape
+            for c in range(bs):
+                rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
+                cols.append(np.broadcast_to((dofs * bs + c)[:, None, :], shape).ravel())
+                vals.append(v_q.ravel())
         return _csr(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
                     (wmap.size_local * bs, wmap.size_global * bs),
                     (vmap.size_local * V.dofmap.index_map_bs,
                      vmap.size_global * V.dofmap.index_map_bs))
 
-    def _gap(self, basis: _FacetBasis) -> fem.Function:
-        """The gap g projected per facet, the problem's miss_gap where no master facet is met.
+    def _gap(self, basis: FacetBasis) -> fem.Function:
+        """The gap g projected per facet from its covered part (zero elsewhere).
 
-        On a facet that the master covers in part, the projection onto constants: a polynomial
-        through the jump from the gaps met to miss_gap would dip below them (a false contact).
+        The uncovered part of a facet carries no gap (and no relative displacement,
+        :meth:`_uncovered`): the integrated gap of a macro facet is that of its covered part.
+        On a facet covered in part, the projection onto constants (a polynomial through the
+        jump at the master's end would dip below the gaps met: a false contact). A macro facet
+        that no master facet covers at all gets the problem's ``miss_gap``, which
+        keeps its multiplier zero; so does one covered by less than :data:`MIN_MACRO_COVER` of
+        its measure (its row of N would be that small: a near-null pivot).
         """
-        miss = self.disc.problem.miss_gap
         rule, Ws = self.rule, self.Ws
         gap = fem.Function(Ws, name="gap")
-        rhs = miss * basis.integrals.copy()
-        np.add.at(rhs, rule.facet, basis.theta * (rule.weights * (rule.gap - miss))[:, None])
-        for f in range(len(basis.mass)):
-            if basis.partial[f]:  # the mean, between the gaps met and miss_gap
-                value = rhs[f].sum() / basis.measure[f]
-            else:
-                value = np.linalg.solve(basis.mass[f], rhs[f])
-            gap.x.array[Ws.dofmap.cell_dofs(f)] = value
+        rhs = np.zeros_like(basis.integrals)
+        np.add.at(rhs, rule.facet, basis.theta * (rule.weights * rule.gap)[:, None])
+        value = np.linalg.solve(basis.mass, rhs[..., None])[..., 0] if len(rhs) else rhs
+        part = basis.partial
+        value[part] = (rhs[part].sum(axis=1) / basis.measure[part])[:, None]
+        macro = self.disc.fine_to_macro_facet[self.disc.slave_to_fine[:len(rhs)]]
+        hit, size = np.zeros((2, int(macro.max(initial=-1)) + 1))
+        np.add.at(hit, macro, basis.covered)
+        np.add.at(size, macro, basis.measure)
+        value[hit[macro] <= MIN_MACRO_COVER * size[macro]] = self.disc.problem.miss_gap
+        dofs = np.array([Ws.dofmap.cell_dofs(f) for f in range(len(rhs))], dtype=np.int32)
+        gap.x.array[dofs.ravel()] = value.ravel()
         gap.x.scatter_forward()
         return gap
+
 
     # -- use -----------------------------------------------------------------------------------
     def apply(self, f: fem.Function) -> fem.Function:
@@ -404,38 +535,30 @@ def images_of(form: Any, f: fem.Function) -> list[fem.Function]:
             if getattr(c, "trace_of", None) is f]
 
 
-class _FacetBasis:
-    """W's scalar basis on this rank's slave facets: theta_a(x_q), mass matrices, int theta_a."""
+def _check_planar(disc: Any) -> None:
+    """Refuse warped quadrilateral facets of the pairs' macro facets, on every rank.
 
-    def __init__(self, Ws: fem.FunctionSpace, vertices: np.ndarray, rule: MortarRule) -> None:
-        element = Ws.ufl_element().basix_element
-        fdim = Ws.mesh.topology.dim
-        num = len(vertices)
-        # affine facets: x = v0 + sum_k X_k (v_{k+1} - v0) (a quadrilateral's vertices 1 and 2)
-        axes = np.stack([vertices[:, k + 1] - vertices[:, 0] for k in range(fdim)], axis=1) \
-            if num else np.zeros((0, fdim, vertices.shape[-1]))
-        gram = np.einsum("fkd,fld->fkl", axes, axes)
-        if len(rule.facet):
-            A = gram[rule.facet]
-            b = np.einsum("qkd,qd->qk", axes[rule.facet], rule.points - vertices[rule.facet, 0])
-            X = np.linalg.solve(A, b[..., None])[..., 0]
-            self.theta = _tabulate(element, X)
-        else:
-            self.theta = np.zeros((0, element.dim))
-        points, weights = basix.make_quadrature(element.cell_type, 2 * max(element.degree, 1))
-        ref = _tabulate(element, points)
-        jac = np.sqrt(np.abs(np.linalg.det(gram))) if num else np.zeros(0)
-        self.mass = np.einsum("q,qa,qb->ab", weights, ref, ref)[None] * jac[:, None, None]
-        self.integrals = (weights @ ref)[None] * jac[:, None]
-        #: |F|, and whether the master covers F in part only (not at all, or not all of it)
-        self.measure = self.integrals.sum(axis=1)
-        covered = np.zeros(num)
-        np.add.at(covered, rule.facet, rule.weights)
-        self.partial = covered < (1.0 - 1e-9) * self.measure
+    (The macro ones: the children of a warped facet would not even be tagged on T_h.)
+    """
+    macro, tags = disc.macro_mesh, disc.problem.facet_tags
+    fdim = macro.topology.dim - 1
+    n_own = macro.topology.index_map(fdim).size_local
+    found = [tags.find(t) for p in disc.problem.pairs for t in (p.slave, p.master)]
+    facets = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int32)
+    facets = facets[facets < n_own].astype(np.int32)
+    check_planar(disc.comm.allreduce(warp(_entity_points(macro, fdim, facets)), op=MPI.MAX))
 
 
-def _slave_facets(disc: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """This rank's slave facets: vertices, normals, slave cells (global), slave tag."""
+def _windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
+    """The pair's penetration window (default: each slave macro facet's diameter)."""
+    if pair.window is not None:
+        return pair.window
+    d = np.linalg.norm(vertices[:, :, None] - vertices[:, None], axis=3)
+    return 2.0 * d.max(axis=(1, 2)) if len(vertices) else np.zeros(0)
+
+
+def _slave_facets(disc: Any) -> tuple[_Side, np.ndarray, np.ndarray]:
+    """This rank's slave facets with their cells (no dofs), the cells' local index, the tag."""
     sub, fine = disc.slave_mesh, disc.mesh
     tdim = fine.topology.dim
     num = sub.topology.index_map(sub.topology.dim).size_local
@@ -444,14 +567,10 @@ def _slave_facets(disc: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     vertices = x[compat.geometry_dofmap(sub)[:num]]
     f2c = fine.topology.connectivity(tdim - 1, tdim)
     cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    inside = _entity_points(fine, tdim, cells).mean(axis=1)
-    normals = facet_normals(vertices, inside)
-    glob = fine.topology.index_map(tdim).local_to_global(cells)
-    tag = _facet_tag(disc.facet_tags, facets)
-    return vertices, normals, glob, tag
+    return _cells(fine, cells, vertices), cells, _facet_tag(disc.facet_tags, facets)
 
 
-def _master_facets(disc: Any, tag: int) -> tuple[_Master, np.ndarray]:
+def _master_facets(disc: Any, tag: int) -> tuple[_Side, np.ndarray]:
     """The owned master facets of ``tag`` gathered on every rank, and this rank's cells.
 
     Returns:
@@ -459,19 +578,32 @@ def _master_facets(disc: Any, tag: int) -> tuple[_Master, np.ndarray]:
         local index of the cell beside each of this rank's owned facets of ``tag``.
     """
     fine = disc.mesh
-    tdim, gdim = fine.topology.dim, fine.geometry.dim
+    tdim = fine.topology.dim
     n_own = fine.topology.index_map(tdim - 1).size_local
     facets = disc.facet_tags.find(tag)
     facets = facets[facets < n_own].astype(np.int32)
     f2c = fine.topology.connectivity(tdim - 1, tdim)
     cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    vertices = _entity_points(fine, tdim - 1, facets)
-    geometry = fine.geometry.x[compat.geometry_dofmap(fine)[cells]][:, :, :gdim]
-    normals = facet_normals(vertices, geometry.mean(axis=1))
-    cell = fine.topology.index_map(tdim).local_to_global(cells)
-    parts = disc.comm.allgather((vertices, normals, geometry, cell))
-    vertices, normals, geometry, cell = (np.concatenate([p[k] for p in parts]) for k in range(4))
-    return _Master(vertices, normals, geometry, np.zeros((len(cell), 0), np.int64), cell), cells
+    mine = _cells(fine, cells, _entity_points(fine, tdim - 1, facets))
+    parts = disc.comm.allgather(tuple(getattr(mine, f) for f in _Side.fields()))
+    return _Side(*(np.concatenate([p[k] for p in parts]) for k in range(5))), cells
+
+
+def _cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> _Side:
+    """The facets' cells: their geometry and global index; the facets' normals (no dofs)."""
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    geometry = msh.geometry.x[compat.geometry_dofmap(msh)[cells]][:, :, :gdim]
+    normals = facet_normals(vertices, geometry.mean(axis=1)) if len(cells) else (
+        np.zeros((0, gdim)))
+    cell = msh.topology.index_map(tdim).local_to_global(cells)
+    return _Side(vertices, normals, geometry, np.zeros((len(cells), 0), np.int64), cell)
+
+
+def _cell_dofs(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
+    """V's global block dofs of the local ``cells``, shape (len(cells), dofs per cell)."""
+    width = V.dofmap.dof_layout.num_dofs
+    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32).reshape(-1, width)
+    return V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape)
 
 
 def _master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np.ndarray:
@@ -482,20 +614,18 @@ def _master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np
         V: The displacement space.
         cells: Per pair, the local cells of this rank's owned master facets.
     """
-    index_map = V.dofmap.index_map
-    width = V.dofmap.dof_layout.num_dofs
     out = []
     for local in cells:
-        dofs = np.array([V.dofmap.cell_dofs(c) for c in local], dtype=np.int32).reshape(-1, width)
-        dofs = index_map.local_to_global(dofs.ravel()).reshape(dofs.shape)
-        out.extend(disc.comm.allgather(dofs))
+        out.extend(disc.comm.allgather(_cell_dofs(V, local)))
+    width = V.dofmap.dof_layout.num_dofs
     return np.concatenate(out) if out else np.zeros((0, width), np.int64)
 
 
-def _master_basis(
-    mesh: dmesh.Mesh, V: fem.FunctionSpace, master: _Master, which: np.ndarray, y: np.ndarray
+def _cell_basis(
+    mesh: dmesh.Mesh, V: fem.FunctionSpace, geometry: np.ndarray, which: np.ndarray,
+    y: np.ndarray,
 ) -> np.ndarray:
-    """phi_j(y_q) of V's scalar element in the master cell ``which[q]`` of each point."""
+    """phi_j(y_q) of V's scalar element in the cell ``which[q]`` (geometry nodes ``geometry``)."""
     element = V.ufl_element().sub_elements[0].basix_element
     if V.element.needs_dof_transformations:
         raise NotImplementedError(
@@ -504,11 +634,11 @@ def _master_basis(
     cmap = compat.geometry_cmap(mesh)
     gdim = mesh.geometry.dim
     out = np.zeros((len(y), element.dim))
-    order = np.argsort(which, kind="stable")  # the points of each master facet, in one pass
+    order = np.argsort(which, kind="stable")  # the points of each cell, in one pass
     cuts = np.flatnonzero(np.diff(which[order])) + 1
     for at in np.split(order, cuts) if len(order) else []:
-        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), master.geometry[which[at[0]]])
-        out[at] = _tabulate(element, X)
+        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[which[at[0]]])
+        out[at] = tabulate(element, X)
     return out
 
 
@@ -516,15 +646,13 @@ def _entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarra
     """The geometry nodes of ``entities`` of dimension ``dim``, shape (m, nodes, gdim)."""
     gdim = msh.geometry.dim
     if len(entities) == 0:  # (entities_to_geometry divides by the count)
-        nodes = msh.topology.dim + 1 if dim == msh.topology.dim else dim + 1
+        simplex = msh.topology.cell_type in (
+            dmesh.CellType.interval, dmesh.CellType.triangle, dmesh.CellType.tetrahedron)
+        nodes = dim + 1 if simplex else 2**dim
+        if dim == msh.topology.dim:
+            nodes = compat.geometry_dofmap(msh).shape[1]
         return np.zeros((0, nodes, gdim))
     return msh.geometry.x[dmesh.entities_to_geometry(msh, dim, entities)][:, :, :gdim]
-
-
-def _tabulate(element: Any, X: np.ndarray) -> np.ndarray:
-    """A scalar basix element's basis values at the reference points X, shape (points, dofs)."""
-    values = element.tabulate(0, np.ascontiguousarray(X, dtype=np.float64))
-    return values.reshape(values.shape[1], values.shape[2])
 
 
 def _facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
@@ -557,5 +685,4 @@ def _csr(
         csr=(indptr, uc.astype(PETSc.IntType), summed),
         comm=comm,
     )
-
 

@@ -15,6 +15,14 @@ sensitivity is a goal of the step before, back to the first step (:func:`history
 a backward chain of dual problems, as a space-time dual would be solved backwards in time. The
 chain's estimates are added to the step's estimate and its interval (the intervals summed).
 
+**One backward sweep.** The chain of step k is a sweep back over the k earlier steps, one
+estimate (one transposed solve with that step's stored last Newton factors) per step, and its
+goals depend on k: the chains of different steps share no solve. So the default,
+``history="last"``, estimates the history of the last step only, by one sweep back over the
+path after its last solve: n - 1 estimates for n steps, one per step in total; the terms are
+those of the chain of the last step, as computed step by step. ``history="every"`` (or True)
+runs the chain after every step: k estimates at step k, n (n - 1) / 2 along the path.
+
 **Adaptivity along the path** (``adaptive=True``): after each step the macro mesh is refined
 for that step's goal (the marking of :func:`~dwr_signorini.solve_adaptive`), and the next step
 lives on the refined mesh. The history is carried by interpolation: u^old, piecewise linear on
@@ -37,6 +45,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate, estimate
 from .goal import Goal
@@ -47,7 +56,7 @@ from .report import AdaptiveResult, LevelRecord, Reporter
 from .settings import EstimateOptions, SolverOptions
 from .spaces import Discretization, discretize
 from .timing import timed
-from .transfer import transfer_solution
+from .transfer import carry_obstacle_displacement, transfer_solution
 
 __all__ = ["PathResult", "StepRecord", "history_estimates", "history_goal", "solve_path"]
 
@@ -59,7 +68,8 @@ class StepRecord(LevelRecord):
     Attributes:
         step: The load step, from 0 (``level`` is the refinement level of its mesh).
         eta_history: The estimated error that the earlier steps carry into this step's goal,
-            or None where it is not estimated (``history=False``, adaptive paths).
+            or None where it is not estimated (``history=False``, adaptive paths, and the steps
+            before the last with the default ``history="last"``).
 
     ``estimate``, ``J_low`` and ``J_high`` include the error the history carries into the
     step's goal (:func:`history_estimates`) when it is estimated; ``eta`` and ``eta_p`` are
@@ -143,6 +153,7 @@ def _warm_start(previous: Solution, disc: Discretization) -> tuple[Any, ...]:
     """
     if previous.disc.V is not disc.V:
         return transfer_solution(previous, disc)
+    carry_obstacle_displacement(previous, disc)
     copies = []
     for f in (previous.u, *previous.multipliers):
         g = fem.Function(f.function_space, name=f.name)
@@ -166,7 +177,7 @@ def solve_path(
     ncp_scale: str | float = "physical",
     verbose: bool = True,
     initial_guess: tuple[Any, ...] | None = None,
-    history: bool | None = None,
+    history: bool | str | None = None,
 ) -> PathResult:
     """Solve a quasi-static load path step by step, each step from the last (module docstring).
 
@@ -194,11 +205,14 @@ def solve_path(
             discretisation's spaces (as :func:`~dwr_signorini.solve`); e.g. for a body that
             only contact and friction hold in place, whose first Newton step needs the contact
             active (a floating body's stiffness matrix is singular).
-        history: Estimate the error the earlier steps carry into each step's goal
-            (:func:`history_estimates`, added to the step's estimate and interval): keeps every
-            step's solution (and its factorisation) and costs k more estimates at step k.
-            Default: True on a path on one mesh, False with ``adaptive`` (not available there:
-            the earlier steps live on other meshes).
+        history: Estimate the error the earlier steps carry into a step's goal
+            (:func:`history_estimates`, added to the step's estimate and interval); keeps every
+            step's solution (and its factorisation). ``"last"``: into the last step's goal, by
+            one backward sweep after the last step (one estimate per earlier step in total);
+            ``"every"`` or True: into every step's goal (k more estimates at step k); False:
+            not estimated. Default: ``"last"`` on a path on one mesh with a frictional law,
+            False with ``adaptive`` (not available there: the earlier steps live on other
+            meshes) and for a frictionless law (its steps do not depend on the earlier ones).
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -209,18 +223,21 @@ def solve_path(
         ConvergenceError: As :func:`~dwr_signorini.solve`, on any step.
     """
     problems = _check_problems(problems)
+    check_same_on_ranks(
+        problems[0].mesh,
+        "solve_path",
+        {
+            "problems": len(problems), "goal": callable(goal), "adaptive": adaptive,
+            "estimator": estimator, "weights": weights, "fraction": fraction,
+            "growth": growth, "output_dir": None if output_dir is None else str(output_dir),
+            "callback": callback is None, "petsc_options": petsc_options, "method": method,
+            "ncp_scale": ncp_scale, "initial_guess": initial_guess is None, "history": history,
+        },
+    )
     goals = _goals(goal, len(problems))
     settings = _path_settings(problems[0], adaptive, fraction, growth, estimator, weights,
                               petsc_options, method, ncp_scale)
-    if history is None:
-        history = not adaptive
-    if not isinstance(history, bool):
-        raise TypeError(f"history must be True, False or None, got {history!r}")
-    if history and adaptive:
-        raise ValueError(
-            "history=True needs every step on one mesh: the history's error is not estimated "
-            "on an adaptive path (use history=False or adaptive=False)"
-        )
+    history = _history_mode(history, adaptive, problems[0].law.frictional)
     comm = problems[0].mesh.comm
     marking = settings.marking if adaptive else None
     meta = {"steps": len(problems), "adaptive": adaptive, "estimator": estimator,
@@ -229,8 +246,33 @@ def solve_path(
             "strategy": None if marking is None else marking.strategy,
             "max_growth": None if marking is None else marking.max_growth, "history": history,
             "num_processes": comm.size, "law": repr(problems[0].law)}
-    reporter = Reporter(comm, "path", meta, output_dir, callback, verbose)
+    reporter = Reporter(comm, "path", meta, output_dir, callback, verbose, series=True)
     return _steps(problems, goals, settings, adaptive, history, initial_guess, reporter)
+
+
+HISTORY_MODES = ("last", "every")
+
+
+def _history_mode(history: Any, adaptive: bool, frictional: bool) -> str | None:
+    """``history`` of :func:`solve_path` as ``"last"``, ``"every"`` or None (not estimated)."""
+    if history is None:  # a frictionless law carries no history (no slip offsets)
+        return "last" if frictional and not adaptive else None
+    if history is True:
+        history = "every"
+    if history is False:
+        return None
+    if not isinstance(history, str):
+        raise TypeError(
+            f"history must be None, True, False, 'last' or 'every', got {history!r}"
+        )
+    if history not in HISTORY_MODES:
+        raise ValueError(f"history must be None, True, False, 'last' or 'every', got {history!r}")
+    if adaptive:
+        raise ValueError(
+            f"history={history!r} needs every step on one mesh: the history's error is not "
+            "estimated on an adaptive path (use history=False or adaptive=False)"
+        )
+    return history
 
 
 def _path_settings(
@@ -258,18 +300,20 @@ def _steps(
     goals: list[Goal],
     settings: LevelSettings,
     adaptive: bool,
-    history: bool,
+    history: str | None,
     initial_guess: tuple[Any, ...] | None,
     reporter: Reporter,
 ) -> PathResult:
     """The loop of :func:`solve_path` over the load steps."""
     result = PathResult(levels=[], meta=reporter.meta, comm=reporter.comm)
-    state = _PathState(first_guess=initial_guess, keep=history)
+    state = _PathState(first_guess=initial_guess, keep=history is not None)
     try:
         with reporter:
             for k, problem in enumerate(problems):
-                refine = adaptive and k < len(problems) - 1
-                record = _step(k, problem, goals[k], state, refine, settings)
+                last = k == len(problems) - 1
+                refine = adaptive and not last
+                sweep = history == "every" or (history == "last" and last)
+                record = _step(k, problem, goals[k], state, refine, settings, sweep)
                 result.levels.append(record)
                 sol, est = state.solution, state.estimate
                 reporter.report(k, record, sol, est, f"step {k:3d}  level {record.level:2d}")
@@ -334,8 +378,13 @@ def _discretization(current: SignoriniProblem, state: _PathState) -> Discretizat
 def _step(
     k: int, problem: SignoriniProblem, goal: Goal, state: _PathState, refine: bool,
     settings: LevelSettings,
+    sweep: bool = False,
 ) -> StepRecord:
-    """Solve and estimate load step ``k`` from the state of step k - 1; refine after it."""
+    """Solve and estimate load step ``k`` from the state of step k - 1; refine after it.
+
+    With ``sweep`` the error its history carries is estimated by the backward chain over the
+    kept earlier steps (:func:`history_estimates`).
+    """
     t_start = time.perf_counter()
     current = problem if state.current is None else _on_mesh(problem, state.current)
     with timed("discretize"):
@@ -349,7 +398,7 @@ def _step(
     sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal)
     state.solution, state.estimate = sol, est
     tic = time.perf_counter()
-    history = history_estimates(state.kept, sol, est, settings.estimate) if state.keep else []
+    history = history_estimates(state.kept, sol, est, settings.estimate) if sweep else []
     t_history = time.perf_counter() - tic
     tic = time.perf_counter()
     marked = np.zeros(0, dtype=np.int32)
@@ -362,7 +411,7 @@ def _step(
                               "refine": time.perf_counter() - tic})
     step = StepRecord(**record.as_dict(), step=k)
     step.time["history"] = t_history
-    if state.keep:
+    if sweep:
         _add_history(step, history)
     step.time["total"] = time.perf_counter() - t_start
     return step
@@ -408,8 +457,7 @@ def history_goal(sol: Solution, est: Estimate) -> Goal:
     weights = [sol.multiplier_function(part, f"history_weight_{k}")
                for k, part in enumerate(parts[1:], start=1)]
     disc = sol.disc
-    m = disc.m
-    directions = [comp.direction(m.n) for comp in algebra.components[1:]]
+    directions = disc.directions(algebra.components)[1:]
 
     def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> Any:
         form = None

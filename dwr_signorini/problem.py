@@ -20,9 +20,10 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
+from .agreement import check_same_on_ranks
 from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
-from .mesh_validation import check_cell_tags, check_mesh, check_tags
+from .mesh_validation import check_cell_tags, check_mesh, check_projection_fits, check_tags
 from .obstacles import Obstacle
 from .pairs import ContactPair
 from .quadrature import DATA_QUADRATURE_DEGREE
@@ -131,6 +132,17 @@ class SignoriniProblem:
         quadrature_degree: int = DATA_QUADRATURE_DEGREE,
     ) -> None:
         check_mesh(mesh, facet_tags)
+        check_same_on_ranks(
+            mesh,
+            "SignoriniProblem",
+            {
+                "contact": contact, "dirichlet": dirichlet, "E": E, "nu": nu, "model": model,
+                "body_force": body_force, "traction": traction, "gap": gap,
+                "cell_tags": cell_tags is None, "boundary_projection": boundary_projection,
+                "friction": friction, "quadrature_degree": quadrature_degree,
+            },
+            numeric=("boundary_projection",),
+        )
         self.mesh = mesh
         self.facet_tags = facet_tags
         self.model = check_model(model, mesh.topology.dim)
@@ -154,6 +166,7 @@ class SignoriniProblem:
         )
         self.gap = check_pair_gap(gap, self.pairs, self.rigid_tags) if self.pairs else gap
         self.gap = check_gap(self.gap, mesh, facet_tags, self.rigid_tags or self.contact_tags)
+        self.force_obstacle = _force_obstacle(self.gap, bool(self.pairs))
         self.boundary_projection = check_projection(boundary_projection)
         used = (
             [("contact", t) for t in self.contact_tags]
@@ -163,6 +176,7 @@ class SignoriniProblem:
             + [("boundary_projection", t) for t in self.boundary_projection]
         )
         check_tags(mesh, facet_tags, used, sides)
+        check_projection_fits(mesh, facet_tags, self.boundary_projection)
         check_pair_bodies(mesh, facet_tags, self.pairs)
         self.law = check_law(friction, self)
         self.friction = self.law if self.law.frictional else None
@@ -315,6 +329,7 @@ class SignoriniProblem:
         mesh: dmesh.Mesh,
         facet_tags: dmesh.MeshTags,
         cell_tags: dmesh.MeshTags | None = None,
+        law: Any = None,
     ) -> SignoriniProblem:
         """The same problem on another (refined) macro mesh.
 
@@ -323,6 +338,8 @@ class SignoriniProblem:
             facet_tags: Its facet tags.
             cell_tags: Its cell tags, needed when E or nu is given per cell tag (those of a
                 discretisation's T_h are ``disc.cell_tags``).
+            law: Another contact law for the new problem (``None``: this problem's), e.g. the
+                richer law of a model error estimate.
 
         Returns:
             A new :class:`SignoriniProblem` with this problem's data on ``mesh``.
@@ -343,9 +360,28 @@ class SignoriniProblem:
             self.gap,
             cell_tags=cell_tags,
             boundary_projection=self.boundary_projection or None,
-            friction=self.law,
+            friction=self.law if law is None else law,
             quadrature_degree=self.quadrature_degree,
         )
+
+
+def _force_obstacle(gap: Any, pairs: bool) -> Obstacle | None:
+    """The obstacle of ``gap`` under a given force (force control), or None.
+
+    Raises:
+        ValueError: A force-controlled obstacle in a gap per contact tag or beside contact
+            pairs (one obstacle, the only contact, is supported).
+    """
+    given = list(gap.values()) if isinstance(gap, Mapping) else [gap]
+    forced = [g for g in given if isinstance(g, Obstacle) and g.force is not None]
+    if not forced:
+        return None
+    if isinstance(gap, Mapping) or pairs:
+        raise ValueError(
+            "an obstacle with force= must be the problem's only gap (gap=obstacle), not one of "
+            "a gap per contact tag or beside contact pairs"
+        )
+    return forced[0]
 
 
 def _frozen_error(name: str) -> NoReturn:

@@ -28,7 +28,8 @@ from dolfinx import mesh as dmesh
 from dolfinx.cpp import mesh as _cpp_mesh
 
 from . import compat
-from .collective import collective
+from .collective import collective, shadow
+from .mesh_validation import check_projection_moves, projected_points, projection_nodes
 from .problem import SignoriniProblem
 
 __all__ = [
@@ -299,21 +300,6 @@ def _corner_jacobians(msh: dmesh.Mesh) -> npt.NDArray[np.float64]:
     return np.stack(dets, axis=1)
 
 
-def _projected(
-    f: Callable[[np.ndarray], np.ndarray], points: np.ndarray, tag: int, gdim: int
-) -> np.ndarray:
-    """``f(points)`` as a checked array of shape (gdim or 3, n) (local; ValueError naming it)."""
-    new = np.asarray(f(points), dtype=float)
-    if new.ndim != 2 or new.shape[1] != points.shape[1] or new.shape[0] not in (gdim, 3):
-        raise ValueError(
-            f"boundary_projection[{tag}] must return an array of shape (3, n) or "
-            f"({gdim}, n) for points of shape (3, n), got {new.shape}"
-        )
-    if not np.all(np.isfinite(new)):
-        raise ValueError(f"boundary_projection[{tag}] returned NaN or Inf")
-    return new
-
-
 def project_boundary(
     msh: dmesh.Mesh,
     facet_tags: dmesh.MeshTags,
@@ -322,8 +308,9 @@ def project_boundary(
     """Move the vertices on the tagged facets onto their surfaces, in place (collective).
 
     Every rank moves its copies of the vertices with the same callable, so shared vertices
-    stay shared. Checked afterwards: no corner Jacobian of a local cell changes sign or drops
-    below 1e-10 of its old size.
+    stay shared. Checked before: no vertex moves by more than half the local mesh size
+    (:func:`~dwr_signorini.mesh_validation.check_projection_moves`). Checked afterwards: no
+    corner Jacobian of a local cell changes sign or drops below 1e-10 of its old size.
 
     Args:
         msh: A mesh with affine (degree 1) geometry.
@@ -335,36 +322,58 @@ def project_boundary(
         RuntimeError: If a move would invert or flatten a cell (the mesh is then unchanged):
             the macro mesh is too coarse near that curved boundary for its refinement.
         ValueError: If a projection returns an array of the wrong shape or non-finite values
-            (on any rank: then on every rank, as a ``CollectiveValueError`` naming it; an
-            exception the callable raises likewise, :mod:`dwr_signorini.collective`).
+            (on any rank: then on every rank, as a ``CollectiveValueError`` naming it and the
+            vertex; an exception the callable raises likewise, :mod:`dwr_signorini.collective`),
+            or moves a vertex by more than
+            :data:`~dwr_signorini.mesh_validation.MAX_PROJECTION_MOVE` times the local mesh
+            size (naming the tag, the vertex, the distance; the mesh is then unchanged).
     """
-    fdim = msh.topology.dim - 1
     gdim = msh.geometry.dim
     x = msh.geometry.x
     before = _corner_jacobians(msh)
     saved = x.copy()
     for tag, f in projection.items():
-        facets = facet_tags.find(tag).astype(np.int32)
-        nodes = (np.unique(dmesh.entities_to_geometry(msh, fdim, facets, False)) if len(facets)
-                 else np.zeros(0, dtype=np.int32))  # (entities_to_geometry divides by the count)
+        nodes = projection_nodes(msh, facet_tags, tag)
+        new = np.zeros((0, gdim))
         try:  # the user's f on this rank's points; its error, or a bad result, on every rank
             with collective(msh.comm, f"boundary_projection[{tag}]"):
                 if nodes.size:
-                    x[nodes, :gdim] = _projected(f, x[nodes].T.copy(), tag, gdim)[:gdim].T
+                    new = projected_points(f, x[nodes].T.copy(), tag, gdim)[:gdim].T
+            check_projection_moves(msh, tag, nodes, new)
         except Exception:
             x[:] = saved
             raise
+        x[nodes, :gdim] = new
         after = _corner_jacobians(msh)
         bad = (np.sign(after) != np.sign(before)) | (np.abs(after) < 1e-10 * np.abs(before))
         count = msh.comm.allreduce(int(bad.any(axis=1).sum()), op=MPI.SUM)
         if count:
+            distance, vertex = _largest_move(msh, bad.any(axis=1), saved)
             x[:] = saved
             raise RuntimeError(
                 f"boundary_projection[{tag}]: moving the new vertices onto the surface would "
-                f"invert or flatten {count} cell(s) of the refined macro mesh, so no vertex was "
-                "moved. Start from a finer mesh near that boundary (its facets must be small "
-                "against the radius of curvature) or refine less there"
+                f"invert or flatten {count} cell(s) of the refined macro mesh (the vertex at "
+                f"{vertex} would move by {distance:.6g}), so no vertex was moved. Start from a "
+                "finer mesh near that boundary (its facets must be small against the radius of "
+                "curvature) or refine less there"
             )
+
+
+def _largest_move(
+    msh: dmesh.Mesh, bad_cells: np.ndarray, saved: np.ndarray
+) -> tuple[float, tuple[float, ...]]:
+    """The largest move of a vertex of the ``bad_cells`` (``saved``: the old coordinates).
+
+    Collective (one ``allgather``): the same vertex and distance on every rank.
+    """
+    gdim = msh.geometry.dim
+    nodes = np.unique(compat.geometry_dofmap(msh)[bad_cells])
+    moves = np.linalg.norm(msh.geometry.x[nodes] - saved[nodes], axis=1)
+    local = (0.0, ())
+    if nodes.size:
+        k = int(np.argmax(moves))
+        local = (float(moves[k]), tuple(float(c) for c in saved[nodes[k], :gdim]))
+    return max(shadow(msh.comm).allgather(local), key=lambda m: m[0])
 
 
 #: Which edges of the marked cells are refined (``rule`` of :func:`refine_marked`).

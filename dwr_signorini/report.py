@@ -33,8 +33,10 @@ from .collective import call_collectively, on_root
 from .estimator import Estimate
 from .io import OutputDirectory, write_csv, write_json
 from .lifetime import Releasable
+from .model_error import law_phrase
 from .newton import Solution
 from .problem import SignoriniProblem
+from .stress import stress_fields
 from .timing import timed
 
 __all__ = ["AdaptiveResult", "LevelRecord", "Reporter", "level_record", "progress_line"]
@@ -80,6 +82,13 @@ class LevelRecord:
         num_slip: With friction, macro contact facets in contact that slip, else None.
         method: The linear solver of the level's Newton steps (:attr:`Solution.method`:
             ``"block"``, ``"schur"`` or ``"krylov"``).
+        model_error: With ``solve_adaptive(..., model_error=richer)``: the estimate of
+            J(richer) - J(simpler) (:attr:`Estimate.model_error`), else ``None``.
+        model_error_low: The lower end of its interval, else ``None``.
+        model_error_high: Its upper end, else ``None``.
+        model: The name of the contact law the level ran (``"frictionless"``, ``"tresca"``,
+            ``"coulomb"``); with ``solve_adaptive(..., models=[...])`` the model it chose.
+        richer_model: The name of the richer law of ``model_error``, else ``None``.
     """
 
     level: int
@@ -110,6 +119,11 @@ class LevelRecord:
     num_stick: int | None = None
     num_slip: int | None = None
     method: str = ""
+    model_error: float | None = None
+    model_error_low: float | None = None
+    model_error_high: float | None = None
+    model: str = ""
+    richer_model: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The record as a plain dict.
@@ -214,6 +228,7 @@ def level_record(
     values = ("J_h", "J_best", "eta_p", "eta", "contact_term", "active_set_remainder",
               "weights", "weights_fallback", "resolved")
     J_low, J_high = est.interval
+    model_low, model_high = est.model_error_interval or (None, None)
     record = LevelRecord(
         level=level,
         **{name: getattr(disc, name) for name in sizes},
@@ -226,6 +241,11 @@ def level_record(
         num_stick=sol.num_stick,
         num_slip=sol.num_slip,
         method=sol.method,
+        model_error=est.model_error,
+        model_error_low=model_low,
+        model_error_high=model_high,
+        model=disc.problem.law.name,
+        richer_model=None if est.model is None else est.model.law.name,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
         time={
@@ -261,6 +281,14 @@ def progress_line(record: LevelRecord, label: str | None = None) -> str:
         else f"stick/slip {record.num_stick:d}/{record.num_slip:d}  "
     )
     contact = "no contact  " if record.no_contact else ""
+    if record.model_error is None and record.num_stick is not None:
+        contact += f"model {record.model}  "
+    if record.model_error is not None:
+        phrase = law_phrase(record.model, record.richer_model)
+        contact += (
+            f"model {record.model}; model error of {phrase}: {record.model_error: .3e} in "
+            f"[{record.model_error_low: .3e}, {record.model_error_high: .3e}]  "
+        )
     fallback = ", memory" if record.weights_fallback else ""
     label = f"level {record.level:2d}" if label is None else label
     return (
@@ -308,6 +336,8 @@ class Reporter:
             every rank; an exception it raises on any rank is raised on every rank
             (:mod:`dwr_signorini.collective`).
         verbose: Show a progress line per level on rank 0.
+        series: Write the fields as one time series (a load path,
+            :meth:`~dwr_signorini.io.OutputDirectory.write_fields`), not one file per level.
 
     Raises:
         TypeError: A ``callback``, ``verbose`` or ``output_dir`` of the wrong type.
@@ -323,6 +353,7 @@ class Reporter:
         output_dir: str | os.PathLike | None = None,
         callback: Callable[..., None] | None = None,
         verbose: bool = True,
+        series: bool = False,
     ) -> None:
         if callback is not None and not callable(callback):
             raise TypeError(f"callback must be callable or None, got {callback!r}")
@@ -333,6 +364,7 @@ class Reporter:
                 f"output_dir must be a path (str or pathlib.Path) or None, got {output_dir!r}"
             )
         self.comm, self.meta, self.callback, self.verbose = comm, meta, callback, verbose
+        self.series = series
         self.out = None if output_dir is None else OutputDirectory(output_dir, comm, name=name)
         self._stdout = _on_stdout(verbose and comm.rank == 0)
 
@@ -341,6 +373,8 @@ class Reporter:
         return self
 
     def __exit__(self, *exc: object) -> None:
+        if self.out is not None:
+            self.out.close()
         self._stdout.__exit__(*exc)
 
     def report(
@@ -362,8 +396,9 @@ class Reporter:
         """
         if self.out is not None:
             with timed("output"):  # the fields first: a level in the table has its fields
-                fields = [sol.u, est.indicators, est.dual.y]
-                self.out.write_fields(index, fields, [*sol.multipliers, *est.dual.multipliers])
+                fields = [sol.u, est.indicators, est.dual.y, *stress_fields(sol)]
+                self.out.write_fields(index, fields, [*sol.multipliers, *est.dual.multipliers],
+                                      series=self.series)
                 self.out.append(record.as_dict(), self.meta)
         self.say(progress_line(record, label))
         if self.callback is not None:

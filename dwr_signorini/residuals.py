@@ -139,7 +139,8 @@ def ncp_terms(sol: Any, u: Any, lams: Any, c: Any) -> list:
     m, fields = disc.m, disc.fields
     u_old = None if disc.u_old is None else disc.relative(disc.u_old)
     return disc.problem.law.ncp_arguments(
-        disc.relative(u), _tuple(lams), fields.gap(m.x), m.n, c, fields, u_old
+        disc.relative(u), _tuple(lams), fields.gap(m.x), m.n, c, fields, u_old,
+        frame=disc.contact_frame(),
     )
 
 
@@ -174,8 +175,8 @@ def primal_residual(sol: Any, v: Any, mu: Any, c: Any) -> ufl.Form:
     components = disc.problem.law.components(m.mesh.topology.dim)
     form = disc.load_form(v) - disc.fields.elastic_form(sol.u, v, m.dx)
     v_rel = disc.relative(v)
-    for comp, lam in zip(components, sol.multipliers, strict=True):
-        form -= lam * ufl.dot(v_rel, comp.direction(m.n)) * m.ds_contact
+    for e, lam in zip(disc.directions(components), sol.multipliers, strict=True):
+        form -= lam * ufl.dot(v_rel, e) * m.ds_contact
     return form - contact_term(sol, mu, c)
 
 
@@ -196,7 +197,7 @@ def dual_residual(
     components = disc.problem.law.components(m.mesh.topology.dim)
     terms = ncp_terms(sol, sol.u, sol.multipliers, c)
     mus = _tuple(mu)
-    directions = [comp.direction(m.n) for comp in components]
+    directions = disc.directions(components)
     v_rel, y_rel = disc.relative(v), disc.relative(z.y)
     form = -disc.fields.elastic_form(v, z.y, m.dx)
     for k, ((_, _, J_k), xi, mu_k) in enumerate(zip(terms, z.multipliers, mus, strict=True)):
@@ -231,12 +232,14 @@ def active_set_remainder(
     """
     disc = sol.disc
     m = disc.m
-    gap = disc.fields.gap(m.x)
+    components = disc.problem.law.components(m.mesh.topology.dim)
+    gap = disc.normal_gap(components, disc.fields.gap(m.x))
+    n = disc.directions(components)[0]  # the normal of the contact frame
     u_h = disc.relative(sol.u)
-    arg_h = ncp_argument(u_h, sol.lam, gap, m.n, c)
-    chi_h = active_indicator(u_h, sol.lam, gap, m.n, c)
+    arg_h = ncp_argument(u_h, sol.lam, gap, n, c)
+    chi_h = active_indicator(u_h, sol.lam, gap, n, c)
     lam_plus, xi_plus = _tuple(lam_plus), _tuple(xi_plus)
-    chi_plus = active_indicator(disc.relative(u_plus), lam_plus[0], gap, m.n, c)
+    chi_plus = active_indicator(disc.relative(u_plus), lam_plus[0], gap, n, c)
     form = xi_plus[0] * (chi_plus - chi_h) * arg_h * m.ds_contact
     if len(xi_plus) == 1:
         return form

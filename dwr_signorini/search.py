@@ -29,19 +29,21 @@ def candidate_rule(
     master: np.ndarray,
     master_normals: np.ndarray,
     degree: int,
+    window: np.ndarray | float,
 ) -> MortarRule:
     """The mortar rule of each slave facet against its candidate master facets only.
 
     :func:`~dwr_signorini.mortar.mortar_rule` of every slave facet against the master facets
     that a KD-tree of their centres finds near it. A slave facet F of diameter d is searched
     against the master facets whose centres lie within D + reach(F) + max reach(master) of F's
-    centre, D = :data:`SEARCH_DEPTH` d: every master facet that a ray of F meets at |t| <= D is
-    among them, and none outside is met at |t| <= D. The result is kept where those
-    candidates cover F and every point's |gap| <= D - d (so no master outside the ball could
-    be nearer, nor in the layer of the nearest); elsewhere (a facet covered in part or not at
-    all, or a gap larger than the search) F is searched against every master facet. The rule
-    is the full search's, up to round-off where a master outside the ball cuts a piece of F
-    without being chosen for it.
+    centre, D = max(:data:`SEARCH_DEPTH` d, w_F + d) with w_F F's penetration window: every
+    master facet that a ray of F meets at |t| <= D is among them, and none outside is met at
+    |t| <= D. The result is kept where those candidates cover F and every point's
+    |gap| <= D - d (so no master outside the ball could be nearer, nor in the layer of the
+    nearest, nor within the window behind F: D - d >= w_F); elsewhere (a facet covered in part
+    or not at all, or a gap larger than the search) F is searched against every master facet.
+    The rule is the full search's, up to round-off where a master outside the ball cuts a piece
+    of F without being chosen for it.
 
     Args:
         slave: The slave facets' vertices, shape (m_s, nv, gdim).
@@ -49,18 +51,21 @@ def candidate_rule(
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
         degree: The polynomial degree integrated exactly on each piece.
+        window: The penetration window w_F of each slave facet (or one for all), >= 0
+            (:func:`~dwr_signorini.mortar.mortar_rule`).
 
     Returns:
         The :class:`~dwr_signorini.mortar.MortarRule`, its points in the order of the slave
         facets.
     """
+    windows = np.broadcast_to(np.asarray(window, dtype=float), (len(slave),))
     if len(slave) == 0 or len(master) == 0:
-        return mortar_rule(slave, slave_normals, master, master_normals, degree)
+        return mortar_rule(slave, slave_normals, master, master_normals, degree, windows)
     centres, slave_centres = master.mean(axis=1), slave.mean(axis=1)
     reach = np.linalg.norm(master - centres[:, None], axis=2).max(axis=1)
     slave_reach = np.linalg.norm(slave - slave_centres[:, None], axis=2).max(axis=1)
     diameter = 2.0 * slave_reach
-    depth = SEARCH_DEPTH * diameter
+    depth = np.maximum(SEARCH_DEPTH * diameter, windows + diameter)
     near = cKDTree(centres).query_ball_point(
         slave_centres, (1.0 + 1e-9) * (depth + slave_reach + reach.max())
     )
@@ -68,7 +73,7 @@ def candidate_rule(
     for i, candidates in enumerate(near):
         c = np.asarray(candidates, dtype=np.int64)
         r = mortar_rule(slave[i:i + 1], slave_normals[i:i + 1], master[c], master_normals[c],
-                        degree) if len(c) else None
+                        degree, windows[i]) if len(c) else None
         if r is None or not _kept(r, slave[i], depth[i] - diameter[i]):
             full.append(i)
             continue
@@ -76,7 +81,7 @@ def candidate_rule(
                                 c[r.master], r.gap))
     if full:
         f = np.asarray(full, dtype=np.int64)
-        r = mortar_rule(slave[f], slave_normals[f], master, master_normals, degree)
+        r = mortar_rule(slave[f], slave_normals[f], master, master_normals, degree, windows[f])
         parts.append(MortarRule(f[r.facet], r.points, r.weights, r.master, r.gap))
     rule = MortarRule(*(np.concatenate([getattr(p, k) for p in parts]) for k in (
         "facet", "points", "weights", "master", "gap")))

@@ -97,6 +97,9 @@ class NewtonLoop:
         self.coupled_law = any(len(idx) > 1 for idx, _ in system.algebra.conditions)
         self.damped_since: int | None = None
         self.step_length = 1.0
+        #: A force-controlled obstacle's displacement still changing (then the sets settling
+        #: is not the end: dwr_signorini.force)
+        self.moving = False
         self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
 
     def destroy(self) -> None:
@@ -167,6 +170,7 @@ class NewtonLoop:
         # step comes next (the sets repeating is what ends the damping, see _damped)
         settled = (
             self.previous is not None and record["num_changed"] == 0 and self.step_length == 1.0
+            and not self.moving
         )
         self.resolve = settled and self.loose
         if self.resolve:  # the sets have settled: solve their system again, accurately

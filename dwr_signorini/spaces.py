@@ -59,6 +59,9 @@ class Measures:
         problem: The problem (for material data).
         fields: The problem's data on the fine mesh (the discretisation's
             :class:`~dwr_signorini.fields.MeshFields`).
+        obstacle_displacement: The displacement delta of an obstacle under a given force along
+            its direction (a dolfinx Constant, for goals: its dual entry takes dJ/ddelta), or
+            None.
     """
 
     x: Any
@@ -69,6 +72,7 @@ class Measures:
     mesh: dmesh.Mesh
     problem: SignoriniProblem
     fields: MeshFields
+    obstacle_displacement: Any = None
 
     def sigma(self, u: Any) -> Any:
         """Stress sigma(u) of the problem's material law.
@@ -203,6 +207,7 @@ class Discretization:
             mesh=fine,
             problem=problem,
             fields=self.fields,
+            obstacle_displacement=self.fields.obstacle_displacement,
         )
 
     def for_problem(self, problem: SignoriniProblem) -> Discretization:
@@ -314,6 +319,44 @@ class Discretization:
             )
         return self.master_trace(v.function_space).apply(v)
 
+    def contact_frame(self) -> Any:
+        """The normal of the contact frame on Gamma_C (UFL), in which the slip is measured.
+
+        The tangential components of a frictional law act along the tangents of the plane
+        normal to it (:meth:`~dwr_signorini.laws.Component.direction_in`), in the Newton
+        matrix, the dual problem and the estimator alike: a rigid obstacle's normal where the
+        body's normal ray enters it, the bisector of the two normals of a contact pair
+        (:meth:`~dwr_signorini.fields.MeshFields.frame_normal`).
+
+        Returns:
+            The unit normal n_c of the contact frame, a UFL vector on Gamma_C.
+        """
+        return self.fields.frame_normal(self.m.x, self.m.n)
+
+    def directions(self, components: Any) -> list[Any]:
+        """The directions of a law's components in its contact frame.
+
+        Args:
+            components: The law's components (normal first).
+
+        Returns:
+            e_k of each component (:meth:`~dwr_signorini.laws.Component.direction_in`), UFL.
+        """
+        n, frame = self.m.n, self.contact_frame()
+        return [comp.direction_in(n, frame) for comp in components]
+
+    def normal_gap(self, components: Any, gap: Any) -> Any:
+        """The normal component's offset in the contact frame.
+
+        Args:
+            components: The law's components (normal first).
+            gap: The gap g along the body's normal n (UFL).
+
+        Returns:
+            g (n . n_c) (:meth:`contact_frame`).
+        """
+        return components[0].offset_in(gap, self.m.n, self.contact_frame())
+
     def relative(self, v: Any) -> Any:
         """The relative displacement v - P v on Gamma_C (:mod:`~dwr_signorini.pairs`).
 
@@ -397,7 +440,8 @@ class Discretization:
                 chi.x.scatter_forward()
                 indicators[t] = chi
         pair_gap = None if self.slave_mesh is None else (lambda: self.master_trace().gap)
-        self.fields = MeshFields(problem, self.mesh, fine_tags, indicators, pair_gap)
+        pair_frame = None if self.slave_mesh is None else (lambda: self.master_trace().frame)
+        self.fields = MeshFields(problem, self.mesh, fine_tags, indicators, pair_gap, pair_frame)
         self.macro_fields = MeshFields(problem, self.macro_mesh, problem.cell_tags, indicators)
 
     def load_form(self, v: Any) -> ufl.Form:

@@ -9,6 +9,7 @@ next level starts near its solution.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -54,6 +55,7 @@ def transfer_solution(
         ``(u0, lam0)`` on ``disc.V`` and ``disc.Q`` (``(u0, lam0, lam_t0)`` with friction; every
         multiplier is transferred as lambda).
     """
+    carry_obstacle_displacement(old, disc)
     rec = rec or Reconstructor(old.disc)
     if macro_parent is not None and rec.simplex:
         if isinstance(macro_parent, CellOrigin):
@@ -70,6 +72,21 @@ def transfer_solution(
     _prescribe(u0, disc)
 
     return (u0, *(_by_interpolation(f, disc, rec, cells) for f in old.multipliers))
+
+
+def carry_obstacle_displacement(old: Any, disc: Discretization) -> None:
+    """Start a force-controlled obstacle of ``disc`` where it was in ``old`` (a warm start).
+
+    The displacement delta belongs to the warm start like u and lambda: from the transferred
+    iterate with delta = 0 the rule (21) would see every facet far off the obstacle.
+
+    Args:
+        old: The previous :class:`~dwr_signorini.Solution`.
+        disc: The new discretisation.
+    """
+    constant = disc.fields.obstacle_displacement
+    if constant is not None and old.obstacle_displacement is not None:
+        constant.value = old.obstacle_displacement
 
 
 def _by_interpolation(

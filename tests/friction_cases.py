@@ -125,9 +125,12 @@ class UniformCase:
             )
         return msh, block_tags(msh)
 
-    def problem(self, comm, law: ds.laws.ContactLaw | None = None) -> ds.SignoriniProblem:
-        """The patch test as a problem with Coulomb's law (or ``law``)."""
-        msh, tags = self.mesh(comm)
+    def problem(
+        self, comm, law: ds.laws.ContactLaw | None = None, meshed: tuple | None = None
+    ) -> ds.SignoriniProblem:
+        """The patch test as a problem with Coulomb's law (or ``law``), on ``meshed`` = (mesh,
+        facet tags) of :meth:`mesh` if given."""
+        msh, tags = self.mesh(comm) if meshed is None else meshed
         ex = self.exact()
         sigma = ex["sigma"]
         d = self.dim

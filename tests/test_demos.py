@@ -307,6 +307,10 @@ def _check_hertz_table(out: Path, dim: int, levels: int) -> list[dict]:
         # the mean pressure on the central patch against Hertz's mean there (2D: +1.0-1.4 %)
         assert _close(r["err_patch_mean"], r["patch_mean"] / r["patch_mean_hertz"] - 1, 1e-9)
         assert abs(r["err_patch_mean"]) < 0.03
+        # the half-width from the pressure's moments (ds.contact_summary; 2D: -1.3 to -1.4 %)
+        assert _close(r["err_a_moments"], r["a_moments"] / a - 1, 1e-9)
+        if dim == 2:
+            assert abs(r["err_a_moments"]) < 0.02
     for r in (r for r in table if r["goal"] == "force"):  # J_h is the force of the model
         assert _close(r["P"], (2 if dim == 2 else 4) * r["J_h"], 1e-10)
     return table
@@ -468,6 +472,10 @@ def test_cattaneo_mindlin_serial_and_parallel(tmp_path):
         for key in ("J_h", "J_low", "J_high", "P", "Q", "c_h", "l2_lam_t"):
             assert _close(rs[key], rp[key], 1e-8), (key, rs[key], rp[key])
     assert all(abs(r["c_error_facets"]) < 2 for r in serial if r["step"] > 0)
+    for r in serial:  # ds.contact_summary: the same force, the stick zone from its measure
+        assert _close(r["P_summary"], r["P"], 1e-10)
+        if r["step"] > 0:
+            assert abs(r["c_summary"] - r["c"]) < 2 * r["h_facet"]
     for run in ("h0", "adaptive"):
         assert (outs[1] / run / "path.csv").is_file()
 

@@ -26,7 +26,18 @@ BOTTOM, SIDES, TOP, RIGHT = 1, 2, 4, 5
 E, P, D, S = 10.0, 0.3, 0.05, 0.1
 
 
-def block(comm, friction=None):
+def block(comm, friction=None, p=P, dirichlet=None, on=None):
+    """The block pressed by p (``on``: a problem whose mesh and tags to reuse, for a path)."""
+    msh, tags = (on.mesh, on.facet_tags) if on is not None else _square(comm)
+    # With Tresca's s the sliding block carries the shear stress s: the sides carry sigma n.
+    sides = {SIDES: (0.0, -S), RIGHT: (0.0, S)} if friction is not None else {}
+    return ds.SignoriniProblem(
+        msh, tags, contact=BOTTOM, dirichlet=dirichlet or {TOP: (D, None)}, E=E, nu=0.0,
+        model="plane_strain", traction={TOP: (0.0, -p), **sides}, gap=0.0, friction=friction,
+    )
+
+
+def _square(comm):
     msh = mesh.create_unit_square(comm, 6, 6, ghost_mode=mesh.GhostMode.none)
     fdim = msh.topology.dim - 1
     msh.topology.create_connectivity(fdim, fdim + 1)
@@ -36,13 +47,7 @@ def block(comm, friction=None):
     values[np.isclose(mid[:, 1], 0.0)] = BOTTOM
     values[np.isclose(mid[:, 1], 1.0)] = TOP
     values[np.isclose(mid[:, 0], 1.0) & (values == SIDES)] = RIGHT
-    tags = mesh.meshtags(msh, fdim, facets.astype(np.int32), values)
-    # With Tresca's s the sliding block carries the shear stress s: the sides carry sigma n.
-    sides = {SIDES: (0.0, -S), RIGHT: (0.0, S)} if friction is not None else {}
-    return ds.SignoriniProblem(
-        msh, tags, contact=BOTTOM, dirichlet={TOP: (D, None)}, E=E, nu=0.0,
-        model="plane_strain", traction={TOP: (0.0, -P), **sides}, gap=0.0, friction=friction,
-    )
+    return msh, mesh.meshtags(msh, fdim, facets.astype(np.int32), values)
 
 
 def test_shear_by_displacement_press_by_traction():

@@ -2,9 +2,11 @@
 
 * The share is a conservation identity: the part of rho and rho* linear in the master trace of
   a weight, localised per fine slave facet, goes from the cell beside the facet to the master
-  cells, each covered facet's weights summing to 1; so the shared indicators sum to the
-  estimate computed without the share, to round-off, also where a slave cell has one covered
-  and one uncovered slave facet (the corner of a slave tag that runs round a block).
+  cells, each facet's weights summing to its covered fraction (1 where the master covers it,
+  0 where it misses it; the uncovered part stays on the slave cell); so the shared indicators
+  sum to the estimate computed without the share, to round-off, also where a slave cell has
+  one covered and one uncovered slave facet (the corner of a slave tag that runs round a
+  block).
 * One master trace geometry per mesh, one trace per space (P1 of the solve, P2 of the weights),
   the same for every estimate of a solution, released with the solution that discretised.
 * Two bodies that share one vertex are refused on any partition (here: each body on its own
@@ -87,15 +89,17 @@ def _tags(msh: dmesh.Mesh, rules: dict[int, callable]) -> dmesh.MeshTags:
                          np.concatenate(values)[order])
 
 
-def blocks_problem(comm: MPI.Comm = COMM) -> ds.SignoriniProblem:
+def blocks_problem(comm: MPI.Comm = COMM, shift: float = 0.0) -> ds.SignoriniProblem:
     """A lower block under an upper block (non-matching grids), the top pressed down.
 
     The upper block is a parallelogram (its left side leans right at 45 degrees). The slave tag
     runs along its bottom and up its left side: the left side meets no master facet, and the
-    corner cell's two slave facets are one covered, one not.
+    corner cell's two slave facets are one covered, one not. ``shift`` moves the upper block
+    right: its bottom then overhangs the lower block's top by ``shift`` (a facet covered in
+    part).
     """
     lower = _grid(0.0, 0.0, 1.0, LOWER_HEIGHT, 4, 3, 0)
-    upper = _grid(0.0, LOWER_HEIGHT, 1.0, UPPER_HEIGHT, 3, 2, len(lower[0]), shear=1.0)
+    upper = _grid(shift, LOWER_HEIGHT, 1.0, UPPER_HEIGHT, 3, 2, len(lower[0]), shear=1.0)
     msh = _mesh([lower, upper], comm)
     eps = 1e-9
     tags = _tags(msh, {
@@ -110,7 +114,7 @@ def blocks_problem(comm: MPI.Comm = COMM) -> ds.SignoriniProblem:
     upper_facets = dmesh.compute_incident_entities(msh.topology, upper_cells, 2, fdim)
     slave = np.intersect1d(upper_facets, dmesh.locate_entities_boundary(
         msh, fdim, lambda x: np.isclose(x[1], LOWER_HEIGHT, atol=eps)
-        | (np.isclose(x[0], x[1] - LOWER_HEIGHT, atol=eps) & (x[1] > LOWER_HEIGHT - eps))))
+        | (np.isclose(x[0], shift + x[1] - LOWER_HEIGHT, atol=eps) & (x[1] > LOWER_HEIGHT - eps))))
     keep = ~np.isin(tags.indices, slave)
     indices = np.concatenate([tags.indices[keep], slave]).astype(np.int32)
     values = np.concatenate([tags.values[keep], np.full(len(slave), SLAVE, dtype=np.int32)])
@@ -147,22 +151,30 @@ def _corner_cells(geometry: TraceGeometry) -> tuple[int, int]:
 
 
 @pytest.mark.mpi
-def test_share_weights_of_each_covered_facet_sum_to_one():
-    with ds.solve(blocks_problem()) as sol:
+@pytest.mark.parametrize("shift", [0.0, 0.1])
+def test_share_weights_of_each_facet_sum_to_its_covered_fraction(shift):
+    """Fully covered facets move all of their part, the uncovered side none, and the measure
+    moved is the overlap of the two blocks' faces, 1 - shift."""
+    with ds.solve(blocks_problem(shift=shift)) as sol:
         geometry = sol.disc.master_trace().geometry
         sums = _row_sums(geometry)
-        covered = sums > 0.5
-        assert np.allclose(sums[covered], 1.0, rtol=0.0, atol=1e-13), sums
-        assert np.all(sums[~covered] == 0.0)
+        full = sums > 1.0 - 1e-9
+        assert np.allclose(sums[full], 1.0, rtol=0.0, atol=1e-13), sums
+        partial = COMM.allreduce(int(np.count_nonzero((sums > 1e-9) & ~full)), op=MPI.SUM)
+        assert partial == (1 if shift else 0)  # the overhanging facet
+        length = np.linalg.norm(geometry.vertices[:, 1] - geometry.vertices[:, 0], axis=1)
+        moved = COMM.allreduce(float(sums @ length), op=MPI.SUM)
+        assert moved == pytest.approx(1.0 - shift, rel=1e-12)
         mixed, uncovered = _corner_cells(geometry)
         assert mixed >= 1 and uncovered >= 2, (mixed, uncovered)  # the case of the issue
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("estimator", ["eta", "eta_p"])
-def test_shared_indicators_sum_to_the_unshared_estimate(estimator, monkeypatch):
-    """The share only moves indicators: eta with it equals eta without it to round-off."""
-    with ds.solve(blocks_problem()) as sol:
+@pytest.mark.parametrize(("estimator", "shift"), [("eta", 0.0), ("eta_p", 0.0), ("eta", 0.1)])
+def test_shared_indicators_sum_to_the_unshared_estimate(estimator, shift, monkeypatch):
+    """The share only moves indicators: eta with it equals eta without it to round-off (with
+    ``shift`` also where a facet is covered in part)."""
+    with ds.solve(blocks_problem(shift=shift)) as sol:
         est = ds.estimate(sol, lower_displacement, estimator=estimator, weights="patch")
         shared = est.value
         total = COMM.allreduce(float(est.indicators.x.array[
@@ -277,8 +289,14 @@ def _moments(rule, gdim: int, normals: np.ndarray, num: int, num_master: int) ->
 
 
 @pytest.mark.parametrize("gdim", [2, 3])
-def test_candidate_search_gives_the_rule_of_the_full_search(gdim):
-    """A curved master under a flat slave (non-matching), covering it in part; a far one."""
+@pytest.mark.parametrize("behind", [False, True])
+def test_candidate_search_gives_the_rule_of_the_full_search(gdim, behind):
+    """A curved master under a flat slave (non-matching), covering it in part; a far one.
+
+    ``behind``: a master surface behind the slave one, far beyond the searched depth of the
+    facets but within the pair's window (2), so it is the partner where it lies: the candidate
+    search must look as deep as the window.
+    """
     from dwr_signorini.mortar import facet_normals, mortar_rule
     from dwr_signorini.search import candidate_rule
 
@@ -291,12 +309,18 @@ def test_candidate_search_gives_the_rule_of_the_full_search(gdim):
     # facets meet both)
     far, far_below = _surface(3, (0.84, 1.1, 0.70, 1.1), lambda x, y: -3.0 + 0.0 * x, gdim)
     master, below = np.concatenate([master, far]), np.concatenate([below, far_below])
+    window = 2.0 * np.linalg.norm(slave[:, 1] - slave[:, 0], axis=1)  # as a pair's default
+    if behind:
+        back, back_below = _surface(3, (0.1, 0.5, 0.1, 0.5), lambda x, y: 1.5 + 0.0 * x, gdim)
+        master, below = np.concatenate([master, back]), np.concatenate([below, back_below])
+        window = 2.0
     sn, mn = facet_normals(slave, above), facet_normals(master, below)
-    full = mortar_rule(slave, sn, master, mn, 4)
-    fast = candidate_rule(slave, sn, master, mn, 4)
+    full = mortar_rule(slave, sn, master, mn, 4, window)
+    fast = candidate_rule(slave, sn, master, mn, 4, window)
     a = _moments(full, gdim, sn, len(slave), len(master))
     b = _moments(fast, gdim, sn, len(slave), len(master))
     assert np.any(a["measure"] < 0.99 * a["measure"].max())  # facets covered in part
     assert np.any(full.gap > 2.0)  # and the far master met (by the fallback)
+    assert np.any(full.gap < -1.0) == behind  # the master behind met within the window
     for name in a:
         assert np.allclose(b[name], a[name], rtol=1e-12, atol=1e-14), name

@@ -36,6 +36,7 @@ import ufl
 
 import dwr_signorini as ds
 
+from . import pair_geometries as G
 from .helpers import integrate, total_force
 from .problems import MESHES, mesh_script
 
@@ -98,9 +99,11 @@ def _two_cubes(model, h_lower=0.35, h_upper=0.25):
 @pytest.mark.mpi
 @pytest.mark.parametrize("slave", ["upper", "lower"])
 def test_pair_3d_patch_test_transmits_uniform_pressure(slave):
-    """A uniform pressure 0.1 on the top reaches every slave macro facet as lambda = 0.1
-    (to 1e-8), whichever side is the slave; the symmetry planes hold the rigid motions."""
+    """The top moved down by the cubes' compressions under a uniform pressure 0.1 (p / E each,
+    sides free): lambda = 0.1 on every slave macro facet (to 1e-8), whichever side is the
+    slave; the symmetry planes hold the rigid motions."""
     p = 0.1
+    top = -p * (1.0 / 1.0 + 1.0 / 3.0)
     msh, cells, facets = _read(_two_cubes, COMM)
     pair = (ds.ContactPair(slave=UPPER_BOTTOM, master=LOWER_TOP) if slave == "upper"
             else ds.ContactPair(slave=LOWER_TOP, master=UPPER_BOTTOM))
@@ -108,8 +111,8 @@ def test_pair_3d_patch_test_transmits_uniform_pressure(slave):
         msh, facets, contact=pair,
         dirichlet={BASE: (None, None, 0.0), LOWER_X: (0.0, None, None),
                    UPPER_X: (0.0, None, None), LOWER_Y: (None, 0.0, None),
-                   UPPER_Y: (None, 0.0, None)},
-        E={1: 1.0, 2: 3.0}, nu={1: 0.3, 2: 0.2}, cell_tags=cells, traction={TOP: (0.0, 0.0, -p)},
+                   UPPER_Y: (None, 0.0, None), TOP: (None, None, top)},
+        E={1: 1.0, 2: 3.0}, nu={1: 0.3, 2: 0.2}, cell_tags=cells,
     )
     with ds.solve(problem) as sol:
         lam = sol.lam.x.array[: sol.system.n_lam]
@@ -118,6 +121,51 @@ def test_pair_3d_patch_test_transmits_uniform_pressure(slave):
         assert n > 10
         assert err < 1e-8 * p
         assert integrate(sol, total_force(sol.u, sol.lam, sol.disc.m)) == pytest.approx(p, 1e-8)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("slave", ["upper", "lower"])
+def test_pair_hexahedra_patch_test_with_trapezoid_faces(slave):
+    """Two stacked blocks of hexahedra, non-matching, their interface faces planar but not
+    parallelograms (tests/pair_geometries.py): lambda = 0.1 on every slave facet to 1e-11
+    (measured 3e-14; with each quadrilateral mapped affinely, lambda ran from 0 to 2.2)."""
+    p = 0.1
+    E = {1: 1.0, 2: 3.0}
+    msh, cells, facets = G.hex_blocks(COMM)
+    pair = (ds.ContactPair(slave=G.HEX_UPPER_BOTTOM, master=G.HEX_LOWER_TOP) if slave == "upper"
+            else ds.ContactPair(slave=G.HEX_LOWER_TOP, master=G.HEX_UPPER_BOTTOM))
+    problem = ds.SignoriniProblem(
+        msh, facets, contact=pair, cell_tags=cells, E=E, nu={1: 0.3, 2: 0.2},
+        dirichlet={G.HEX_BOTTOM: (None, None, 0.0), G.HEX_X0: (0.0, None, None),
+                   G.HEX_Y0: (None, 0.0, None),
+                   G.HEX_TOP: (None, None, -p * (1.0 / E[1] + 1.0 / E[2]))},
+    )
+    with ds.solve(problem) as sol:
+        lam = sol.lam.x.array[: sol.system.n_lam]
+        err = COMM.allreduce(float(np.max(np.abs(lam - p), initial=0.0)), op=MPI.MAX)
+        assert COMM.allreduce(len(lam), op=MPI.SUM) >= 9
+        assert err < 1e-11 * p
+
+
+@pytest.mark.mpi
+def test_pair_warped_quadrilateral_facets_are_refused():
+    """One inner vertex of the lower block's top moved down by 1e-3: its faces warp, and the
+    trace refuses them on every rank."""
+    msh, cells, facets = G.hex_blocks(COMM)
+    x = msh.geometry.x
+    lower = np.zeros(len(x), dtype=bool)
+    for c in cells.indices[cells.values == 1]:
+        lower[msh.geometry.dofmap[c]] = True
+    score = np.where(lower & (np.abs(x[:, 2] - 1.0) < 1e-12),
+                     np.abs(x[:, 0] - 0.5) + np.abs(x[:, 1] - 0.5), np.inf)
+    best = COMM.allreduce(float(score.min(initial=np.inf)), op=MPI.MIN)
+    x[score == best, 2] -= 1e-3
+    problem = ds.SignoriniProblem(
+        msh, facets, contact=ds.ContactPair(slave=G.HEX_UPPER_BOTTOM, master=G.HEX_LOWER_TOP),
+        cell_tags=cells, E=1.0, nu=0.3, dirichlet={G.HEX_BOTTOM: 0.0, G.HEX_TOP: 0.0},
+    )
+    with pytest.raises(ValueError, match="planar quadrilateral facets"):
+        ds.solve(problem)
 
 
 # -- Hertz -----------------------------------------------------------------------------------------

@@ -47,6 +47,24 @@ class Component:
         """e_k, the direction of the displacement this multiplier acts on (UFL vector)."""
         raise NotImplementedError
 
+    def direction_in(self, n: Any, frame: Any) -> Any:
+        """e_k in the contact frame: a tangent of the plane normal to ``frame``.
+
+        ``frame`` is the normal n_c of the contact frame
+        (:meth:`~dwr_signorini.spaces.Discretization.contact_frame`), in which the relative
+        displacement is split: the obstacle's normal, or the bisector of the two normals of a
+        pair; the normal component overrides this with n_c itself.
+        """
+        return self.direction(frame)
+
+    def offset_in(self, gap: Any, n: Any, frame: Any) -> Any:
+        """g_k in the contact frame of normal ``frame`` (``gap`` is measured along ``n``).
+
+        0 for a tangential component; the normal one compares with g (n . n_c), the component
+        of the gap vector g n along n_c.
+        """
+        return self.offset(gap)
+
     def offset(self, gap: Any) -> Any:
         """g_k, what (u . e_k) is compared with (the gap for the normal, else 0)."""
         return 0.0
@@ -210,7 +228,8 @@ class ContactLaw:
         return all(len(idx) == 1 for idx, _ in self.conditions(tdim))
 
     def ncp_arguments(
-        self, u: Any, lams: Any, gap: Any, n: Any, c: Any, fields: Any, u_old: Any = None
+        self, u: Any, lams: Any, gap: Any, n: Any, c: Any, fields: Any, u_old: Any = None,
+        frame: Any = None,
     ) -> list:
         """Each component's UFL (x_k, P_k(x), J_k), x_k = lambda_k + c (u . e_k - g_k).
 
@@ -227,6 +246,9 @@ class ContactLaw:
             c: The scale of the NCP.
             fields: The :class:`~dwr_signorini.fields.MeshFields` of the mesh (the threshold).
             u_old: The displacement of the previous load step, or None (zero).
+            frame: The normal n_c of the contact frame the components are measured in
+                (:meth:`Component.direction_in`, :meth:`Component.offset_in`); None takes
+                ``n`` (the paper's condition (2)).
 
         Returns:
             One tuple per component, normal first.
@@ -234,10 +256,12 @@ class ContactLaw:
         tdim = len(n)
         comps = self.components(tdim)
         data = self.bound_expr(fields, extract_x(n)) if len(comps) > 1 else None
+        frame = n if frame is None else frame
+        es = [comp.direction_in(n, frame) for comp in comps]
         xs = [
-            lam + c * (ufl.dot(u, comp.direction(n)) - comp.offset(gap))
-            - (0.0 if u_old is None or k == 0 else c * ufl.dot(u_old, comp.direction(n)))
-            for k, (comp, lam) in enumerate(zip(comps, lams, strict=True))
+            lam + c * (ufl.dot(u, e) - comp.offset_in(gap, n, frame))
+            - (0.0 if u_old is None or k == 0 else c * ufl.dot(u_old, e))
+            for k, (comp, lam, e) in enumerate(zip(comps, lams, es, strict=True))
         ]
         P: list[Any] = [None] * len(comps)
         J: list[list[Any]] = [[0.0] * len(comps) for _ in comps]

@@ -26,6 +26,14 @@ class Normal(Component):
         """See the base class."""
         return n
 
+    def direction_in(self, n: Any, frame: Any) -> Any:
+        """The normal of the contact frame (n itself without one)."""
+        return frame
+
+    def offset_in(self, gap: Any, n: Any, frame: Any) -> Any:
+        """The gap along the frame's normal: g n . n_c (g is measured along n), g if n_c is n."""
+        return gap if frame is n else gap * ufl.dot(n, frame)
+
     def offset(self, gap: Any) -> Any:
         """See the base class."""
         return gap
