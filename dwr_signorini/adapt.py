@@ -204,7 +204,7 @@ def _levels(
     """
     result = AdaptiveResult(levels=[], meta=reporter.meta, comm=reporter.comm)
     previous: Solution | None = None
-    previous_rec = sol = est = macro_parent = None
+    previous_rec = sol = est = macro_parent = disc = None
     current = problem
     try:
         with reporter:
@@ -234,6 +234,7 @@ def _levels(
                     )
                     current = disc.problem
                     result.converged = choice.converged(est)
+                sol.owns_disc = True  # the level's master traces go with its solution
                 result.stopped_by = "tol" if result.converged else "max_levels"
                 done = result.converged or level == stop.max_levels - 1
                 marked = np.zeros(0, dtype=np.int32)
@@ -259,7 +260,7 @@ def _levels(
     except Exception:
         # Every rank raises (the package's errors are collective, dwr_signorini.collective):
         # release this level's and the last level's PETSc objects and options on all ranks.
-        for obj in (est, sol, previous_rec, previous):
+        for obj in (est, sol, previous_rec, previous, disc):
             if obj is not None:
                 obj.destroy()
         raise

@@ -37,6 +37,7 @@ from .lifetime import Releasable
 from .model_error import ModelError, check_richer
 from .model_error import model_error as model_error_estimate
 from .newton import Solution
+from .pairs import images_of
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .residuals import active_set_remainder, contact_term, dual_residual, primal_residual
@@ -184,6 +185,8 @@ def _assemble_indicators(
 ) -> list[np.ndarray]:
     """Cell indicators of each scalar form: its integrands times a DG0 test function (Section 4).
 
+    ``DG0`` is a space on T_h (cell indicators) or on the fine slave facets (facet indicators).
+
     One assembly per form: a fused one would pack the coefficients of all forms for every cell
     at once, a larger array than any single form's, for no gain in time.
     """
@@ -203,23 +206,25 @@ def _assemble_indicators(
 def _master_share(
     disc: Any, form: ufl.Form, weight: Any, DG0: fem.FunctionSpace, degree: int | None
 ) -> np.ndarray:
-    """The cell indicators of ``form`` moved from the slave to the master cells (:mod:`.pairs`).
+    """The trace part of ``form`` moved from the slave to the master cells (:mod:`.pairs`).
 
-    The part of ``form`` linear in the master trace P v of the displacement weight v, which the
-    localisation put on the slave cells, goes to the master cells its points project into:
-    the returned array is added to the indicators (zero without contact pairs).
+    The part of ``form`` linear in the master trace P v of the displacement weight v (every
+    image of v in the form, :func:`~dwr_signorini.pairs.images_of`), which the localisation put
+    on the slave cells, is localised per fine slave facet and goes from the cell beside each
+    facet to the master cells its points project into: the returned array is added to the
+    indicators and sums to zero (zero without contact pairs).
     """
     out = np.zeros(DG0.dofmap.index_map.size_local + DG0.dofmap.index_map.num_ghosts)
+    if disc.slave_mesh is None:
+        return out
     functions = weight.ufl_operands if isinstance(weight, ufl.algebra.Sum) else (weight,)
-    for v in functions:
-        trace = disc.master_trace(v.function_space) if isinstance(v, fem.Function) else None
-        image = None if trace is None else trace.image(v)
-        if image is None:
-            continue
-        part = ufl.derivative(form, image, image)  # the form is linear in P v
-        (slave,) = _assemble_indicators(disc, [part], DG0, degree)
-        out += trace.share(slave, DG0) - slave
-    return out
+    images = [g for v in functions for g in images_of(form, v)]
+    if not images:
+        return out
+    part = sum(ufl.derivative(form, g, g) for g in images)  # the form is linear in P v
+    geometry = disc.master_trace().geometry
+    (per_facet,) = _assemble_indicators(disc, [part], geometry.Fs, degree)
+    return geometry.share(per_facet, DG0)
 
 
 def _higher_order_solutions(

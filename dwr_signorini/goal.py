@@ -23,6 +23,7 @@ from ufl.algorithms import expand_derivatives
 from .agreement import check_form_on_ranks
 from .collective import call_collectively, shadow
 from .laws import tangent_basis
+from .pairs import images_of
 from .quadrature import with_quadrature_degrees
 from .spaces import Discretization
 from .timing import timed
@@ -134,8 +135,8 @@ class GoalForms:
         self.disc = disc
         v = ufl.TestFunction(u.function_space)
         self.dJ_u = ufl.derivative(J, u, v)
-        #: The master trace P u_h in J (contact pairs), and J' in its direction (a test function
-        #: of the trace's space W), or None: J'_u(v) = dJ_u(v) + dJ_trace(P v).
+        #: The master traces P u_h in J (contact pairs), and J' in their direction (a test
+        #: function of the trace's space W), or () and None: J'_u(v) = dJ_u(v) + dJ_trace(P v).
         self.u_trace, self.dJ_trace = _master_trace_part(J, u, disc)
         derivatives = [
             ufl.derivative(J, f, ufl.TestFunction(f.function_space)) for f in multipliers
@@ -148,8 +149,8 @@ class GoalForms:
         self.has_u = self._has_u_direct or self.dJ_trace is not None
         second = [ufl.derivative(self.dJ_u, f) for f in (u, *multipliers)]
         if self.dJ_trace is not None:
-            unknowns = (u, self.u_trace, *multipliers)
-            second += [ufl.derivative(self.dJ_u, self.u_trace)]
+            unknowns = (u, *self.u_trace, *multipliers)
+            second += [ufl.derivative(self.dJ_u, g) for g in self.u_trace]
             second += [ufl.derivative(self.dJ_trace, f) for f in unknowns]
         for d in self.dJ_multipliers:
             if d is not None:
@@ -207,42 +208,37 @@ class GoalForms:
         return form
 
     def _trace(self, du: Any) -> Any:
-        """P du (UFL) for a Function or a sum of Functions: the image the residuals use.
+        """P du (UFL) for a Function or a sum of Functions: new images that name ``du``.
 
-        The image already taken of ``du`` (:meth:`~dwr_signorini.pairs.MasterTrace.image`, by
-        :meth:`~dwr_signorini.spaces.Discretization.relative` in the residual) is reused, so
-        that the estimator moves the whole trace part of a weight to the master cells.
+        The estimator finds them in the residual by their ``trace_of``
+        (:func:`~dwr_signorini.pairs.images_of`) and moves that part to the master cells.
         """
-        if isinstance(du, ufl.algebra.Sum):
-            a, b = du.ufl_operands
-            return self._trace(a) + self._trace(b)
-        if not isinstance(du, fem.Function):
+        if not isinstance(du, (fem.Function, ufl.algebra.Sum)):
             raise TypeError(
                 "GoalForms.directional: a goal with the master trace of u takes a direction "
                 f"that is a Function (or a sum of them), got {type(du).__name__}"
             )
-        trace = self.disc.master_trace(du.function_space)
-        image = trace.image(du)
-        return trace.apply(du) if image is None else image
+        return self.disc.trace_image(du)
 
 
 def _master_trace_part(
     J: ufl.Form, u: fem.Function, disc: Discretization
-) -> tuple[fem.Function | None, ufl.Form | None]:
-    """The master trace P u of u in J, and J' in its direction (None, None without one).
+) -> tuple[tuple[fem.Function, ...], ufl.Form | None]:
+    """The master traces P u of u in J, and J' in their direction (``(), None`` without).
 
     With contact pairs, a goal written with the relative displacement u - P u
     (:meth:`~dwr_signorini.spaces.Discretization.relative`, as the history goal of a load path)
-    holds P u as a function of its own; ``ufl.derivative(J, u)`` does not see it.
+    holds P u as a function of its own, which names u (:func:`~dwr_signorini.pairs.images_of`);
+    ``ufl.derivative(J, u)`` does not see it.
     """
     if getattr(disc, "slave_mesh", None) is None:
-        return None, None
-    trace = disc.master_trace(u.function_space)
-    image = trace.image(u)
-    if image is None or image not in ufl.algorithms.extract_coefficients(J):
-        return None, None
-    dJ = ufl.derivative(J, image, ufl.TestFunction(image.function_space))
-    return (None, None) if _is_empty(dJ) else (image, dJ)
+        return (), None
+    images = tuple(images_of(J, u))
+    if not images:
+        return (), None
+    test = ufl.TestFunction(images[0].function_space)
+    dJ = sum(ufl.derivative(J, g, test) for g in images)
+    return ((), None) if _is_empty(dJ) else (images, dJ)
 
 
 def _check_integral(

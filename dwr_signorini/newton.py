@@ -161,6 +161,9 @@ class Solution(Releasable):
     slip: np.ndarray | None = None
     tangential: tuple[fem.Function, ...] = ()
     obstacle_displacement: float | None = None
+    #: Whether :meth:`destroy` releases the discretisation too (its master traces): set where
+    #: :func:`solve` discretised the problem itself, and by the drivers for each level.
+    owns_disc: bool = False
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
@@ -181,11 +184,16 @@ class Solution(Releasable):
         return self.disc.comm.allreduce(int(rows.sum()), op=MPI.SUM)
 
     def destroy(self) -> None:
-        """Release the Newton system's PETSc objects and options (collective; idempotent)."""
+        """Release the Newton system, its force control and, if owned, the discretisation.
+
+        Collective; idempotent.
+        """
         force = getattr(self.system, "force_control", None)
         if force is not None:
             force.destroy()
         self.system.destroy()
+        if self.owns_disc:
+            self.disc.destroy()
 
     def stacked(self, functions: tuple[fem.Function, ...] | None = None) -> np.ndarray:
         """The owned values of one function per component of the law, stacked.
@@ -302,7 +310,15 @@ def solve(
     if disc.problem.finite_strain:
         return finite_strain.solve(disc, finite_strain.check_options(options), initial_guess)
     tic = time.perf_counter()
-    sol = _solve(disc, initial_guess, options)
+    if disc is problem_or_disc:  # the caller's: the caller releases it
+        sol = _solve(disc, initial_guess, options)
+    else:
+        try:
+            sol = _solve(disc, initial_guess, options)
+        except BaseException:
+            disc.destroy()
+            raise
+        sol.owns_disc = True
     _log_solution(sol, time.perf_counter() - tic)
     return sol
 

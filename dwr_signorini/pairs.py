@@ -28,14 +28,26 @@ coupling as the discrete problem (Galerkin orthogonality holds in both bodies). 
 same projection of chi g(x); a macro facet that no master facet covers gets ``miss_gap``.
 
 **The master share.** A residual term (r, (P v) . e)_GC with a displacement weight v belongs to
-the master cells that v o Pi lives on. :meth:`MasterTrace.share` moves such a term, localised to
-the slave cells, to the master cells in proportion to the measure of the slave facet that
-Pi maps into each of them.
+the master cells that v o Pi lives on. :meth:`TraceGeometry.share` moves such a term, localised
+to the fine slave facets, from the slave cell beside each facet to the master cells, in
+proportion to the measure of the facet that Pi maps into each of them; the uncovered part of a
+facet stays on its slave cell (P v is v there). Each facet's shares sum to its covered
+fraction, and what leaves the slave cell is that fraction, so the moved indicators sum to the
+term.
+
+**One geometry per mesh.** The slave and master facets (the master facets gathered once), the
+mortar rule of each degree, the contact frame and the share do not depend on the displacement
+space: :class:`TraceGeometry` holds them once per mesh, and the :class:`MasterTrace` of each space
+(P1 of the solves, P2 of the weights) adds its projection. The discretisation owns both and
+releases them in its ``destroy()``.
+
+**Images name what they project.** :meth:`MasterTrace.apply` returns P f as a function of W
+whose attribute ``trace_of`` is f; :func:`images_of` finds the images of f among a form's
+coefficients, so the part of a form linear in the trace of a weight is read off the form itself.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +55,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
@@ -53,22 +66,27 @@ from .mortar import (
     MortarRule,
     check_planar,
     facet_normals,
-    mortar_rule,
     tabulate,
     warp,
 )
+from .search import candidate_rule
 from .timing import timed
+
+__all__ = [
+    "MAX_DEGREE",
+    "MIN_MACRO_COVER",
+    "ContactPair",
+    "MasterTrace",
+    "TraceGeometry",
+    "images_of",
+]
+
+#: The highest degree of a displacement space that a master trace takes (Lagrange, no dof
+#: transformations).
+MAX_DEGREE = 2
 
 #: The covered fraction of a macro facet below which it counts as uncovered (``miss_gap``).
 MIN_MACRO_COVER = 1e-3
-
-__all__ = [
-    "ContactPair",
-    "MasterTrace",
-    "check_contact_pairs",
-    "check_pair_bodies",
-    "check_pair_gap",
-]
 
 
 @dataclass(frozen=True)
@@ -115,91 +133,6 @@ class ContactPair:
             )
 
 
-def check_contact_pairs(contact: Any) -> tuple[list[Any], tuple[ContactPair, ...]]:
-    """``contact`` split into its tags (pairs by their slave tag) and its pairs.
-
-    Args:
-        contact: A tag, a :class:`ContactPair`, or a sequence of them.
-
-    Returns:
-        The contact entries with each pair replaced by its slave tag (in the order given), and
-        the pairs.
-
-    Raises:
-        ValueError: A master tag that is also a contact tag or a slave tag of another pair.
-    """
-    entries = [contact] if isinstance(contact, ContactPair) else contact
-    if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):
-        return contact, ()
-    entries = list(entries)
-    pairs = tuple(e for e in entries if isinstance(e, ContactPair))
-    tags = [e.slave if isinstance(e, ContactPair) else e for e in entries]
-    slaves = {p.slave for p in pairs}
-    for p in pairs:
-        if p.master in tags or p.master in slaves:
-            raise ValueError(
-                f"ContactPair(slave={p.slave}, master={p.master}): the master tag {p.master} "
-                "is also a contact (slave) tag; a facet is on one side of the contact only"
-            )
-    return tags, pairs
-
-
-def check_pair_gap(gap: Any, pairs: tuple[ContactPair, ...], rigid_tags: tuple[int, ...]) -> Any:
-    """The ``gap`` of a problem with pairs: it is the rigid contact tags' gap only.
-
-    Raises:
-        ValueError: A gap given for a pair's slave tag, or a gap other than the default 0
-            without rigid contact tags.
-    """
-    slaves = sorted(p.slave for p in pairs)
-    if isinstance(gap, Mapping):
-        named = sorted(set(gap) & set(slaves))
-        if named:
-            raise ValueError(
-                f"gap is given for the ContactPair slave tag(s) {named}: the gap of a pair is "
-                "the distance to the master surface along the slave normal, measured from the "
-                "meshes; give gap for the rigid-obstacle contact tags only"
-            )
-        return gap
-    if not rigid_tags:
-        if isinstance(gap, (int, float)) and not isinstance(gap, bool) and gap == 0.0:
-            return gap
-        raise ValueError(
-            "gap applies to rigid-obstacle contact tags, and every contact tag here is the "
-            f"slave side of a ContactPair ({slaves}): the gap of a pair is measured from the "
-            "meshes; leave gap at its default"
-        )
-    return gap
-
-
-def check_pair_bodies(
-    mesh: dmesh.Mesh, facet_tags: dmesh.MeshTags, pairs: tuple[ContactPair, ...]
-) -> None:
-    """The slave and master facets of each pair share no vertex (two bodies, collective).
-
-    Raises:
-        ValueError: A pair whose sides touch in the mesh (one body, or glued bodies).
-    """
-    if not pairs:
-        return
-    fdim = mesh.topology.dim - 1
-    mesh.topology.create_connectivity(fdim, 0)
-    f2v = mesh.topology.connectivity(fdim, 0)
-
-    def vertices(tag: int) -> set[int]:
-        return {int(v) for f in facet_tags.find(tag) for v in f2v.links(f)}
-
-    comm = mesh.comm
-    for p in pairs:
-        shared = comm.allreduce(len(vertices(p.slave) & vertices(p.master)), op=MPI.SUM)
-        if shared:
-            raise ValueError(
-                f"ContactPair(slave={p.slave}, master={p.master}): {shared} vertices lie on "
-                "both sides; the two sides must belong to two bodies that share no vertex "
-                "(mesh them as separate volumes, e.g. gmsh surfaces without a common curve)"
-            )
-
-
 @dataclass
 class _Side:
     """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
@@ -216,121 +149,256 @@ class _Side:
         return ("vertices", "normals", "geometry", "dofs", "cell")
 
 
-class MasterTrace:
-    """The projection P of the master trace onto W, the gap, and the master share (module).
 
-    Collective: every rank gathers the master facets of its pairs.
+class TraceGeometry:
+    """The geometry of a mesh's pairs: facets, mortar rules, contact frame, share (module).
+
+    Built once per mesh by the discretisation (collective: every rank gathers the master
+    facets of its pairs) and shared by the :class:`MasterTrace` of each displacement space.
 
     Args:
         disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
-        V: A vector Lagrange space on T_h (P1 of the solves, P2 of the weights).
+
+    Raises:
+        ValueError: Warped quadrilateral facets on a pair (on every rank).
+
+    Attributes:
+        vertices, normals: This rank's slave facets (owned cells of ``disc.slave_mesh``).
+        slave: Those facets with their cells (``dofs`` empty: each trace adds its space's).
+        slave_cells: The fine cell beside each slave facet (global index).
+        master: The master facets of all pairs, gathered (``dofs`` empty likewise).
+        facets: The slave facets' coordinate map (:class:`~dwr_signorini.mortar.FacetMap`).
+        measure, covered: The measure of each slave facet and of its covered part.
+        frame: The normal of the contact frame on the fine slave facets (vector DG0,
+            :meth:`_frame`), in which the tangential slip is measured.
+        Fs: DG0 on the slave facets: the space of indicators localised per facet.
+        share_weights: S^T (PETSc Mat, slave facets x fine cells): row F holds the fraction of
+            F's measure that Pi maps into each master cell; it sums to F's covered fraction (1 on a
+            facet the master covers, 0 on one it misses).
+    """
+
+    #: How many geometries are alive (built and not destroyed), on this rank.
+    live = 0
+
+    def __init__(self, disc: Any) -> None:
+        self.disc = disc
+        self.Fs = fem.functionspace(disc.slave_mesh, ("DG", 0))
+        with timed("master trace"):
+            self._build(disc)
+        TraceGeometry.live += 1
+
+    def _build(self, disc: Any) -> None:
+        """The facets, the masters of every pair, the rule of the solves, frame and share."""
+        _check_planar(disc)
+        self.slave, self.slave_local, self._slave_tag = _slave_facets(disc)
+        self.vertices, self.normals = self.slave.vertices, self.slave.normals
+        self.slave_cells = self.slave.cell
+        self.facets = FacetMap(self.vertices)
+        masters, self.master_cells = [], []
+        for pair in disc.problem.pairs:
+            master, local = _master_facets(disc, pair.master)
+            masters.append(master)
+            self.master_cells.append(local)
+        self._masters = masters
+        self.master = _Side(*(np.concatenate([getattr(m, f) for m in masters])
+                              for f in _Side.fields()))
+        self._rules: dict[int, MortarRule] = {}
+        rule = self.rule(1)
+        f, _, _, w = self.facets.quadrature(1)
+        num = len(self.vertices)
+        self.measure = np.bincount(f, weights=w, minlength=num)[:num]
+        self.covered = np.bincount(rule.facet, weights=rule.weights, minlength=num)[:num]
+        self.frame = self._frame(rule)
+        self.share_weights, self._home = self._share_matrices(rule)
+
+    def rule(self, degree: int) -> MortarRule:
+        """The mortar rule for a space of ``degree`` (exact to degree 2 ``degree``), kept.
+
+        The pieces do not depend on the degree (the share is the same from any rule); the
+        Gauss points on them do. Each degree asked for runs the mortar search once per mesh,
+        with each pair's penetration window (:func:`_windows`).
+
+        Args:
+            degree: The degree of the displacement space.
+
+        Returns:
+            The :class:`~dwr_signorini.mortar.MortarRule` of this rank's slave facets.
+        """
+        if degree not in self._rules:
+            rules, offset = [], 0
+            vertices, normals = self.vertices, self.normals
+            for pair, master in zip(self.disc.problem.pairs, self._masters, strict=True):
+                on = np.flatnonzero(self._slave_tag == pair.slave)
+                r = candidate_rule(vertices[on], normals[on], master.vertices, master.normals,
+                                   2 * degree, _windows(pair, vertices[on]))
+                rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset,
+                                        r.gap))
+                offset += len(master.cell)
+            self._rules[degree] = MortarRule(*(np.concatenate([getattr(r, f) for r in rules])
+                                               for f in ("facet", "points", "weights",
+                                                         "master", "gap")))
+        return self._rules[degree]
+
+    def _frame(self, rule: MortarRule) -> fem.Function:
+        """The normal of the contact frame per fine slave facet (vector DG0 on Sigma_h).
+
+        n_c = (n_s - <n_m>) / |n_s - <n_m>|, <n_m> the mean of the master normals over the
+        part of the facet the master covers (weights of the rule): the bisector of the two
+        surfaces, which does not change when the bodies swap sides (up to its sign). Where
+        no master facet is met, or the surfaces do not face each other (n_s . <n_m> >= 0), the
+        slave normal n_s.
+
+        Args:
+            rule: The mortar rule of this rank's slave facets.
+        """
+        slave, master = self.normals, self.master.normals[rule.master]
+        mean = np.zeros_like(slave)
+        np.add.at(mean, rule.facet, master * rule.weights[:, None])
+        covered = np.zeros(len(slave))
+        np.add.at(covered, rule.facet, rule.weights)
+        mean /= np.where(covered > 0.0, covered, 1.0)[:, None]
+        bisector = slave - mean
+        length = np.linalg.norm(bisector, axis=1)
+        facing = (covered > 0.0) & (np.einsum("fi,fi->f", slave, mean) < 0.0)
+        frame = np.where(facing[:, None], bisector / np.where(facing, length, 1.0)[:, None],
+                         slave)
+        gdim = slave.shape[1]
+        V0 = fem.functionspace(self.disc.slave_mesh, ("DG", 0, (gdim,)))
+        out = fem.Function(V0, name="contact_frame")
+        cells = np.array([V0.dofmap.cell_dofs(f)[0] for f in range(len(slave))], dtype=np.int64)
+        out.x.array[(cells[:, None] * gdim + np.arange(gdim)).ravel()] = frame.ravel()
+        out.x.scatter_forward()
+        return out
+
+    def _share_matrices(self, rule: MortarRule) -> tuple[PETSc.Mat, PETSc.Mat]:
+        """S^T (facet -> master cells) and H^T (facet -> its cell), rows: the covered fraction.
+
+        The uncovered part of a facet stays with its slave cell (P v is v there): neither
+        matrix moves it.
+        """
+        fine, Fs = self.disc.mesh, self.Fs
+        cells = fine.topology.index_map(fine.topology.dim)
+        fmap = Fs.dofmap.index_map
+        num = len(self.vertices)
+        measure = np.where(self.measure > 0.0, self.measure, 1.0)
+        rows = fmap.local_to_global(Fs.dofmap.list[:num, 0].astype(np.int32))
+        frac = rule.weights / measure[rule.facet]
+        covered = np.flatnonzero(self.covered > 0.0)
+        first = fmap.local_range[0]
+        row_sizes = (fmap.size_local, fmap.size_global)
+        col_sizes = (cells.size_local, cells.size_global)
+        comm = self.disc.comm
+        S = _csr(comm, [rows[rule.facet]], [self.master.cell[rule.master]], [frac], first,
+                 row_sizes, col_sizes)
+        H = _csr(comm, [rows[covered]], [self.slave_cells[covered]],
+                 [self.covered[covered] / measure[covered]], first, row_sizes, col_sizes)
+        return S, H
+
+    def share(self, facet_part: np.ndarray, DG0: fem.FunctionSpace) -> np.ndarray:
+        """A term localised per slave facet, moved from the slave to the master cells.
+
+        Args:
+            facet_part: The term's indicators per owned slave facet (owned entries of ``Fs``).
+            DG0: The DG0 space of the cell indicators on T_h.
+
+        Returns:
+            S p - H p as DG0 entries (owned and ghost, ghosts zero): added to the indicators
+            of the term localised to the slave cells, it moves the covered part of each
+            facet's indicator from the cell beside the facet to the master cells (the
+            uncovered part stays); it sums to zero.
+        """
+        fine = self.disc.mesh
+        n = fine.topology.index_map(fine.topology.dim).size_local
+        p = self.share_weights.createVecLeft()
+        p.array_w[:] = facet_part
+        out, home = self.share_weights.createVecRight(), self._home.createVecRight()
+        self.share_weights.multTranspose(p, out)
+        self._home.multTranspose(p, home)
+        moved = np.zeros(DG0.dofmap.index_map.size_local + DG0.dofmap.index_map.num_ghosts)
+        moved[DG0.dofmap.list[:n, 0]] = out.array - home.array
+        for v in (p, out, home):
+            v.destroy()
+        return moved
+
+    def destroy(self) -> None:
+        """Release the PETSc matrices (collective; idempotent)."""
+        if getattr(self, "share_weights", None) is not None:
+            TraceGeometry.live -= 1
+        for name in ("share_weights", "_home"):
+            mat = getattr(self, name, None)
+            if mat is not None:
+                mat.destroy()
+                setattr(self, name, None)
+
+
+class MasterTrace:
+    """The projection P of the master trace onto W and the gap, for one space (module).
+
+    Collective (every rank gathers the master dofs of its pairs).
+
+    Args:
+        disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
+        V: A vector Lagrange space on T_h of degree <= :data:`MAX_DEGREE` (P1 of the solves,
+            P2 of the weights).
+        geometry: The mesh's :class:`TraceGeometry`.
+
+    Raises:
+        NotImplementedError: V of a degree above :data:`MAX_DEGREE`.
 
     Attributes:
         W: Vector DG of V's degree on Sigma_h; ``Ws`` the scalar one.
         P: The projection (PETSc Mat, W x V, the prescribed Dirichlet columns included).
         gap: The projected gap (a function of ``Ws``; the problem's ``miss_gap`` on the
             macro facets that no master facet covers).
-        rule: The mortar rule of this rank's slave facets.
-        frame: The normal of the contact frame on the fine slave facets (vector DG0,
-            :meth:`_frame`), in which the tangential slip is measured.
+        rule: The mortar rule of this rank's slave facets (the geometry's of V's degree).
+        frame: The normal of the contact frame on the fine slave facets (the geometry's,
+            :meth:`TraceGeometry._frame`), in which the tangential slip is measured.
     """
 
-    def __init__(self, disc: Any, V: fem.FunctionSpace) -> None:
-        self.disc, self.V = disc, V
+    #: How many traces are alive (built and not destroyed), on this rank.
+    live = 0
+
+    def __init__(self, disc: Any, V: fem.FunctionSpace, geometry: TraceGeometry) -> None:
+        self.disc, self.V, self.geometry = disc, V, geometry
         sub = disc.slave_mesh
         gdim = sub.geometry.dim
         degree = V.ufl_element().embedded_superdegree
+        if degree > MAX_DEGREE:
+            raise NotImplementedError(
+                f"contact pairs take displacement spaces of degree <= {MAX_DEGREE}, got {degree}"
+            )
         self.W = fem.functionspace(sub, ("DG", degree, (gdim,)))
         self.Ws = fem.functionspace(sub, ("DG", degree))
-        self._images: dict[int, tuple[fem.Function, fem.Function]] = {}
+        self.frame = geometry.frame
         with timed("master trace"):
             self._build(disc, V, degree)
-
-    # -- geometry ----------------------------------------------------------------------------
-    def _slave_facets(self, disc: Any) -> tuple[np.ndarray, np.ndarray, _Side, np.ndarray]:
-        """This rank's slave facets: vertices, normals, their cells and the slave tag."""
-        sub, fine = disc.slave_mesh, disc.mesh
-        tdim = fine.topology.dim
-        num = sub.topology.index_map(sub.topology.dim).size_local
-        facets = disc.slave_to_fine[:num]
-        x = sub.geometry.x[:, :sub.geometry.dim]
-        vertices = x[compat.geometry_dofmap(sub)[:num]]
-        f2c = fine.topology.connectivity(tdim - 1, tdim)
-        cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        cell = _cells(fine, self.V, cells, vertices)
-        tag = _facet_tag(disc.facet_tags, facets)
-        return vertices, cell.normals, cell, tag
-
-    def _master_facets(self, disc: Any, V: fem.FunctionSpace, tag: int) -> _Side:
-        """The owned master facets of ``tag`` with their cells, gathered on every rank."""
-        fine = disc.mesh
-        tdim = fine.topology.dim
-        n_own = fine.topology.index_map(tdim - 1).size_local
-        facets = disc.facet_tags.find(tag)
-        facets = facets[facets < n_own].astype(np.int32)
-        f2c = fine.topology.connectivity(tdim - 1, tdim)
-        cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-        mine = _cells(fine, V, cells, _entity_points(fine, tdim - 1, facets))
-        parts = disc.comm.allgather(tuple(getattr(mine, f) for f in _Side.fields()))
-        return _Side(*(np.concatenate([p[k] for p in parts]) for k in range(5)))
-
-    @staticmethod
-    def _check_planar(disc: Any) -> None:
-        """Refuse warped quadrilateral facets of the pairs' macro facets, on every rank.
-
-        (The macro ones: the children of a warped facet would not even be tagged on T_h.)
-        """
-        macro, tags = disc.macro_mesh, disc.problem.facet_tags
-        fdim = macro.topology.dim - 1
-        n_own = macro.topology.index_map(fdim).size_local
-        found = [tags.find(t) for p in disc.problem.pairs for t in (p.slave, p.master)]
-        facets = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int32)
-        facets = facets[facets < n_own].astype(np.int32)
-        check_planar(disc.comm.allreduce(warp(_entity_points(macro, fdim, facets)), op=MPI.MAX))
-
-    @staticmethod
-    def _windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
-        """The pair's penetration window (default: each slave macro facet's diameter)."""
-        if pair.window is not None:
-            return pair.window
-        d = np.linalg.norm(vertices[:, :, None] - vertices[:, None], axis=3)
-        return 2.0 * d.max(axis=(1, 2)) if len(vertices) else np.zeros(0)
+        MasterTrace.live += 1
 
     # -- assembly ----------------------------------------------------------------------------
     def _build(self, disc: Any, V: fem.FunctionSpace, degree: int) -> None:
-        """The rule, P, the gap and the share weights (one pass over the slave facets)."""
-        self._check_planar(disc)
-        vertices, normals, slave, slave_tag = self._slave_facets(disc)
-        rules, masters = [], []
-        offset = 0
-        for pair in disc.problem.pairs:
-            master = self._master_facets(disc, V, pair.master)
-            on = np.flatnonzero(slave_tag == pair.slave)
-            r = mortar_rule(vertices[on], normals[on], master.vertices, master.normals,
-                            2 * degree, self._windows(pair, vertices[on]))
-            rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset, r.gap))
-            masters.append(master)
-            offset += len(master.cell)
-        self.rule = MortarRule(*(np.concatenate([getattr(r, f) for r in rules]) for f in (
-            "facet", "points", "weights", "master", "gap")))
-        master = _Side(*(np.concatenate([getattr(m, f) for m in masters])
-                           for f in _Side.fields()))
-        basis = FacetBasis(self.Ws.ufl_element().basix_element, FacetMap(vertices), self.rule)
-        projected = self.rule.points + self.rule.gap[:, None] * normals[self.rule.facet]
-        phi = _cell_basis(disc.mesh, V, master.geometry, self.rule.master, projected)
-        terms = [(self.rule.facet, self.rule.weights, basis.theta, phi,
-                  master.dofs[self.rule.master])]
-        terms += self._uncovered(basis, slave)
+        """P and the gap from the geometry's rule (one pass over the rule's points)."""
+        geometry = self.geometry
+        self.rule = rule = geometry.rule(degree)
+        master = geometry.master
+        master = _Side(master.vertices, master.normals, master.geometry,
+                       _master_dofs(disc, V, geometry.master_cells), master.cell)
+        basis = FacetBasis(self.Ws.ufl_element().basix_element, geometry.facets, rule)
+        projected = rule.points + rule.gap[:, None] * geometry.normals[rule.facet]
+        phi = _cell_basis(disc.mesh, V, master.geometry, rule.master, projected)
+        terms = [(rule.facet, rule.weights, basis.theta, phi, master.dofs[rule.master])]
+        terms += self._uncovered(basis, _cell_dofs(V, geometry.slave_local))
         self.P = self._projection(basis, terms)
         self.gap = self._gap(basis)
-        self.frame = self._frame(normals, master.normals[self.rule.master])
-        self._share = self._share_matrix(slave.cell, master, basis)
 
-    def _uncovered(self, basis: FacetBasis, slave: _Side) -> list[tuple[np.ndarray, ...]]:
+    def _uncovered(self, basis: FacetBasis, slave_dofs: np.ndarray) -> list[tuple[np.ndarray, ...]]:
         """The slave's own trace on the uncovered part of each facet: + int_F, - int_covered.
 
         P v = v o Pi where a master facet is met and v itself where none is, so that the
         relative displacement v - P v vanishes where the master is not there.
+
+        Args:
+            basis: W's basis on the slave facets.
+            slave_dofs: V's global block dofs of the cell beside each slave facet.
         """
         part = np.flatnonzero(~basis.full)
         if len(part) == 0:
@@ -341,10 +409,10 @@ class MasterTrace:
         f_rule = self.rule.facet[at]
         facet = np.concatenate([f_full, f_rule])
         x = np.concatenate([basis.full_points[on], self.rule.points[at]])
-        phi = _cell_basis(self.disc.mesh, self.V, slave.geometry, facet, x)
+        phi = _cell_basis(self.disc.mesh, self.V, self.geometry.slave.geometry, facet, x)
         theta = np.concatenate([basis.full_theta[on], basis.theta[at]])
         weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
-        return [(facet, weights, theta, phi, slave.dofs[facet])]
+        return [(facet, weights, theta, phi, slave_dofs[facet])]
 
     def _projection(self, basis: FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
         """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
@@ -411,146 +479,146 @@ class MasterTrace:
         gap.x.scatter_forward()
         return gap
 
-    def _frame(self, slave: np.ndarray, master: np.ndarray) -> fem.Function:
-        """The normal of the contact frame per fine slave facet (vector DG0 on Sigma_h).
-
-        n_c = (n_s - <n_m>) / |n_s - <n_m>|, <n_m> the mean of the master normals over the
-        part of the facet the master covers (weights of the rule): the bisector of the two
-        surfaces, which does not change when the bodies swap sides (up to its sign). Where
-        no master facet is met, or the surfaces do not face each other (n_s . <n_m> >= 0), the
-        slave normal n_s.
-
-        Args:
-            slave: The outward normals of this rank's slave facets.
-            master: The outward normal of the master facet of each point of the rule.
-        """
-        rule = self.rule
-        mean = np.zeros_like(slave)
-        np.add.at(mean, rule.facet, master * rule.weights[:, None])
-        covered = np.zeros(len(slave))
-        np.add.at(covered, rule.facet, rule.weights)
-        mean /= np.where(covered > 0.0, covered, 1.0)[:, None]
-        bisector = slave - mean
-        length = np.linalg.norm(bisector, axis=1)
-        facing = (covered > 0.0) & (np.einsum("fi,fi->f", slave, mean) < 0.0)
-        frame = np.where(facing[:, None], bisector / np.where(facing, length, 1.0)[:, None],
-                         slave)
-        gdim = slave.shape[1]
-        V0 = fem.functionspace(self.W.mesh, ("DG", 0, (gdim,)))
-        out = fem.Function(V0, name="contact_frame")
-        cells = np.array([V0.dofmap.cell_dofs(f)[0] for f in range(len(slave))], dtype=np.int64)
-        out.x.array[(cells[:, None] * gdim + np.arange(gdim)).ravel()] = frame.ravel()
-        out.x.scatter_forward()
-        return out
-
-    def _share_matrix(self, slave_cells: np.ndarray, master: _Side,
-                      basis: FacetBasis) -> PETSc.Mat:
-        """S[K, c]: the part of slave cell c's facets that Pi maps into master cell K.
-
-        The uncovered part of a facet stays with its slave cell (S[c, c]; P v is v there).
-        """
-        rule, fine = self.rule, self.disc.mesh
-        cells = fine.topology.index_map(fine.topology.dim)
-        measure = np.where(basis.measure > 0.0, basis.measure, 1.0)
-        frac = rule.weights / measure[rule.facet]
-        own = np.clip(1.0 - basis.covered / measure, 0.0, 1.0)
-        # a slave cell with several slave facets shares each facet's part equally
-        count = np.zeros(len(slave_cells))
-        _, inverse, counts = np.unique(slave_cells, return_inverse=True, return_counts=True)
-        count[:] = counts[inverse]
-        S = PETSc.Mat().createAIJ(
-            size=((cells.size_local, cells.size_global), (cells.size_local, cells.size_global)),
-            nnz=(8, 8), comm=self.disc.comm,
-        )
-        S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        rows = np.concatenate([master.cell[rule.master], slave_cells]).astype(PETSc.IntType)
-        cols = np.concatenate([slave_cells[rule.facet], slave_cells]).astype(PETSc.IntType)
-        vals = np.concatenate([frac / count[rule.facet], own / count])
-        for r, c, v in zip(rows, cols, vals, strict=True):
-            if v != 0.0:
-                S.setValue(r, c, v, addv=PETSc.InsertMode.ADD_VALUES)
-        S.assemble()
-        return S
 
     # -- use -----------------------------------------------------------------------------------
     def apply(self, f: fem.Function) -> fem.Function:
         """P f: the projected master trace of ``f`` on the slave facets (a function of W).
 
-        The image is remembered for :meth:`image` (the estimator moves the terms of a weight's
-        trace to the master cells).
+        Each call returns a new function; its attribute ``trace_of`` is ``f`` (the estimator
+        finds the images of a weight in a form by it, :func:`images_of`).
 
         Args:
             f: A function of this trace's space V.
 
         Returns:
             A new function of W holding P f.
+
+        Raises:
+            ValueError: ``f`` is not a function of V.
         """
+        if f.function_space != self.V:
+            raise ValueError(
+                f"MasterTrace.apply: {f.name} is not a function of this trace's space"
+            )
+        # temporary PETSc vectors, destroyed here: a Function's own (x.petsc_vec) is destroyed
+        # by dolfinx's __del__, at a time of the garbage collector's on each rank
+        x, y = self.P.createVecRight(), self.P.createVecLeft()
+        x.array_w[:] = f.x.array[: len(x.array_r)]
+        self.P.mult(x, y)
         out = fem.Function(self.W, name=f"P_{f.name}")
-        vec = f.x.petsc_vec
-        self.P.mult(vec, out.x.petsc_vec)
+        out.x.array[: len(y.array_r)] = y.array_r
+        for vec in (x, y):
+            vec.destroy()
         out.x.scatter_forward()
-        self._images[id(f)] = (f, out)
+        out.trace_of = f
         return out
 
-    def image(self, f: fem.Function) -> fem.Function | None:
-        """The last :meth:`apply` of ``f``.
-
-        Args:
-            f: A function of V.
-
-        Returns:
-            The function of W that :meth:`apply` returned for ``f`` last, or None.
-        """
-        found = self._images.get(id(f))
-        return found[1] if found is not None and found[0] is f else None
-
-    def share(self, slave_part: np.ndarray, DG0: fem.FunctionSpace) -> np.ndarray:
-        """A term localised to the slave cells, moved to the master cells (module docstring).
-
-        Args:
-            slave_part: The term's cell indicators (DG0 on T_h, owned and ghost entries).
-            DG0: The DG0 space of the indicators.
-
-        Returns:
-            The indicators of the same term on the master cells (DG0 entries; ghosts zero).
-        """
-        fine = self.disc.mesh
-        cells = fine.topology.index_map(fine.topology.dim)
-        n = cells.size_local
-        dof = DG0.dofmap.list[:n, 0]
-        p = self._share.createVecRight()
-        p.array_w[:] = slave_part[dof]
-        out = self._share.createVecLeft()
-        self._share.mult(p, out)
-        moved = np.zeros_like(slave_part)
-        moved[dof] = out.array
-        for v in (p, out):
-            v.destroy()
-        return moved
-
     def destroy(self) -> None:
-        """Release the PETSc matrices (collective)."""
-        for name in ("P", "_share"):
-            mat = getattr(self, name, None)
-            if mat is not None:
-                mat.destroy()
-                setattr(self, name, None)
-        self._images.clear()
+        """Release the projection (collective; idempotent; the geometry is the disc's)."""
+        if getattr(self, "P", None) is not None:
+            MasterTrace.live -= 1
+            self.P.destroy()
+            self.P = None
 
 
-def _cells(
-    msh: dmesh.Mesh, V: fem.FunctionSpace, cells: np.ndarray, vertices: np.ndarray
-) -> _Side:
-    """The facets' cells: their geometry, V's global dofs, global index; the facets' normals."""
+def images_of(form: Any, f: fem.Function) -> list[fem.Function]:
+    """The master-trace images of ``f`` (:meth:`MasterTrace.apply`) among a form's coefficients.
+
+    Args:
+        form: A UFL form or expression.
+        f: A function of a displacement space.
+
+    Returns:
+        The functions P f in ``form`` whose ``trace_of`` is ``f`` (in UFL's order).
+    """
+    return [c for c in ufl.algorithms.extract_coefficients(form)
+            if getattr(c, "trace_of", None) is f]
+
+
+def _check_planar(disc: Any) -> None:
+    """Refuse warped quadrilateral facets of the pairs' macro facets, on every rank.
+
+    (The macro ones: the children of a warped facet would not even be tagged on T_h.)
+    """
+    macro, tags = disc.macro_mesh, disc.problem.facet_tags
+    fdim = macro.topology.dim - 1
+    n_own = macro.topology.index_map(fdim).size_local
+    found = [tags.find(t) for p in disc.problem.pairs for t in (p.slave, p.master)]
+    facets = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int32)
+    facets = facets[facets < n_own].astype(np.int32)
+    check_planar(disc.comm.allreduce(warp(_entity_points(macro, fdim, facets)), op=MPI.MAX))
+
+
+def _windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
+    """The pair's penetration window (default: each slave macro facet's diameter)."""
+    if pair.window is not None:
+        return pair.window
+    d = np.linalg.norm(vertices[:, :, None] - vertices[:, None], axis=3)
+    return 2.0 * d.max(axis=(1, 2)) if len(vertices) else np.zeros(0)
+
+
+def _slave_facets(disc: Any) -> tuple[_Side, np.ndarray, np.ndarray]:
+    """This rank's slave facets with their cells (no dofs), the cells' local index, the tag."""
+    sub, fine = disc.slave_mesh, disc.mesh
+    tdim = fine.topology.dim
+    num = sub.topology.index_map(sub.topology.dim).size_local
+    facets = disc.slave_to_fine[:num]
+    x = sub.geometry.x[:, :sub.geometry.dim]
+    vertices = x[compat.geometry_dofmap(sub)[:num]]
+    f2c = fine.topology.connectivity(tdim - 1, tdim)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    return _cells(fine, cells, vertices), cells, _facet_tag(disc.facet_tags, facets)
+
+
+def _master_facets(disc: Any, tag: int) -> tuple[_Side, np.ndarray]:
+    """The owned master facets of ``tag`` gathered on every rank, and this rank's cells.
+
+    Returns:
+        The gathered facets (``dofs`` empty: :func:`_master_dofs` adds a space's), and the
+        local index of the cell beside each of this rank's owned facets of ``tag``.
+    """
+    fine = disc.mesh
+    tdim = fine.topology.dim
+    n_own = fine.topology.index_map(tdim - 1).size_local
+    facets = disc.facet_tags.find(tag)
+    facets = facets[facets < n_own].astype(np.int32)
+    f2c = fine.topology.connectivity(tdim - 1, tdim)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    mine = _cells(fine, cells, _entity_points(fine, tdim - 1, facets))
+    parts = disc.comm.allgather(tuple(getattr(mine, f) for f in _Side.fields()))
+    return _Side(*(np.concatenate([p[k] for p in parts]) for k in range(5))), cells
+
+
+def _cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> _Side:
+    """The facets' cells: their geometry and global index; the facets' normals (no dofs)."""
     tdim, gdim = msh.topology.dim, msh.geometry.dim
     geometry = msh.geometry.x[compat.geometry_dofmap(msh)[cells]][:, :, :gdim]
     normals = facet_normals(vertices, geometry.mean(axis=1)) if len(cells) else (
         np.zeros((0, gdim)))
-    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32)
-    dofs = V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape) if len(
-        cells) else np.zeros((0, V.dofmap.dof_layout.num_dofs), dtype=np.int64)
     cell = msh.topology.index_map(tdim).local_to_global(cells)
-    return _Side(vertices, normals, geometry, dofs, cell)
+    return _Side(vertices, normals, geometry, np.zeros((len(cells), 0), np.int64), cell)
+
+
+def _cell_dofs(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
+    """V's global block dofs of the local ``cells``, shape (len(cells), dofs per cell)."""
+    width = V.dofmap.dof_layout.num_dofs
+    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32).reshape(-1, width)
+    return V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape)
+
+
+def _master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np.ndarray:
+    """V's global block dofs of the master cells, gathered in :class:`TraceGeometry`'s order.
+
+    Args:
+        disc: The discretisation.
+        V: The displacement space.
+        cells: Per pair, the local cells of this rank's owned master facets.
+    """
+    out = []
+    for local in cells:
+        out.extend(disc.comm.allgather(_cell_dofs(V, local)))
+    width = V.dofmap.dof_layout.num_dofs
+    return np.concatenate(out) if out else np.zeros((0, width), np.int64)
 
 
 def _cell_basis(
@@ -566,9 +634,10 @@ def _cell_basis(
     cmap = compat.geometry_cmap(mesh)
     gdim = mesh.geometry.dim
     out = np.zeros((len(y), element.dim))
-    for g in np.unique(which):
-        at = np.flatnonzero(which == g)
-        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[g])
+    order = np.argsort(which, kind="stable")  # the points of each cell, in one pass
+    cuts = np.flatnonzero(np.diff(which[order])) + 1
+    for at in np.split(order, cuts) if len(order) else []:
+        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[which[at[0]]])
         out[at] = tabulate(element, X)
     return out
 

@@ -335,6 +335,10 @@ def _steps(
         raise
     for kept in state.kept:  # the last step's solution and estimate go with the result
         kept.destroy()
+    for disc in state.discs[:-1]:  # the earlier meshes' master traces
+        disc.destroy()
+    if result.solution is not None:  # and the last mesh's with the last solution
+        result.solution.owns_disc = True
     return result
 
 
@@ -350,6 +354,8 @@ class _PathState:
     estimate: Estimate | None = field(default=None, repr=False)
     disc: Discretization | None = field(default=None, repr=False)
     kept: list[Solution] = field(default_factory=list, repr=False)
+    #: The discretisations made (one per mesh; their master traces are released at the end).
+    discs: list[Discretization] = field(default_factory=list, repr=False)
     keep: bool = False
     current: SignoriniProblem | None = None
     level: int = 0
@@ -368,7 +374,7 @@ class _PathState:
         self.solution = self.estimate = None
 
     def destroy(self) -> None:
-        for obj in (self.estimate, self.solution, *self.kept):
+        for obj in (self.estimate, self.solution, *self.kept, *self.discs):
             if obj is not None:
                 obj.destroy()
 
@@ -377,7 +383,8 @@ def _discretization(current: SignoriniProblem, state: _PathState) -> Discretizat
     """The step's discretisation: the last one with the step's data on the same macro mesh."""
     if state.disc is not None and state.disc.macro_mesh is current.mesh:
         return state.disc.for_problem(current)
-    return discretize(current)
+    state.discs.append(discretize(current))
+    return state.discs[-1]
 
 
 def _step(

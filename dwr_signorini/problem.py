@@ -26,7 +26,7 @@ from .laws import ContactLaw, check_law
 from .materials import Material, check_material_law
 from .mesh_validation import check_cell_tags, check_mesh, check_projection_fits, check_tags
 from .obstacles import Obstacle
-from .pairs import ContactPair, check_contact_pairs, check_pair_bodies, check_pair_gap
+from .pairs import ContactPair
 from .quadrature import DATA_QUADRATURE_DEGREE
 from .validation import (
     MODELS,
@@ -36,11 +36,14 @@ from .validation import (
     VectorData,
     call_user,
     check_contact,
+    check_contact_pairs,
     check_dirichlet,
     check_gap,
     check_loads,
     check_material,
     check_model,
+    check_pair_bodies,
+    check_pair_gap,
     check_projection,
     check_quadrature_degree,
     nonzero_literal,

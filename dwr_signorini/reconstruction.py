@@ -311,9 +311,8 @@ class Reconstructor:
 
     def __init__(self, disc: Discretization) -> None:
         self.disc = disc
-        gdim = disc.mesh.geometry.dim
         macro = disc.macro_mesh
-        self.V2h = fem.functionspace(disc.mesh, ("Lagrange", 2, (gdim,)))
+        self.V2h = disc.vector_space(2)  # one per mesh: the master trace of P2 is kept
         self.P1H = fem.functionspace(macro, ("Lagrange", 1))
         self.P1h = fem.functionspace(disc.mesh, ("Lagrange", 1))
         self.simplex = disc.mesh.topology.cell_type in _SIMPLEX

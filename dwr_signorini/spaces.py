@@ -28,7 +28,7 @@ from dolfinx import mesh as dmesh
 from . import compat
 from .collective import shadow
 from .fields import MeshFields
-from .pairs import MasterTrace
+from .pairs import MasterTrace, TraceGeometry
 from .problem import SignoriniProblem
 from .quadrature import expand_integer_powers, is_polynomial
 from .refine import (  # noqa: F401  (re-exported: the refinement used to live here)
@@ -99,6 +99,10 @@ class Measures:
 
 class Discretization:
     """Macro mesh, fine mesh, the spaces V_h and Lambda_H and the maps between them.
+
+    With contact pairs it owns the master traces of its mesh (:meth:`master_trace`): release
+    them with :meth:`destroy` (collective; a :class:`~dwr_signorini.Solution` does it for the
+    discretisation that :func:`~dwr_signorini.solve` or a driver made for it).
 
     Args:
         problem: The problem; its mesh is the macro mesh T_H (collective: T_h is refined on
@@ -172,7 +176,9 @@ class Discretization:
             fine_to_slave = np.full(len(to_macro), -1, dtype=np.int32)
             fine_to_slave[self.slave_to_fine] = np.arange(len(self.slave_to_fine), dtype=np.int32)
             maps[slave] = fine_to_slave
-        self._traces: dict[int, MasterTrace] = {}
+        #: The master traces (one geometry, one trace per space), shared by for_problem.
+        self._traces: dict[Any, Any] = {}
+        self._spaces: dict[int, fem.FunctionSpace] = {}
         # Many-to-one (2 or 4 fine facets per macro facet), built once per mesh pair.
         self.entity_maps = compat.entity_maps(fine, maps)
         self.macro_entity_maps = compat.entity_maps(macro, {sub: macro_to_sub})
@@ -242,23 +248,76 @@ class Discretization:
         out.m = dataclasses.replace(self.m, problem=problem, fields=out.fields)
         return out
 
+    def vector_space(self, degree: int) -> fem.FunctionSpace:
+        """The vector Lagrange space of ``degree`` on T_h, one per mesh (``V`` for degree 1).
+
+        Args:
+            degree: 1 (the solves) or 2 (the weights of the estimators).
+
+        Returns:
+            The space, built on first use and kept.
+        """
+        if degree == 1:
+            return self.V
+        if degree not in self._spaces:
+            gdim = self.mesh.geometry.dim
+            self._spaces[degree] = fem.functionspace(self.mesh, ("Lagrange", degree, (gdim,)))
+        return self._spaces[degree]
+
     def master_trace(self, V: fem.FunctionSpace | None = None) -> MasterTrace | None:
         """The master trace of the contact pairs for a displacement space.
 
-        Built once per space and kept (collective on first use).
+        One :class:`~dwr_signorini.pairs.TraceGeometry` per mesh and one trace per space,
+        built on first use (collective) and kept until :meth:`destroy`.
 
         Args:
-            V: A vector Lagrange space on T_h (default ``self.V``; the P2 space of the weights).
+            V: ``self.V`` (the default) or ``self.vector_space(2)``.
 
         Returns:
             The :class:`~dwr_signorini.pairs.MasterTrace`, or None without contact pairs.
+
+        Raises:
+            ValueError: ``V`` is not one of this discretisation's vector spaces.
         """
         if self.slave_mesh is None:
             return None
         V = self.V if V is None else V
-        if id(V) not in self._traces:
-            self._traces[id(V)] = MasterTrace(self, V)
-        return self._traces[id(V)]
+        degree = V.ufl_element().embedded_superdegree
+        if V is not self.vector_space(degree):
+            raise ValueError(
+                "master_trace: V must be a displacement space of this discretisation "
+                "(disc.V or disc.vector_space(2))"
+            )
+        if "geometry" not in self._traces:
+            self._traces["geometry"] = TraceGeometry(self)
+        if degree not in self._traces:
+            self._traces[degree] = MasterTrace(self, V, self._traces["geometry"])
+        return self._traces[degree]
+
+    def trace_image(self, v: Any) -> Any:
+        """P v, the projected master trace of ``v`` (:class:`~dwr_signorini.pairs.MasterTrace`).
+
+        Args:
+            v: A displacement on T_h (a Function of a vector Lagrange space, or a sum of
+                them).
+
+        Returns:
+            A new function of the trace's space W whose ``trace_of`` is ``v`` (the sum of
+            such functions for a sum), or None without pairs.
+
+        Raises:
+            TypeError: ``v`` is not a Function or a sum of them.
+        """
+        if self.slave_mesh is None:
+            return None
+        if isinstance(v, ufl.algebra.Sum):  # u_h + (A u_h - u_h), a reconstruction
+            a, b = v.ufl_operands
+            return self.trace_image(a) + self.trace_image(b)
+        if not isinstance(v, fem.Function):
+            raise TypeError(
+                f"the master trace is taken of a Function, got {type(v).__name__}"
+            )
+        return self.master_trace(v.function_space).apply(v)
 
     def contact_frame(self) -> Any:
         """The normal of the contact frame on Gamma_C (UFL), in which the slip is measured.
@@ -301,7 +360,9 @@ class Discretization:
     def relative(self, v: Any) -> Any:
         """The relative displacement v - P v on Gamma_C (:mod:`~dwr_signorini.pairs`).
 
-        ``v`` itself on the rigid-obstacle contact (no pairs).
+        ``v`` itself on the rigid-obstacle contact (no pairs). P v is explicit in the
+        expression: a new function (:meth:`trace_image`) whose ``trace_of`` is ``v``, which
+        :func:`~dwr_signorini.pairs.images_of` finds in any form built from it.
 
         Args:
             v: A displacement on T_h (a Function of a vector Lagrange space, or a sum of
@@ -316,14 +377,17 @@ class Discretization:
         """
         if self.slave_mesh is None:
             return v
-        if isinstance(v, ufl.algebra.Sum):  # u_h + (A u_h - u_h), a reconstruction
-            a, b = v.ufl_operands
-            return self.relative(a) + self.relative(b)
-        if not isinstance(v, fem.Function):
-            raise TypeError(
-                f"relative: the master trace is taken of a Function, got {type(v).__name__}"
-            )
-        return v - self.master_trace(v.function_space).apply(v)
+        return v - self.trace_image(v)
+
+    def destroy(self) -> None:
+        """Release the master traces of this mesh (collective; idempotent).
+
+        Shared with the discretisations :meth:`for_problem` made; a later use builds them
+        again.
+        """
+        for trace in self._traces.values():
+            trace.destroy()
+        self._traces.clear()
 
     def set_u_old(self, u_old: fem.Function | None) -> None:
         """Measure the slip of this discretisation's solves from ``u_old`` (a load step's start).

@@ -3,7 +3,8 @@
 Pure functions: each ``check_*`` takes what it checks and the context it needs (the macro mesh
 T_H, the contact tags, ...) and returns the cleaned value, or raises a ValueError or TypeError
 naming the argument. :class:`~dwr_signorini.problem.SignoriniProblem` calls them in its
-constructor; the checks of the mesh and its tags are in :mod:`dwr_signorini.mesh_validation`.
+constructor; the checks of the mesh and its tags are in :mod:`dwr_signorini.mesh_validation`,
+except those of contact pairs, which are here with the pairs' other checks (the end of the module).
 :func:`call_user` calls a user's callable collectively.
 """
 
@@ -11,14 +12,14 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 from mpi4py import MPI
 
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from ufl.domain import extract_unique_domain
 
@@ -26,6 +27,7 @@ from . import compat
 from .collective import call_collectively, shadow
 from .mesh_validation import check_cells_covered, check_plane_faces_body
 from .obstacles import Graph, Obstacle, Plane
+from .pairs import ContactPair
 
 __all__ = [
     "MODELS",
@@ -37,11 +39,14 @@ __all__ = [
     "call_user",
     "check_callable",
     "check_contact",
+    "check_contact_pairs",
     "check_dirichlet",
     "check_gap",
     "check_loads",
     "check_material",
     "check_model",
+    "check_pair_bodies",
+    "check_pair_gap",
     "check_projection",
     "check_quadrature_degree",
     "check_vector",
@@ -484,3 +489,99 @@ def _check_traction_on_dirichlet(tag: int, load: Any, value: DirichletValue) -> 
             f"prescribes ({value!r}): a traction acts on the free (None) components of a "
             "dirichlet face only; set those traction components to 0.0"
         )
+
+
+# -- contact pairs ---------------------------------------------------------------------------
+def check_contact_pairs(contact: Any) -> tuple[list[Any], tuple[ContactPair, ...]]:
+    """``contact`` split into its tags (pairs by their slave tag) and its pairs.
+
+    Args:
+        contact: A tag, a :class:`ContactPair`, or a sequence of them.
+
+    Returns:
+        The contact entries with each pair replaced by its slave tag (in the order given), and
+        the pairs.
+
+    Raises:
+        ValueError: A master tag that is also a contact tag or a slave tag of another pair.
+    """
+    entries = [contact] if isinstance(contact, ContactPair) else contact
+    if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):
+        return contact, ()
+    entries = list(entries)
+    pairs = tuple(e for e in entries if isinstance(e, ContactPair))
+    tags = [e.slave if isinstance(e, ContactPair) else e for e in entries]
+    slaves = {p.slave for p in pairs}
+    for p in pairs:
+        if p.master in tags or p.master in slaves:
+            raise ValueError(
+                f"ContactPair(slave={p.slave}, master={p.master}): the master tag {p.master} "
+                "is also a contact (slave) tag; a facet is on one side of the contact only"
+            )
+    return tags, pairs
+
+
+def check_pair_gap(gap: Any, pairs: tuple[ContactPair, ...], rigid_tags: tuple[int, ...]) -> Any:
+    """The ``gap`` of a problem with pairs: it is the rigid contact tags' gap only.
+
+    Raises:
+        ValueError: A gap given for a pair's slave tag, or a gap other than the default 0
+            without rigid contact tags.
+    """
+    slaves = sorted(p.slave for p in pairs)
+    if isinstance(gap, Mapping):
+        named = sorted(set(gap) & set(slaves))
+        if named:
+            raise ValueError(
+                f"gap is given for the ContactPair slave tag(s) {named}: the gap of a pair is "
+                "the distance to the master surface along the slave normal, measured from the "
+                "meshes; give gap for the rigid-obstacle contact tags only"
+            )
+        return gap
+    if not rigid_tags:
+        if isinstance(gap, (int, float)) and not isinstance(gap, bool) and gap == 0.0:
+            return gap
+        raise ValueError(
+            "gap applies to rigid-obstacle contact tags, and every contact tag here is the "
+            f"slave side of a ContactPair ({slaves}): the gap of a pair is measured from the "
+            "meshes; leave gap at its default"
+        )
+    return gap
+
+
+def check_pair_bodies(
+    mesh: dmesh.Mesh, facet_tags: dmesh.MeshTags, pairs: tuple[ContactPair, ...]
+) -> None:
+    """The slave and master facets of each pair share no vertex (two bodies, collective).
+
+    Counted on the vertices' owners (a vertex of the slave facets on one rank and of the master
+    facets on another counts), so the answer does not depend on the partition.
+
+    Raises:
+        ValueError: A pair whose sides touch in the mesh (one body, or glued bodies).
+    """
+    if not pairs:
+        return
+    fdim = mesh.topology.dim - 1
+    mesh.topology.create_connectivity(fdim, 0)
+    f2v = mesh.topology.connectivity(fdim, 0)
+    vertices = mesh.topology.index_map(0)
+
+    def marks(tag: int) -> np.ndarray:
+        """1 on the owned vertices of the facets of ``tag`` on any rank, else 0."""
+        vec = la.vector(vertices, 1)
+        facets = facet_tags.find(tag)
+        if len(facets):
+            vec.array[np.unique(np.concatenate([f2v.links(f) for f in facets]))] = 1.0
+        vec.scatter_reverse(la.InsertMode.add)
+        return vec.array[: vertices.size_local] > 0.0
+
+    for p in pairs:
+        shared = int(np.count_nonzero(marks(p.slave) & marks(p.master)))
+        shared = mesh.comm.allreduce(shared, op=MPI.SUM)
+        if shared:
+            raise ValueError(
+                f"ContactPair(slave={p.slave}, master={p.master}): {shared} vertices lie on "
+                "both sides; the two sides must belong to two bodies that share no vertex "
+                "(mesh them as separate volumes, e.g. gmsh surfaces without a common curve)"
+            )
