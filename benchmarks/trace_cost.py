@@ -38,7 +38,7 @@ import ufl
 from dolfinx import mesh as dmesh
 
 import dwr_signorini as ds
-from dwr_signorini import compat, pairs
+from dwr_signorini import compat, pair_facets, pairs
 from dwr_signorini.io import write_csv
 from dwr_signorini.mortar import mortar_rule
 from dwr_signorini.search import candidate_rule
@@ -106,7 +106,7 @@ def _timed(build, repeat: int) -> tuple[float, object]:
 def measure(n: int, repeat: int, full: bool, p2: bool) -> dict[str, float]:
     """One row of the table."""
     disc = discretize(two_boxes(n))
-    slaves = comm.allreduce(len(pairs._slave_facets(disc)[0].vertices), op=MPI.SUM)
+    slaves = comm.allreduce(len(pair_facets.slave_facets(disc)[0].vertices), op=MPI.SUM)
     t_search, geometry = _timed(lambda: pairs.TraceGeometry(disc), repeat)
     t_p1, p1 = _timed(lambda: pairs.MasterTrace(disc, disc.V, geometry), repeat)
 

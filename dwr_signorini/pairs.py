@@ -51,23 +51,27 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
 import ufl
 from dolfinx import fem
-from dolfinx import mesh as dmesh
 
-from . import compat
 from .mortar import (
     FacetBasis,
     FacetMap,
     MortarRule,
-    check_planar,
-    facet_normals,
-    tabulate,
-    warp,
+)
+from .pair_facets import (
+    Side,
+    cell_basis,
+    cell_dofs,
+    check_pair_facets,
+    csr_matrix,
+    master_dofs,
+    master_facets,
+    slave_facets,
+    windows,
 )
 from .search import candidate_rule
 from .timing import timed
@@ -133,23 +137,6 @@ class ContactPair:
             )
 
 
-@dataclass
-class _Side:
-    """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
-
-    vertices: np.ndarray  # (m, nv, gdim)
-    normals: np.ndarray  # (m, gdim)
-    geometry: np.ndarray  # (m, nodes, gdim): the adjacent cell's geometry
-    dofs: np.ndarray  # (m, ndofs): its global block dofs of V
-    cell: np.ndarray  # (m,): its global cell index
-
-    @staticmethod
-    def fields() -> tuple[str, ...]:
-        """The attributes in order."""
-        return ("vertices", "normals", "geometry", "dofs", "cell")
-
-
-
 class TraceGeometry:
     """The geometry of a mesh's pairs: facets, mortar rules, contact frame, share (module).
 
@@ -189,19 +176,19 @@ class TraceGeometry:
 
     def _build(self, disc: Any) -> None:
         """The facets, the masters of every pair, the rule of the solves, frame and share."""
-        _check_planar(disc)
-        self.slave, self.slave_local, self._slave_tag = _slave_facets(disc)
+        check_pair_facets(disc)
+        self.slave, self.slave_local, self._slave_tag = slave_facets(disc)
         self.vertices, self.normals = self.slave.vertices, self.slave.normals
         self.slave_cells = self.slave.cell
         self.facets = FacetMap(self.vertices)
         masters, self.master_cells = [], []
         for pair in disc.problem.pairs:
-            master, local = _master_facets(disc, pair.master)
+            master, local = master_facets(disc, pair.master)
             masters.append(master)
             self.master_cells.append(local)
         self._masters = masters
-        self.master = _Side(*(np.concatenate([getattr(m, f) for m in masters])
-                              for f in _Side.fields()))
+        self.master = Side(*(np.concatenate([getattr(m, f) for m in masters])
+                              for f in Side.fields()))
         self._rules: dict[int, MortarRule] = {}
         rule = self.rule(1)
         f, _, _, w = self.facets.quadrature(1)
@@ -216,7 +203,7 @@ class TraceGeometry:
 
         The pieces do not depend on the degree (the share is the same from any rule); the
         Gauss points on them do. Each degree asked for runs the mortar search once per mesh,
-        with each pair's penetration window (:func:`_windows`).
+        with each pair's penetration window (:func:`windows`).
 
         Args:
             degree: The degree of the displacement space.
@@ -230,7 +217,7 @@ class TraceGeometry:
             for pair, master in zip(self.disc.problem.pairs, self._masters, strict=True):
                 on = np.flatnonzero(self._slave_tag == pair.slave)
                 r = candidate_rule(vertices[on], normals[on], master.vertices, master.normals,
-                                   2 * degree, _windows(pair, vertices[on]))
+                                   2 * degree, windows(pair, vertices[on]))
                 rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset,
                                         r.gap))
                 offset += len(master.cell)
@@ -288,9 +275,9 @@ class TraceGeometry:
         row_sizes = (fmap.size_local, fmap.size_global)
         col_sizes = (cells.size_local, cells.size_global)
         comm = self.disc.comm
-        S = _csr(comm, [rows[rule.facet]], [self.master.cell[rule.master]], [frac], first,
+        S = csr_matrix(comm, [rows[rule.facet]], [self.master.cell[rule.master]], [frac], first,
                  row_sizes, col_sizes)
-        H = _csr(comm, [rows[covered]], [self.slave_cells[covered]],
+        H = csr_matrix(comm, [rows[covered]], [self.slave_cells[covered]],
                  [self.covered[covered] / measure[covered]], first, row_sizes, col_sizes)
         return S, H
 
@@ -380,13 +367,13 @@ class MasterTrace:
         geometry = self.geometry
         self.rule = rule = geometry.rule(degree)
         master = geometry.master
-        master = _Side(master.vertices, master.normals, master.geometry,
-                       _master_dofs(disc, V, geometry.master_cells), master.cell)
+        master = Side(master.vertices, master.normals, master.geometry,
+                       master_dofs(disc, V, geometry.master_cells), master.cell)
         basis = FacetBasis(self.Ws.ufl_element().basix_element, geometry.facets, rule)
         projected = rule.points + rule.gap[:, None] * geometry.normals[rule.facet]
-        phi = _cell_basis(disc.mesh, V, master.geometry, rule.master, projected)
+        phi = cell_basis(disc.mesh, V, master.geometry, rule.master, projected)
         terms = [(rule.facet, rule.weights, basis.theta, phi, master.dofs[rule.master])]
-        terms += self._uncovered(basis, _cell_dofs(V, geometry.slave_local))
+        terms += self._uncovered(basis, cell_dofs(V, geometry.slave_local))
         self.P = self._projection(basis, terms)
         self.gap = self._gap(basis)
 
@@ -409,7 +396,7 @@ class MasterTrace:
         f_rule = self.rule.facet[at]
         facet = np.concatenate([f_full, f_rule])
         x = np.concatenate([basis.full_points[on], self.rule.points[at]])
-        phi = _cell_basis(self.disc.mesh, self.V, self.geometry.slave.geometry, facet, x)
+        phi = cell_basis(self.disc.mesh, self.V, self.geometry.slave.geometry, facet, x)
         theta = np.concatenate([basis.full_theta[on], basis.theta[at]])
         weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
         return [(facet, weights, theta, phi, slave_dofs[facet])]
@@ -446,7 +433,7 @@ class MasterTrace:
                 rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
                 cols.append(np.broadcast_to((dofs * bs + c)[:, None, :], shape).ravel())
                 vals.append(v_q.ravel())
-        return _csr(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
+        return csr_matrix(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
                     (wmap.size_local * bs, wmap.size_global * bs),
                     (vmap.size_local * V.dofmap.index_map_bs,
                      vmap.size_global * V.dofmap.index_map_bs))
@@ -533,156 +520,3 @@ def images_of(form: Any, f: fem.Function) -> list[fem.Function]:
     """
     return [c for c in ufl.algorithms.extract_coefficients(form)
             if getattr(c, "trace_of", None) is f]
-
-
-def _check_planar(disc: Any) -> None:
-    """Refuse warped quadrilateral facets of the pairs' macro facets, on every rank.
-
-    (The macro ones: the children of a warped facet would not even be tagged on T_h.)
-    """
-    macro, tags = disc.macro_mesh, disc.problem.facet_tags
-    fdim = macro.topology.dim - 1
-    n_own = macro.topology.index_map(fdim).size_local
-    found = [tags.find(t) for p in disc.problem.pairs for t in (p.slave, p.master)]
-    facets = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int32)
-    facets = facets[facets < n_own].astype(np.int32)
-    check_planar(disc.comm.allreduce(warp(_entity_points(macro, fdim, facets)), op=MPI.MAX))
-
-
-def _windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
-    """The pair's penetration window (default: each slave macro facet's diameter)."""
-    if pair.window is not None:
-        return pair.window
-    d = np.linalg.norm(vertices[:, :, None] - vertices[:, None], axis=3)
-    return 2.0 * d.max(axis=(1, 2)) if len(vertices) else np.zeros(0)
-
-
-def _slave_facets(disc: Any) -> tuple[_Side, np.ndarray, np.ndarray]:
-    """This rank's slave facets with their cells (no dofs), the cells' local index, the tag."""
-    sub, fine = disc.slave_mesh, disc.mesh
-    tdim = fine.topology.dim
-    num = sub.topology.index_map(sub.topology.dim).size_local
-    facets = disc.slave_to_fine[:num]
-    x = sub.geometry.x[:, :sub.geometry.dim]
-    vertices = x[compat.geometry_dofmap(sub)[:num]]
-    f2c = fine.topology.connectivity(tdim - 1, tdim)
-    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    return _cells(fine, cells, vertices), cells, _facet_tag(disc.facet_tags, facets)
-
-
-def _master_facets(disc: Any, tag: int) -> tuple[_Side, np.ndarray]:
-    """The owned master facets of ``tag`` gathered on every rank, and this rank's cells.
-
-    Returns:
-        The gathered facets (``dofs`` empty: :func:`_master_dofs` adds a space's), and the
-        local index of the cell beside each of this rank's owned facets of ``tag``.
-    """
-    fine = disc.mesh
-    tdim = fine.topology.dim
-    n_own = fine.topology.index_map(tdim - 1).size_local
-    facets = disc.facet_tags.find(tag)
-    facets = facets[facets < n_own].astype(np.int32)
-    f2c = fine.topology.connectivity(tdim - 1, tdim)
-    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    mine = _cells(fine, cells, _entity_points(fine, tdim - 1, facets))
-    parts = disc.comm.allgather(tuple(getattr(mine, f) for f in _Side.fields()))
-    return _Side(*(np.concatenate([p[k] for p in parts]) for k in range(5))), cells
-
-
-def _cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> _Side:
-    """The facets' cells: their geometry and global index; the facets' normals (no dofs)."""
-    tdim, gdim = msh.topology.dim, msh.geometry.dim
-    geometry = msh.geometry.x[compat.geometry_dofmap(msh)[cells]][:, :, :gdim]
-    normals = facet_normals(vertices, geometry.mean(axis=1)) if len(cells) else (
-        np.zeros((0, gdim)))
-    cell = msh.topology.index_map(tdim).local_to_global(cells)
-    return _Side(vertices, normals, geometry, np.zeros((len(cells), 0), np.int64), cell)
-
-
-def _cell_dofs(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
-    """V's global block dofs of the local ``cells``, shape (len(cells), dofs per cell)."""
-    width = V.dofmap.dof_layout.num_dofs
-    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32).reshape(-1, width)
-    return V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape)
-
-
-def _master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np.ndarray:
-    """V's global block dofs of the master cells, gathered in :class:`TraceGeometry`'s order.
-
-    Args:
-        disc: The discretisation.
-        V: The displacement space.
-        cells: Per pair, the local cells of this rank's owned master facets.
-    """
-    out = []
-    for local in cells:
-        out.extend(disc.comm.allgather(_cell_dofs(V, local)))
-    width = V.dofmap.dof_layout.num_dofs
-    return np.concatenate(out) if out else np.zeros((0, width), np.int64)
-
-
-def _cell_basis(
-    mesh: dmesh.Mesh, V: fem.FunctionSpace, geometry: np.ndarray, which: np.ndarray,
-    y: np.ndarray,
-) -> np.ndarray:
-    """phi_j(y_q) of V's scalar element in the cell ``which[q]`` (geometry nodes ``geometry``)."""
-    element = V.ufl_element().sub_elements[0].basix_element
-    if V.element.needs_dof_transformations:
-        raise NotImplementedError(
-            "contact pairs need an element without dof transformations (Lagrange of degree <= 2)"
-        )
-    cmap = compat.geometry_cmap(mesh)
-    gdim = mesh.geometry.dim
-    out = np.zeros((len(y), element.dim))
-    order = np.argsort(which, kind="stable")  # the points of each cell, in one pass
-    cuts = np.flatnonzero(np.diff(which[order])) + 1
-    for at in np.split(order, cuts) if len(order) else []:
-        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[which[at[0]]])
-        out[at] = tabulate(element, X)
-    return out
-
-
-def _entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
-    """The geometry nodes of ``entities`` of dimension ``dim``, shape (m, nodes, gdim)."""
-    gdim = msh.geometry.dim
-    if len(entities) == 0:  # (entities_to_geometry divides by the count)
-        simplex = msh.topology.cell_type in (
-            dmesh.CellType.interval, dmesh.CellType.triangle, dmesh.CellType.tetrahedron)
-        nodes = dim + 1 if simplex else 2**dim
-        if dim == msh.topology.dim:
-            nodes = compat.geometry_dofmap(msh).shape[1]
-        return np.zeros((0, nodes, gdim))
-    return msh.geometry.x[dmesh.entities_to_geometry(msh, dim, entities)][:, :, :gdim]
-
-
-def _facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
-    """The tag of each of ``facets`` (-1 where untagged)."""
-    lookup = dict(zip(tags.indices.tolist(), tags.values.tolist(), strict=True))
-    return np.array([lookup.get(int(f), -1) for f in facets], dtype=np.int64)
-
-
-def _csr(
-    comm: MPI.Comm, rows: list, cols: list, vals: list, first: int, row_sizes: tuple,
-    col_sizes: tuple,
-) -> PETSc.Mat:
-    """An AIJ matrix from owned global rows, columns and values (duplicates summed)."""
-    n = row_sizes[0]
-    r = np.concatenate(rows).astype(np.int64) - first if rows else np.zeros(0, np.int64)
-    c = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, np.int64)
-    v = np.concatenate(vals) if vals else np.zeros(0)
-    keep = v != 0.0
-    r, c, v = r[keep], c[keep], v[keep]
-    key = r * col_sizes[1] + c
-    uniq, inverse = np.unique(key, return_inverse=True)
-    summed = np.zeros(len(uniq))
-    np.add.at(summed, inverse, v)
-    ur, uc = uniq // col_sizes[1], uniq % col_sizes[1]
-    indptr = np.zeros(n + 1, dtype=PETSc.IntType)
-    np.add.at(indptr, ur + 1, 1)
-    indptr = np.cumsum(indptr).astype(PETSc.IntType)
-    return PETSc.Mat().createAIJ(
-        size=(row_sizes, col_sizes),
-        csr=(indptr, uc.astype(PETSc.IntType), summed),
-        comm=comm,
-    )
-

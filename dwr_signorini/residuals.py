@@ -165,7 +165,7 @@ def primal_residual(sol: Any, v: Any, mu: Any, c: Any) -> ufl.Form:
     Proposition 4; the directions e_k are n, and t with friction.
 
     Args:
-        sol: The :class:`~dwr_signorini.newton.Solution`.
+        sol: The :class:`~dwr_signorini.Solution`.
         v: The displacement weight.
         mu: The multiplier weight, or a tuple of them (one per component of the law).
         c: The scale of the NCP (a function on the multiplier space, or a number).
@@ -224,7 +224,7 @@ def active_set_remainder(
     function's expansion at w^+, which is the form used for the other components of the law.
 
     Args:
-        sol: The :class:`~dwr_signorini.newton.Solution`.
+        sol: The :class:`~dwr_signorini.Solution`.
         u_plus: The reconstructed displacement.
         lam_plus: The reconstructed multiplier, or one per component (a tuple).
         xi_plus: The reconstructed dual multiplier, or one per component (a tuple).

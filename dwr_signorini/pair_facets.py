@@ -1,0 +1,209 @@
+"""The facets of a contact pair's two sides: geometry, normals, cells, dofs and basis values.
+
+What :mod:`~dwr_signorini.pairs` reads off the fine mesh before the mortar rule
+(:mod:`~dwr_signorini.mortar`) meets the two sides: this rank's slave facets, the master facets
+gathered on every rank, the global dofs of a space on their cells, the values of its basis at
+points of those cells, and the sparse matrix the trace is assembled into.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+from . import compat
+from .mortar import check_planar, facet_normals, tabulate, warp
+
+if TYPE_CHECKING:
+    from .pairs import ContactPair
+
+__all__ = [
+    "Side",
+    "cell_basis",
+    "cell_dofs",
+    "check_pair_facets",
+    "csr_matrix",
+    "entity_points",
+    "facet_tag",
+    "master_dofs",
+    "master_facets",
+    "side_cells",
+    "slave_facets",
+    "windows",
+]
+
+
+@dataclass
+class Side:
+    """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
+
+    vertices: np.ndarray  # (m, nv, gdim)
+    normals: np.ndarray  # (m, gdim)
+    geometry: np.ndarray  # (m, nodes, gdim): the adjacent cell's geometry
+    dofs: np.ndarray  # (m, ndofs): its global block dofs of V
+    cell: np.ndarray  # (m,): its global cell index
+
+    @staticmethod
+    def fields() -> tuple[str, ...]:
+        """The attributes in order."""
+        return ("vertices", "normals", "geometry", "dofs", "cell")
+
+
+def check_pair_facets(disc: Any) -> None:
+    """Refuse warped quadrilateral facets of the pairs' macro facets, on every rank.
+
+    (The macro ones: the children of a warped facet would not even be tagged on T_h.)
+    """
+    macro, tags = disc.macro_mesh, disc.problem.facet_tags
+    fdim = macro.topology.dim - 1
+    n_own = macro.topology.index_map(fdim).size_local
+    found = [tags.find(t) for p in disc.problem.pairs for t in (p.slave, p.master)]
+    facets = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int32)
+    facets = facets[facets < n_own].astype(np.int32)
+    check_planar(disc.comm.allreduce(warp(entity_points(macro, fdim, facets)), op=MPI.MAX))
+
+
+def windows(pair: ContactPair, vertices: np.ndarray) -> np.ndarray | float:
+    """The pair's penetration window (default: each slave macro facet's diameter)."""
+    if pair.window is not None:
+        return pair.window
+    d = np.linalg.norm(vertices[:, :, None] - vertices[:, None], axis=3)
+    return 2.0 * d.max(axis=(1, 2)) if len(vertices) else np.zeros(0)
+
+
+def slave_facets(disc: Any) -> tuple[Side, np.ndarray, np.ndarray]:
+    """This rank's slave facets with their cells (no dofs), the cells' local index, the tag."""
+    sub, fine = disc.slave_mesh, disc.mesh
+    tdim = fine.topology.dim
+    num = sub.topology.index_map(sub.topology.dim).size_local
+    facets = disc.slave_to_fine[:num]
+    x = sub.geometry.x[:, :sub.geometry.dim]
+    vertices = x[compat.geometry_dofmap(sub)[:num]]
+    f2c = fine.topology.connectivity(tdim - 1, tdim)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    return side_cells(fine, cells, vertices), cells, facet_tag(disc.facet_tags, facets)
+
+
+def master_facets(disc: Any, tag: int) -> tuple[Side, np.ndarray]:
+    """The owned master facets of ``tag`` gathered on every rank, and this rank's cells.
+
+    Returns:
+        The gathered facets (``dofs`` empty: :func:`master_dofs` adds a space's), and the
+        local index of the cell beside each of this rank's owned facets of ``tag``.
+    """
+    fine = disc.mesh
+    tdim = fine.topology.dim
+    n_own = fine.topology.index_map(tdim - 1).size_local
+    facets = disc.facet_tags.find(tag)
+    facets = facets[facets < n_own].astype(np.int32)
+    f2c = fine.topology.connectivity(tdim - 1, tdim)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    mine = side_cells(fine, cells, entity_points(fine, tdim - 1, facets))
+    parts = disc.comm.allgather(tuple(getattr(mine, f) for f in Side.fields()))
+    return Side(*(np.concatenate([p[k] for p in parts]) for k in range(5))), cells
+
+
+def side_cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> Side:
+    """The facets' cells: their geometry and global index; the facets' normals (no dofs)."""
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    geometry = msh.geometry.x[compat.geometry_dofmap(msh)[cells]][:, :, :gdim]
+    normals = facet_normals(vertices, geometry.mean(axis=1)) if len(cells) else (
+        np.zeros((0, gdim)))
+    cell = msh.topology.index_map(tdim).local_to_global(cells)
+    return Side(vertices, normals, geometry, np.zeros((len(cells), 0), np.int64), cell)
+
+
+def cell_dofs(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
+    """V's global block dofs of the local ``cells``, shape (len(cells), dofs per cell)."""
+    width = V.dofmap.dof_layout.num_dofs
+    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32).reshape(-1, width)
+    return V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape)
+
+
+def master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np.ndarray:
+    """V's global block dofs of the master cells, gathered in :class:`TraceGeometry`'s order.
+
+    Args:
+        disc: The discretisation.
+        V: The displacement space.
+        cells: Per pair, the local cells of this rank's owned master facets.
+    """
+    out = []
+    for local in cells:
+        out.extend(disc.comm.allgather(cell_dofs(V, local)))
+    width = V.dofmap.dof_layout.num_dofs
+    return np.concatenate(out) if out else np.zeros((0, width), np.int64)
+
+
+def cell_basis(
+    mesh: dmesh.Mesh, V: fem.FunctionSpace, geometry: np.ndarray, which: np.ndarray,
+    y: np.ndarray,
+) -> np.ndarray:
+    """phi_j(y_q) of V's scalar element in the cell ``which[q]`` (geometry nodes ``geometry``)."""
+    element = V.ufl_element().sub_elements[0].basix_element
+    if V.element.needs_dof_transformations:
+        raise NotImplementedError(
+            "contact pairs need an element without dof transformations (Lagrange of degree <= 2)"
+        )
+    cmap = compat.geometry_cmap(mesh)
+    gdim = mesh.geometry.dim
+    out = np.zeros((len(y), element.dim))
+    order = np.argsort(which, kind="stable")  # the points of each cell, in one pass
+    cuts = np.flatnonzero(np.diff(which[order])) + 1
+    for at in np.split(order, cuts) if len(order) else []:
+        X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[which[at[0]]])
+        out[at] = tabulate(element, X)
+    return out
+
+
+def entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """The geometry nodes of ``entities`` of dimension ``dim``, shape (m, nodes, gdim)."""
+    gdim = msh.geometry.dim
+    if len(entities) == 0:  # (entities_to_geometry divides by the count)
+        simplex = msh.topology.cell_type in (
+            dmesh.CellType.interval, dmesh.CellType.triangle, dmesh.CellType.tetrahedron)
+        nodes = dim + 1 if simplex else 2**dim
+        if dim == msh.topology.dim:
+            nodes = compat.geometry_dofmap(msh).shape[1]
+        return np.zeros((0, nodes, gdim))
+    return msh.geometry.x[dmesh.entities_to_geometry(msh, dim, entities)][:, :, :gdim]
+
+
+def facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
+    """The tag of each of ``facets`` (-1 where untagged)."""
+    lookup = dict(zip(tags.indices.tolist(), tags.values.tolist(), strict=True))
+    return np.array([lookup.get(int(f), -1) for f in facets], dtype=np.int64)
+
+
+def csr_matrix(
+    comm: MPI.Comm, rows: list, cols: list, vals: list, first: int, row_sizes: tuple,
+    col_sizes: tuple,
+) -> PETSc.Mat:
+    """An AIJ matrix from owned global rows, columns and values (duplicates summed)."""
+    n = row_sizes[0]
+    r = np.concatenate(rows).astype(np.int64) - first if rows else np.zeros(0, np.int64)
+    c = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, np.int64)
+    v = np.concatenate(vals) if vals else np.zeros(0)
+    keep = v != 0.0
+    r, c, v = r[keep], c[keep], v[keep]
+    key = r * col_sizes[1] + c
+    uniq, inverse = np.unique(key, return_inverse=True)
+    summed = np.zeros(len(uniq))
+    np.add.at(summed, inverse, v)
+    ur, uc = uniq // col_sizes[1], uniq % col_sizes[1]
+    indptr = np.zeros(n + 1, dtype=PETSc.IntType)
+    np.add.at(indptr, ur + 1, 1)
+    indptr = np.cumsum(indptr).astype(PETSc.IntType)
+    return PETSc.Mat().createAIJ(
+        size=(row_sizes, col_sizes),
+        csr=(indptr, uc.astype(PETSc.IntType), summed),
+        comm=comm,
+    )
+
