@@ -249,20 +249,12 @@ class MeshFields:
         def value(g: Any) -> Any:
             return gap_value(g, self._seen_by(g, x), n, miss)
 
-        problem = self.problem
-        if not problem.pairs:
-            return self.contact_expr(problem.gap, x, "gap", value)
-        if self.pair_gap is None:
+        if self.problem.pairs and self.pair_gap is None:
             raise ValueError(
                 "the gap of a ContactPair is measured on a discretisation's mesh: use its "
                 "fields, disc.fields.gap(m.x)"
             )
-        pairs = self.pair_gap()
-        if not problem.rigid_tags:
-            return pairs
-        chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)
-        rigid = self.contact_expr(problem.gap, x, "gap", value, problem.rigid_tags)
-        return chi * rigid + (1.0 - chi) * pairs
+        return self._rigid_and_pairs(x, value, self.pair_gap)
 
     def frame_normal(self, x: ufl.SpatialCoordinate, n: Any = None) -> ufl.core.expr.Expr:
         """The normal of the contact frame: the tangential slip is measured normal to it.
@@ -287,15 +279,30 @@ class MeshFields:
         def value(g: Any) -> Any:
             return g.surface_normal(self._seen_by(g, x), n, miss) if isinstance(g, Obstacle) else n
 
+        return self._rigid_and_pairs(x, value, self.pair_frame)
+
+    def _rigid_and_pairs(
+        self, x: Any, value: Callable[[Any], Any], pairs: Callable[[], Any] | None
+    ) -> ufl.core.expr.Expr:
+        """``value`` of each rigid contact tag's gap, and ``pairs()`` on the pairs' facets.
+
+        Args:
+            x: The spatial coordinate of this mesh.
+            value: A gap's (number, callable or obstacle) value on its tags, UFL.
+            pairs: The value on the slave facets of the pairs (measured by their master trace).
+
+        Returns:
+            A UFL expression on Gamma_C.
+        """
         problem = self.problem
         if not problem.pairs:
             return self.contact_expr(problem.gap, x, "gap", value)
-        pairs = self.pair_frame()
+        on_pairs = pairs()
         if not problem.rigid_tags:
-            return pairs
+            return on_pairs
         chi = sum(self.contact_indicators[t] for t in problem.rigid_tags)
         rigid = self.contact_expr(problem.gap, x, "gap", value, problem.rigid_tags)
-        return chi * rigid + (1.0 - chi) * pairs
+        return chi * rigid + (1.0 - chi) * on_pairs
 
     def _seen_by(self, gap: Any, x: Any, delta: Any = None) -> Any:
         """``x`` as the gap ``gap`` sees it: the force-controlled obstacle at its displacement.
