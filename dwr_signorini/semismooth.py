@@ -28,6 +28,9 @@ __all__ = ["ConvergenceError", "NewtonLoop"]
 
 logger = logging.getLogger("dwr_signorini.newton")
 
+#: Steps on settled sets an inexact (iterative) solve may take to bring its residual below rtol
+MAX_REFINEMENTS = 2
+
 
 class ConvergenceError(RuntimeError):
     """The semi-smooth Newton method did not converge.
@@ -100,6 +103,9 @@ class NewtonLoop:
         #: A force-controlled obstacle's displacement still changing (then the sets settling
         #: is not the end: dwr_signorini.force)
         self.moving = False
+        #: Steps taken on settled sets because the residual was still falling (a step on the
+        #: same sets is one step of iterative refinement of an inexact linear solve)
+        self.refinements = 0
         self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
 
     def destroy(self) -> None:
@@ -158,6 +164,23 @@ class NewtonLoop:
         )
         return wanted, free
 
+    def _refining(self) -> bool:
+        """Whether to take one more step on settled sets.
+
+        An iterative solve may leave the residual above ``rtol`` when the sets settle; a step on
+        the same sets refines it. Taken while the last step cut the residual at least tenfold, at
+        most ``MAX_REFINEMENTS`` times (the history is the same on every rank).
+        """
+        if self.refinements >= MAX_REFINEMENTS or len(self.history) < 2:
+            return False
+        keys = ("residual_equilibrium", "residual_ncp")
+        now = max(self.history[-1][k] for k in keys)
+        before = max(self.history[-2][k] for k in keys)
+        if not now < 0.1 * before:
+            return False
+        self.refinements += 1
+        return True
+
     def _count(self, rows: np.ndarray, component: int) -> int:
         """Global number of set rows of one component."""
         part = self.system.algebra.components_of(rows)[component]
@@ -178,6 +201,8 @@ class NewtonLoop:
         elif settled:
             if record["residual_equilibrium"] <= self.rtol and record["residual_ncp"] <= self.rtol:
                 return True
+            if self._refining():
+                return False
             raise ConvergenceError(
                 f"the active set is stationary but the residuals are not below rtol={self.rtol:g}: "
                 "the linear solves are inaccurate (check petsc_options; a direct solver is "
