@@ -28,7 +28,8 @@ __all__ = ["ConvergenceError", "NewtonLoop"]
 
 logger = logging.getLogger("dwr_signorini.newton")
 
-#: Steps on settled sets an inexact (iterative) solve may take to bring its residual below rtol
+#: Steps on settled sets an iterative solve may take, each with a tighter tolerance, to bring
+#: its residuals below rtol
 MAX_REFINEMENTS = 2
 
 
@@ -103,8 +104,7 @@ class NewtonLoop:
         #: A force-controlled obstacle's displacement still changing (then the sets settling
         #: is not the end: dwr_signorini.force)
         self.moving = False
-        #: Steps taken on settled sets because the residual was still falling (a step on the
-        #: same sets is one step of iterative refinement of an inexact linear solve)
+        #: Steps taken on settled sets with a tightened linear solve (see _refining)
         self.refinements = 0
         self.q_start = system.disc.Q.dofmap.index_map.local_range[0]
 
@@ -165,18 +165,14 @@ class NewtonLoop:
         return wanted, free
 
     def _refining(self) -> bool:
-        """Whether to take one more step on settled sets.
+        """Whether to take one more step on settled sets, with a tighter linear solve.
 
-        An iterative solve may leave the residual above ``rtol`` when the sets settle; a step on
-        the same sets refines it. Taken while the last step cut the residual at least tenfold, at
-        most ``MAX_REFINEMENTS`` times (the history is the same on every rank).
+        An iterative solve may leave the NCP residual above ``rtol`` when the sets settle (its
+        tolerance is relative to the whole right-hand side, the NCP residual to each facet's
+        size); the system tightens its tolerance (``system.refine()``) at most
+        ``MAX_REFINEMENTS`` times. Direct solvers have nothing to tighten.
         """
-        if self.refinements >= MAX_REFINEMENTS or len(self.history) < 2:
-            return False
-        keys = ("residual_equilibrium", "residual_ncp")
-        now = max(self.history[-1][k] for k in keys)
-        before = max(self.history[-2][k] for k in keys)
-        if not now < 0.1 * before:
+        if self.refinements >= MAX_REFINEMENTS or not self.system.refine():
             return False
         self.refinements += 1
         return True

@@ -214,6 +214,14 @@ class NewtonLinearSystem:
         """
         return False
 
+    def refine(self) -> bool:
+        """Tighten the tolerance of the following solves, if they are iterative.
+
+        Returns:
+            Whether it was tightened (direct solvers: never).
+        """
+        return False
+
     def solve_active(
         self, active: np.ndarray, free: np.ndarray | None = None, couplings: Any = None
     ) -> None:

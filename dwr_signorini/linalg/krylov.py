@@ -52,6 +52,9 @@ from .options import LOOSE_RTOL, SCHUR_KRYLOV_OPTIONS, OptionsScope, iterative_p
 
 __all__ = ["ALPHA", "SADDLE_KRYLOV_OPTIONS", "KrylovNewtonSystem"]
 
+#: The tightest relative tolerance :meth:`KrylovNewtonSystem.refine` sets (round-off below it).
+TIGHTEST_RTOL = 1e-14
+
 #: The scale of the Jacobi approximation of the Schur complement in the preconditioner.
 ALPHA = 3.0
 
@@ -228,6 +231,18 @@ class KrylovNewtonSystem(NewtonLinearSystem):
         rtol = max(self._rtol, LOOSE_RTOL[1]) if loose else self._rtol
         self.saddle_ksp.setTolerances(rtol=rtol)
         return loose
+
+    def refine(self) -> bool:
+        """The GMRES tolerance a hundredfold tighter, down to :data:`TIGHTEST_RTOL`.
+
+        Returns:
+            Whether it was tightened.
+        """
+        rtol = self.saddle_ksp.getTolerances()[0]
+        if rtol <= TIGHTEST_RTOL:
+            return False
+        self.saddle_ksp.setTolerances(rtol=max(rtol / 100.0, TIGHTEST_RTOL))
+        return True
 
     def _set_active(self, active: np.ndarray) -> None:
         """The masks of ``active`` and the factors of S_hat on it (null pivots: LinAlgError)."""
