@@ -17,6 +17,20 @@ TRI = mesh.CellType.triangle
 E, NU = ex.ANALYTIC_MATERIAL.E, ex.ANALYTIC_MATERIAL.nu
 
 
+def tag_by_midpoint(msh, default, rules):
+    """Facet tags of every exterior facet of ``msh``: ``default``, then each ``(tag, where)`` of
+    ``rules`` in order (a later rule overrides an earlier one), ``where`` mapping the facets'
+    midpoints, shape ``(3, num_facets)``, to a boolean mask."""
+    fdim = msh.topology.dim - 1
+    msh.topology.create_connectivity(fdim, fdim + 1)
+    facets = mesh.exterior_facet_indices(msh.topology).astype(np.int32)
+    mid = mesh.compute_midpoints(msh, fdim, facets).T
+    values = np.full(facets.size, default, dtype=np.int32)
+    for tag, where in rules:
+        values[where(mid)] = tag
+    return mesh.meshtags(msh, fdim, facets, values)
+
+
 def top_clamped_tags(msh, height):
     """The examples' facet tags of a rectangle (0, l) x (0, height): its top y = height clamped
     (DIRICHLET), its bottom y = 0 in possible contact (CONTACT), its sides free (NEUMANN)."""

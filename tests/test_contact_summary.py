@@ -34,7 +34,7 @@ from dwr_signorini import cases
 from dwr_signorini import examples as ex
 from dwr_signorini import obstacles as ob
 from tests.helpers import integrate
-from tests.problems import from_model, mesh_script
+from tests.problems import from_model, mesh_script, tag_by_midpoint
 
 pytestmark = pytest.mark.mpi
 
@@ -44,15 +44,10 @@ E, P, D, S = 10.0, 0.3, 0.05, 0.1
 
 
 def _tags(msh, top):
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, fdim + 1)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    mid = mesh.compute_midpoints(msh, fdim, facets)
+    """BOTTOM at height 0, TOP at ``top``, SIDES elsewhere (height: the last coordinate)."""
     up = msh.geometry.dim - 1
-    values = np.full(facets.size, SIDES, dtype=np.int32)
-    values[np.isclose(mid[:, up], 0.0)] = BOTTOM
-    values[np.isclose(mid[:, up], top)] = TOP
-    return mesh.meshtags(msh, fdim, facets.astype(np.int32), values)
+    return tag_by_midpoint(msh, SIDES, ((BOTTOM, lambda x: np.isclose(x[up], 0.0)),
+                                        (TOP, lambda x: np.isclose(x[up], top))))
 
 
 def pressed_block(dim, friction=None):

@@ -19,6 +19,7 @@ import pytest
 from dolfinx import fem, mesh
 
 import dwr_signorini as ds
+from tests.problems import tag_by_midpoint
 
 pytestmark = pytest.mark.mpi
 
@@ -39,15 +40,9 @@ def block(comm, friction=None, p=P, dirichlet=None, on=None):
 
 def _square(comm):
     msh = mesh.create_unit_square(comm, 6, 6, ghost_mode=mesh.GhostMode.none)
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, fdim + 1)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    mid = mesh.compute_midpoints(msh, fdim, facets)
-    values = np.full(facets.size, SIDES, dtype=np.int32)
-    values[np.isclose(mid[:, 1], 0.0)] = BOTTOM
-    values[np.isclose(mid[:, 1], 1.0)] = TOP
-    values[np.isclose(mid[:, 0], 1.0) & (values == SIDES)] = RIGHT
-    return msh, mesh.meshtags(msh, fdim, facets.astype(np.int32), values)
+    return msh, tag_by_midpoint(msh, SIDES, ((RIGHT, lambda x: np.isclose(x[0], 1.0)),
+                                             (BOTTOM, lambda x: np.isclose(x[1], 0.0)),
+                                             (TOP, lambda x: np.isclose(x[1], 1.0))))
 
 
 def test_shear_by_displacement_press_by_traction():

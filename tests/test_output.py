@@ -24,7 +24,7 @@ from dolfinx import fem, mesh
 import dwr_signorini as ds
 from dwr_signorini import compat
 from dwr_signorini import examples as ex
-from tests.problems import top_clamped_tags
+from tests.problems import tag_by_midpoint, top_clamped_tags
 
 pytestmark = pytest.mark.mpi
 
@@ -34,16 +34,11 @@ E, NU, P = 10.0, 0.3, 0.2
 
 
 def _tags(msh):
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, fdim + 1)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    mid = mesh.compute_midpoints(msh, fdim, facets)
+    """LEFT at x = 0, BOTTOM at height 0, TOP at height 1, SIDES elsewhere."""
     up = msh.geometry.dim - 1
-    values = np.full(facets.size, SIDES, dtype=np.int32)
-    values[np.isclose(mid[:, 0], 0.0)] = LEFT
-    values[np.isclose(mid[:, up], 0.0)] = BOTTOM
-    values[np.isclose(mid[:, up], 1.0)] = TOP
-    return mesh.meshtags(msh, fdim, facets.astype(np.int32), values)
+    return tag_by_midpoint(msh, SIDES, ((LEFT, lambda x: np.isclose(x[0], 0.0)),
+                                        (BOTTOM, lambda x: np.isclose(x[up], 0.0)),
+                                        (TOP, lambda x: np.isclose(x[up], 1.0))))
 
 
 def pressed(model):
