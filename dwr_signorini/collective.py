@@ -43,11 +43,15 @@ destructor of the mesh, so when the last reference to a mesh goes while an excep
 (``ds.solve_path([make(d) for d in loads])`` with the goal forgotten), mpi4py 4.0.3's callback
 runs with that exception set, fails ("SystemError ... commlock_free_cb"), keeps its lock and the
 next free waits for it for ever.
+
+Messages about a collective state (a Newton step's global residuals, a safeguard all ranks take)
+are logged once, on rank 0 (:func:`log_on_root`), not once per rank.
 """
 
 from __future__ import annotations
 
 import functools
+import logging
 import pickle
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -55,7 +59,8 @@ from typing import Any, TypeVar
 
 from mpi4py import MPI
 
-__all__ = ["CollectiveError", "agree", "call_collectively", "collective", "on_root", "shadow"]
+__all__ = ["CollectiveError", "agree", "call_collectively", "collective", "log_on_root", "on_root",
+           "shadow"]
 
 T = TypeVar("T")
 
@@ -265,3 +270,9 @@ def on_root(
         if comm.rank == root:
             return function(*args)
     return None
+
+
+def log_on_root(comm: MPI.Comm, logger: logging.Logger, level: int, msg: str, *args: Any) -> None:
+    """``logger.log(level, msg, *args)`` on rank 0 only: a message about a state all ranks share."""
+    if comm.rank == 0:
+        logger.log(level, msg, *args)

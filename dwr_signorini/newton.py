@@ -83,6 +83,7 @@ from dolfinx import fem
 from . import finite_strain
 from .agreement import check_options_on_ranks
 from .algebra import ContactAlgebra
+from .collective import log_on_root
 from .force import ForceControl
 from .laws import multiplier_names
 from .linalg import (
@@ -334,7 +335,8 @@ def _automatic_method(
         assembled.destroy()
         raise
     if not fits:
-        logger.info(
+        log_on_root(
+            disc.comm, logger, logging.INFO,
             "a factorisation of K would take %.2f GB of the %.2f GB available per rank: "
             "method 'krylov'", need / 1e9, available / 1e9,
         )

@@ -70,6 +70,7 @@ import scipy.sparse
 import scipy.sparse.csgraph
 from dolfinx import fem, la
 
+from .collective import log_on_root
 from .spaces import Discretization
 
 __all__ = ["FreeMotions", "RigidHold", "free_motions", "held_method"]
@@ -359,7 +360,8 @@ class RigidHold:
         new, added = self.complete(new, system.f, system.algebra.gap_residual(u_vec))
         if added:
             loop.history[-1]["held"] = added
-            logger.info("%d facet(s) added to the active set to hold the free motions", added)
+            log_on_root(self.comm, logger, logging.INFO,
+                        "%d facet(s) added to the active set to hold the free motions", added)
         return new
 
     def _gram(self, rows: np.ndarray) -> np.ndarray:

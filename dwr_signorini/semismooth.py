@@ -20,7 +20,7 @@ import numpy as np
 from dolfinx import fem
 
 from .algebra import distributed_norm
-from .collective import CollectiveError, collective
+from .collective import CollectiveError, collective, log_on_root
 from .laws import Coupling
 from .linalg import LinearSolveError, NewtonLinearSystem, mumps_failure
 
@@ -158,8 +158,8 @@ class NewtonLoop:
         if len(system.algebra.components) > 1:
             record["num_stick"] = self._count(wanted, 1)
         self.history.append(record)
-        logger.info(
-            "Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
+        log_on_root(
+            comm, logger, logging.INFO, "Newton %d: |A| = %d, changed %d, residuals %.2e / %.2e",
             it, record["num_active"], num_changed, res_eq, rel_ncp,
         )
         return wanted, free
@@ -281,7 +281,8 @@ class NewtonLoop:
         if repeated and self.loose:
             # Loose steps can cycle on their solves' error alone (nearly degenerate rows on
             # the wrong side): from here on every step is solved accurately, with its own record.
-            logger.info("step %d repeats the sets of step %d: accurate solves", it, self.seen[key])
+            log_on_root(self.comm, logger, logging.INFO,
+                        "step %d repeats the sets of step %d: accurate solves", it, self.seen[key])
             self.loose = self.system.set_loose(False)
             self.seen.clear()
             repeated = False
@@ -296,7 +297,8 @@ class NewtonLoop:
                     "N K^-1 N^T positive definite?)" + self.unsettled_facets(),
                     self.history,
                 )
-            logger.warning(
+            log_on_root(
+                self.comm, logger, logging.WARNING,
                 "active-set cycling (step %d repeats step %d): least-index safeguard",
                 it, self.seen[key],
             )
@@ -331,7 +333,8 @@ class NewtonLoop:
         the coupled rows as a smooth Newton method.
         """
         if self.damped_since is None:
-            logger.warning(
+            log_on_root(
+                self.comm, logger, logging.WARNING,
                 "active-set cycling (step %d repeats step %d): damped steps", it,
                 self.seen[key],
             )
