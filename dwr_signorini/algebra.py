@@ -164,10 +164,7 @@ class ContactAlgebra:
             normal = self.components[0]
             rate = fields.gap_rate(m.x, m.n, lambda g, frame: normal.offset_in(g, m.n, frame))
             forms["g_rate"] = form(with_quadrature_degrees(rate * mu * m.ds_contact, degree))
-            d = ufl.as_vector([float(c) for c in problem.force_obstacle.direction])
-            forms["resultant"] = form(
-                -ufl.dot(disc.contact_frame(), d) * mu * m.ds_contact
-            )
+            forms["resultant"] = form(disc.force_balance(mu))
         bound = problem.law.bound_expr(fields, m.x)
         if bound is not None:
             forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact, degree))

@@ -333,6 +333,24 @@ class Discretization:
         """
         return self.fields.frame_normal(self.m.x, self.m.n)
 
+    def force_balance(self, mu: Any) -> Any:
+        """The force-balance row of an obstacle under a given force: w(mu), UFL.
+
+        ``w(mu) = int_GC (-n_c . d) mu ds`` (:mod:`~dwr_signorini.force`: w^T lam = F), d the
+        obstacle's direction of approach, n_c :meth:`contact_frame`.
+
+        Args:
+            mu: A normal multiplier (trial, test or discrete function).
+
+        Raises:
+            ValueError: If the problem has no obstacle under a given force.
+        """
+        obstacle = self.problem.force_obstacle
+        if obstacle is None:
+            raise ValueError("force_balance: the problem has no obstacle under a given force")
+        d = ufl.as_vector([float(c) for c in obstacle.direction])
+        return -ufl.dot(self.contact_frame(), d) * mu * self.m.ds_contact
+
     def directions(self, components: Any) -> list[Any]:
         """The directions of a law's components in its contact frame.
 
