@@ -125,22 +125,19 @@ def _restore_geometry(
     the midpoint to round-off).
     """
     gdim = macro.geometry.dim
-    macro_dofs = macro.geometry.dofmap[parent_cell]
+    fine_dofs = fine.geometry.dofmap[: len(parent_cell)]
+    # each fine node once, with the first local cell it belongs to (any cell gives the same
+    # point: a vertex, or the midpoint 0.5 (a + b) of the same edge)
+    nodes, first_at = np.unique(fine_dofs.ravel(), return_index=True)
+    macro_dofs = macro.geometry.dofmap[parent_cell[first_at // fine_dofs.shape[1]]]
     nv = macro_dofs.shape[1]
     pairs = [(a, b) for a in range(nv) for b in range(a, nv)]  # a == b: the vertex itself
-    first, second = (np.array(p) for p in zip(*pairs, strict=True))
-
-    def candidates(x: np.ndarray) -> np.ndarray:
-        return 0.5 * (x[macro_dofs[:, first]] + x[macro_dofs[:, second]])
-
-    cand_moved, cand_original = candidates(moved), candidates(original)
-    fine_dofs = fine.geometry.dofmap[: len(parent_cell)]
+    first, second = (macro_dofs[:, list(p)] for p in zip(*pairs, strict=True))
     y = fine.geometry.x
-    points = y[fine_dofs][:, :, :gdim]
-    distance = np.linalg.norm(points[:, :, None, :] - cand_moved[:, None, :, :], axis=3)
-    nearest = distance.argmin(axis=2)
-    rows = np.arange(len(parent_cell))[:, None]
-    y[fine_dofs, :gdim] = cand_original[rows, nearest]
+    offset = y[nodes, None, :gdim] - 0.5 * (moved[first] + moved[second])
+    nearest = np.einsum("ijk,ijk->ij", offset, offset).argmin(axis=1)
+    rows = np.arange(len(nodes))
+    y[nodes, :gdim] = 0.5 * (original[first[rows, nearest]] + original[second[rows, nearest]])
 
 
 def _refine_without_ties(
