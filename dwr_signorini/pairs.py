@@ -226,6 +226,11 @@ class TraceGeometry:
                                                          "master", "gap")))
         return self._rules[degree]
 
+    @property
+    def on_pairs(self) -> np.ndarray:
+        """Whether each of this rank's slave facets is on a pair's slave side (not rigid)."""
+        return np.isin(self._slave_tag, [pair.slave for pair in self.disc.problem.pairs])
+
     def _frame(self, rule: MortarRule) -> fem.Function:
         """The normal of the contact frame per fine slave facet (vector DG0 on Sigma_h).
 
@@ -381,13 +386,14 @@ class MasterTrace:
         """The slave's own trace on the uncovered part of each facet: + int_F, - int_covered.
 
         P v = v o Pi where a master facet is met and v itself where none is, so that the
-        relative displacement v - P v vanishes where the master is not there.
+        relative displacement v - P v vanishes where the master is not there. Not on the
+        facets of a rigid contact tag (beside the pairs): P v = 0 there, v - P v = v.
 
         Args:
             basis: W's basis on the slave facets.
             slave_dofs: V's global block dofs of the cell beside each slave facet.
         """
-        part = np.flatnonzero(~basis.full)
+        part = np.flatnonzero(~basis.full & self.geometry.on_pairs)
         if len(part) == 0:
             return []
         on = np.isin(basis.full_facet, part)

@@ -48,6 +48,10 @@ moves the body by O(1 / eps), so every approaching facet penetrates (it would st
 second row of the table; not measured), and it would leave a modified matrix to remove
 before the dual problem.
 
+A body that no load pushes (held between a rigid flat and another body pressed onto it, loaded
+only through the contact) has no direction of approach: the facets it already touches (no room,
+a free motion moves them) join the set, on both sides, and the rule (21) decides from there.
+
 The free motions are found per body (connected component of the mesh, over all ranks): the
 translations and rotations (about the body's centroid) whose values on the Dirichlet dofs
 vanish. A motion that no contact row can move (a translation along a frictionless flat) or that
@@ -411,6 +415,12 @@ class RigidHold:
             alpha = np.full(self.n_q, np.inf)
             alpha[candidates] = np.maximum(room[candidates], 0.0) / rate[candidates]
             first = self.comm.allreduce(float(np.min(alpha, initial=np.inf)), op=MPI.MIN)
+            if size == 0.0 and not np.any(push):
+                touching = self._touching(free, out, room)
+                if self.comm.allreduce(int(touching.sum())):
+                    out[: self.n_q] |= touching
+                    added += self.comm.allreduce(int(touching.sum()))
+                    continue
             if size == 0.0 or not np.isfinite(first):
                 reason = (
                     "the load does not push it onto any contact facet (it moves it away from "
@@ -424,6 +434,20 @@ class RigidHold:
             chosen = candidates & (alpha <= reach)
             out[: self.n_q] |= chosen
             added += self.comm.allreduce(int(chosen.sum()))
+
+    def _touching(self, free: np.ndarray, active: np.ndarray, room: np.ndarray) -> np.ndarray:
+        """The inactive facets in contact (no room) that a free motion moves (collective).
+
+        A body that no load pushes (held between others, loaded only through them: a body
+        between a rigid flat and another body pressed onto it) has no direction to reach
+        facets along; the facets it touches already hold it where they constrain its motions.
+        """
+        n_q = self.n_q
+        moves = np.abs(self.H[:n_q] @ free)
+        scale = self.comm.allreduce(float(np.max(moves, initial=0.0)), op=MPI.MAX)
+        gap = self.comm.allreduce(float(np.max(np.abs(room), initial=0.0)), op=MPI.MAX)
+        moved = np.any(moves > 1e-10 * scale, axis=1) if scale > 0.0 else np.zeros(n_q, bool)
+        return moved & ~active[:n_q] & (room <= 1e-10 * gap)
 
     def _winkler(
         self, alpha: np.ndarray, weight: np.ndarray, load: float, first: float

@@ -167,6 +167,31 @@ def test_patch_test_transmits_a_uniform_pressure_exactly(pair, quads):
         assert abs(est.eta_p) < 1e-12 * abs(est.J_h)
 
 
+@pytest.mark.mpi
+@pytest.mark.parametrize("pair", [UPPER_SLAVE, LOWER_SLAVE], ids=["upper_slave", "lower_slave"])
+def test_patch_test_with_a_pair_and_a_rigid_tag(pair):
+    """The lower block on the rigid plane y = 0 (its bottom a rigid contact tag, held vertically
+    by nothing else) under the upper block (the pair): both interfaces transmit PRESSURE on
+    every macro facet, the estimate vanishes, and the lower block stays where the clamped
+    problem has it (u_y = 0 on the plane)."""
+    msh, cells, facets = blocks()
+    problem = ds.SignoriniProblem(
+        msh, facets, contact=[pair, BLOCKS.BOTTOM], gap={BLOCKS.BOTTOM: 0.0}, cell_tags=cells,
+        **BLOCK_MATERIAL,
+        dirichlet={BLOCKS.LOWER_LEFT: (0.0, None), BLOCKS.UPPER_LEFT: (0.0, None),
+                   BLOCKS.TOP: (None, top_displacement())},
+    )
+    with ds.solve(problem) as sol, ds.estimate(sol, contact_force) as est:
+        lam = sol.lam.x.array
+        assert global_min(lam, COMM) == pytest.approx(PRESSURE, rel=1e-9)
+        assert global_max(lam, COMM) == pytest.approx(PRESSURE, rel=1e-9)
+        assert est.J_h == pytest.approx(2 * PRESSURE, rel=1e-9)  # two interfaces of width 1
+        assert abs(est.eta) < 1e-9 * abs(est.J_h)
+        m = sol.disc.m
+        bottom = integrate(sol, abs(sol.u[1]) * m.ds(BLOCKS.BOTTOM))
+        assert bottom < 1e-9 * abs(top_displacement())
+
+
 # --------------------------------------------------------------------------------------------------
 # Hertz, the rigid limit, swapping the sides
 # --------------------------------------------------------------------------------------------------
