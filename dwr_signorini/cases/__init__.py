@@ -23,6 +23,8 @@ from .cattaneo_mindlin_2d import (
     dundurs_beta,
     hertz_half_width,
     hertz_pressure,
+    reversal_stick_half_width,
+    reversal_traction,
     stick_half_width,
 )
 from .cattaneo_mindlin_3d import (
@@ -72,6 +74,8 @@ __all__ = [
     "indentation_problem",
     "measure_cattaneo_mindlin",
     "measure_contact_patch",
+    "reversal_stick_half_width",
+    "reversal_traction",
     "stick_half_width",
     "stick_radius",
 ]

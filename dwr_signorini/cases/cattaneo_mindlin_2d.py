@@ -22,17 +22,33 @@ slips on c <= |x| <= a with
     (CM2) q(x) = mu p0 / a (sqrt(a^2 - x^2) - sqrt(c^2 - x^2)),  |x| <= c,
           q(x) = mu p(x),                                        c <= |x| <= a,
 
-x measured from the first contact point (0, 0). The theory assumes that the normal and the
-tangential problems decouple, which holds exactly for nu = 1/2 (rigid flat): Dundurs' constant
-beta = (1 - 2 nu) / (2 (1 - nu)) vanishes (:func:`dundurs_beta`). With nu = 0.49 (the default;
-nu = 1/2 itself is not admissible in the displacement formulation) beta = 0.0196, and the press
-alone leaves an odd tangential traction (Poisson's ratio draws the contact surface inwards and
-friction resists it;
-:attr:`~dwr_signorini.cases.CMMeasure.coupling`). Measured at the
-defaults (mu = 0.3, macro facets of 0.02 to 0.0025 at the contact): the mean friction on either
-half of the contact is within 3.5 % of its Coulomb limit, with a sign that changes with the
-mesh, while lambda_t oscillates from facet to facet (rms 0.10-0.18 of mu p, up to 0.4 mu p0 at
-the ends of the contact). The oscillation does not shrink under refinement: it is the P1
+x measured from the first contact point (0, 0). When the tangential force turns back from Q*
+(stick half-width c*) towards Q, the contact slips backwards on c' <= |x| <= a while the centre
+keeps its traction (Mindlin and Deresiewicz 1953; Johnson 1985, Sect. 7.4, whose superposition
+argument for the sphere carries over to the cylinder; Hills and Nowell, *Mechanics of Fretting
+Fatigue*, 1994, Sect. 2.4): the change from Q* is a Cattaneo distribution with 2 mu in place of
+mu, so that
+
+    (MD1) Q* - Q = 2 mu P (1 - c'^2 / a^2),  i.e.  c' = a sqrt(1 - |Q* - Q| / (2 mu P)),
+    (MD2) q(x) = q*(x) - 2 mu p0 / a (sqrt(a^2 - x^2) - sqrt(c'^2 - x^2))   (Q* > 0),
+
+q* the traction (CM2) at Q* (the second root only where |x| < c'), for Q between Q* and -Q*.
+At Q = -Q* the reverse slip covers c* <= |x| <= a (c' = c*, q = -q*).
+
+The theory assumes that the normal and the tangential problems decouple, which holds exactly
+for nu = 1/2 (rigid flat): Dundurs' constant beta = (1 - 2 nu) / (2 (1 - nu)) vanishes
+(:func:`dundurs_beta`). With nu = 0.49 (the default; nu = 1/2 itself is not admissible in the
+displacement formulation) beta = 0.0196, and the press alone leaves an odd tangential traction
+(Poisson's ratio draws the contact surface inwards and friction resists it;
+:attr:`~dwr_signorini.cases.CMMeasure.coupling`). The half-disc is no half-plane, though: its
+compression bulges it sideways, which moves the contact points outwards by a strain of order
+P / (E* R) whatever nu, while the half-plane's inward strain is of order (1 - 2 nu) P / (E* a);
+at a / R = 0.094 and nu = 0.49 the two are of one size, at nu -> 1/2 the bulge dominates.
+Measured at the defaults (mu = 0.3, macro facets of 0.02 to 0.0025 at the contact): the friction
+force on either half of the contact on the press step is 0.17-0.21 of its Coulomb limit, and
+lambda_t oscillates from facet to facet (rms 0.25-0.33 of mu p, up to 0.4 mu p0 at the ends of
+the contact). Neither falls under refinement nor with a / R (0.17, 0.06, 0.15 at a / R = 0.094,
+0.042, 0.019 on about 9 facets per a; at nu = 0.4999 0.60 and 0.21): the oscillation is the P1
 displacement's response to nu = 0.49 (lambda / mu = 49, near-incompressible), seen in lambda_n
 too, and it also rides on lambda_t in the shear steps (about +-0.08 mu p0 in the stick zone).
 
@@ -68,6 +84,8 @@ __all__ = [
     "dundurs_beta",
     "hertz_half_width",
     "hertz_pressure",
+    "reversal_stick_half_width",
+    "reversal_traction",
     "stick_half_width",
 ]
 
@@ -179,6 +197,57 @@ def cm_traction(x: npt.ArrayLike, a: float, c: float, p0: float, mu: float) -> n
     outer = np.sqrt(np.clip(a**2 - x**2, 0.0, None))
     inner = np.sqrt(np.clip(c**2 - x**2, 0.0, None))
     return mu * p0 / a * (outer - inner)
+
+
+def reversal_stick_half_width(a: float, Q_turn: float, Q: float, mu: float, P: float) -> float:
+    """Mindlin-Deresiewicz's stick half-width after a reversal, eq. (MD1) of the module.
+
+    ``c' = a sqrt(1 - |Q_turn - Q| / (2 mu P))``: the tangential force turned back at
+    ``Q_turn`` (monotone before) and has since moved to ``Q``.
+
+    Args:
+        a: The contact half-width.
+        Q_turn: The tangential force per unit length at the reversal (Q* of the module).
+        Q: The tangential force per unit length now.
+        mu: The friction coefficient.
+        P: The normal force per unit length.
+
+    Returns:
+        c', 0 <= c' <= a.
+
+    Raises:
+        ValueError: If Q is not between ``Q_turn`` and ``-Q_turn`` (no reversal, or more than
+            a full one), ``|Q_turn| > mu P``, or P, mu <= 0.
+    """
+    if P <= 0 or mu <= 0 or abs(Q_turn) > mu * P:
+        raise ValueError("reversal_stick_half_width needs P > 0, mu > 0 and |Q_turn| <= mu P, "
+                         f"got P = {P}, mu = {mu}, Q_turn = {Q_turn}")
+    back = (Q_turn - Q) / Q_turn if Q_turn != 0 else math.nan
+    if not 0.0 <= back <= 2.0:
+        raise ValueError(f"Q = {Q} is no reversal from Q_turn = {Q_turn}: eq. (MD1) holds for Q "
+                         "between Q_turn and -Q_turn (beyond -Q_turn Cattaneo's c of |Q| holds)")
+    return a * math.sqrt(1.0 - abs(Q_turn - Q) / (2.0 * mu * P))
+
+
+def reversal_traction(
+    x: npt.ArrayLike, a: float, c_turn: float, c_rev: float, p0: float, mu: float, sign: float
+) -> np.ndarray:
+    """Mindlin-Deresiewicz's tangential traction after a reversal, eq. (MD2) of the module.
+
+    Args:
+        x: Positions along the flat, measured from the first contact point.
+        a: The contact half-width.
+        c_turn: The stick half-width c* at the reversal (eq. CM1 with Q*).
+        c_rev: The stick half-width c' after it (:func:`reversal_stick_half_width`).
+        p0: Hertz's peak pressure.
+        mu: The friction coefficient.
+        sign: The sign of Q* (the traction turns back from it).
+
+    Returns:
+        q at ``x``, with the sign of the force: ``sign (q*(x) - 2 q'(x))`` with q* and q' the
+        Cattaneo tractions (:func:`cm_traction`) of half-widths ``c_turn`` and ``c_rev``.
+    """
+    return sign * (cm_traction(x, a, c_turn, p0, mu) - 2.0 * cm_traction(x, a, c_rev, p0, mu))
 
 
 # --------------------------------------------------------------------------------------------------
