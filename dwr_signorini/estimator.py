@@ -28,7 +28,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
-from .finite_strain import FiniteStrainSolution, refuse
+from .finite_strain import FiniteStrainSolution
 from .force import ForceControl
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
@@ -477,8 +477,6 @@ def estimate(
         RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
             the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
-    if isinstance(sol, FiniteStrainSolution):
-        refuse("estimate")
     keywords = EstimateOptions(estimator, weights, petsc_options, quadrature_degree)
     if options is None:
         options = keywords
@@ -487,6 +485,10 @@ def estimate(
             "options must be an EstimateOptions, given instead of the estimate's keyword "
             "arguments"
         )
+    if isinstance(sol, FiniteStrainSolution):  # the nonlinear residuals
+        from .finite_strain_estimate import estimate as finite_strain_estimate
+
+        return finite_strain_estimate(sol, goal, options, model_error)
     if not isinstance(sol, Solution):
         raise TypeError(
             f"sol must be the Solution returned by solve(), got {type(sol).__name__}"

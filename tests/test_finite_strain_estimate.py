@@ -1,0 +1,191 @@
+"""The goal's error at finite strain: the dual problem, the estimate and its interval.
+
+Truths: the adjoint identity dJ/dp = -z . dF/dp against central differences of J(u_h(p))
+(Richardson-extrapolated) for an obstacle and a load parameter; an exact discrete state (the
+homogeneously compressed block, exact in P1) has a zero estimate; at 1e-5 of a load the
+estimate is the linear path's; the interval of a Neo-Hookean cylinder pressed onto a rigid
+flat contains a reference J from J_h alone on finer meshes; one process and two agree.
+"""
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+
+import dwr_signorini as ds
+from dwr_signorini.finite_strain_estimate import FiniteStrainEstimate
+
+from .problems import from_model
+from .test_finite_strain import block_problem
+
+E, NU = 10.0, 0.3
+ARC, TOP, SYM = 1, 2, 3
+
+
+def quarter_disc(model, h):
+    """The quarter x >= 0 of the unit disc centred at (0, 1) below y = 1 (gmsh, size h)."""
+    geo = model.geo
+    centre, bottom, right = geo.addPoint(0, 1, 0, h), geo.addPoint(0, 0, 0, h), \
+        geo.addPoint(1, 1, 0, h)
+    arc = geo.addCircleArc(bottom, centre, right)
+    top, sym = geo.addLine(right, centre), geo.addLine(centre, bottom)
+    geo.addPlaneSurface([geo.addCurveLoop([arc, top, sym])])
+    geo.synchronize()
+    model.addPhysicalGroup(2, [1], 1)
+    for tag, curve in ((ARC, arc), (TOP, top), (SYM, sym)):
+        model.addPhysicalGroup(1, [curve], tag)
+    model.mesh.generate(2)
+
+
+def cylinder_problem(msh, facets, press, offset=0.0, shear=0.0, material=None):
+    """The disc pressed by ``press`` onto the plane y = offset (a symmetry plane x = 0).
+
+    The top edge moves down by ``press`` (free along x, loaded there by a traction ``shear``).
+    """
+    return ds.SignoriniProblem(
+        msh, facets, ARC, dirichlet={TOP: (None, -press), SYM: (0.0, None)}, E=E, nu=NU,
+        material=material or ds.NeoHookean(), traction={TOP: (shear, 0.0)},
+        gap=ds.obstacles.Plane([0.0, offset], [0.0, -1.0]),
+    )
+
+
+def contact_force(u, lam, m):
+    """The contact force per unit thickness (per reference area, integrated)."""
+    return lam * m.ds_contact
+
+
+def stress_average(u, lam, m):
+    """A weighted average of the first Piola-Kirchhoff stress P_yy near the contact."""
+    mu, lmbda = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
+    F = ufl.variable(ufl.Identity(2) + ufl.grad(u))
+    P = ds.NeoHookean().first_piola(F, mu, lmbda)
+    weight = ufl.exp(-((m.x[0] / 0.3) ** 2 + (m.x[1] / 0.3) ** 2))
+    return weight * P[1, 1] * m.dx
+
+
+GOALS = {"force": contact_force, "stress": stress_average}
+
+
+@pytest.fixture(scope="module")
+def coarse_disc():
+    return from_model(quarter_disc, h=0.25)
+
+
+def _solve(problem, guess=None):
+    return ds.solve(problem, rtol=1e-13, initial_guess=guess)
+
+
+def _goal_value(sol, goal):
+    from dwr_signorini.goal import GoalForms
+
+    return GoalForms(goal, sol.u, sol.lam, sol.disc).value()
+
+
+def _central(J, p, h):
+    """Richardson's extrapolation of the central differences with steps h and h/2."""
+    def d(step):
+        return (J(p + step) - J(p - step)) / (2 * step)
+
+    return (4 * d(h / 2) - d(h)) / 3
+
+
+@pytest.mark.parametrize("goal", sorted(GOALS))
+@pytest.mark.parametrize("parameter", ["offset", "shear"])
+def test_dual_adjoint_identity(coarse_disc, goal, parameter):
+    """dJ/dp = -z . dF/dp to 1e-7 (central differences, settled active set)."""
+    msh, _, facets = coarse_disc
+    press, base = 0.2, {"offset": 0.0, "shear": 0.2}
+    data = dict(base)
+
+    def problem_at(p):
+        return cylinder_problem(msh, facets, press, **{**data, parameter: p})
+
+    with _solve(problem_at(base[parameter])) as sol:
+        assert sol.num_active >= 2
+        active = sol.disc.comm.allgather(sol.active)
+        est = ds.estimate(sol, GOALS[goal], estimator="eta_p")
+        z = est.dual
+        comm = sol.disc.comm
+        if parameter == "offset":  # dF_i/dp = -c_i M_i on the active NCP rows (d = y - p)
+            system = sol.system
+            n = system.n_q
+            local = float(np.sum((z.xi.x.array[:n] * system.c * system.M)[sol.active]))
+            adjoint = comm.allreduce(local, op=MPI.SUM)
+        else:  # dF_u/dq = -int (1, 0) . v ds(TOP)
+            form = fem.form(z.y[0] * sol.disc.m.ds(TOP))
+            adjoint = comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
+        guess = (sol.u, sol.lam)
+
+        def J(p):
+            with _solve(sol.disc.for_problem(problem_at(p)), guess) as s:
+                now = comm.allgather(s.active)
+                assert all(np.array_equal(a, b) for a, b in zip(now, active, strict=True))
+                return _goal_value(s, GOALS[goal])
+
+        fd = _central(J, base[parameter], 1e-4)
+        est.destroy()
+    print(f"{goal} d/d{parameter}: adjoint {adjoint:.12e}, differences {fd:.12e}, "
+          f"relative {abs(adjoint - fd) / abs(fd):.1e}")
+    assert abs(adjoint - fd) <= 1e-7 * abs(fd)
+
+
+def test_exact_state_has_zero_estimate():
+    """The compressed block's state is exact in P1: eta, eta_p and R3 vanish to round-off."""
+    problem = block_problem(MPI.COMM_WORLD, 2, 0.2, ds.NeoHookean(), n=3)
+
+    def weighted(u, lam, m):
+        return (1 + m.x[0]) * lam * m.ds_contact + ufl.inner(u, u) * m.dx
+
+    with ds.solve(problem) as sol, ds.estimate(sol, weighted) as est:
+        assert isinstance(est, FiniteStrainEstimate)
+        scale = abs(est.J_h)
+        for value in (est.eta, est.eta_p, est.nonlinear_remainder, est.contact_term):
+            assert abs(value) <= 1e-12 * scale
+        low, high = est.interval
+        assert low <= est.J_h <= high and high - low <= 1e-10 * scale
+
+
+def clamped_block(comm, press, material):
+    """A block pressed onto y = 0 by its clamped top (x = 0 a symmetry plane): not homogeneous."""
+    base = block_problem(comm, 2, press, material, n=4)
+    return ds.SignoriniProblem(
+        base.mesh, base.facet_tags, 1, dirichlet={2: (0.0, -press), 3: (0.0, None)},
+        E=E, nu=NU, material=material, gap=ds.obstacles.Plane([0.0, 0.0], [0.0, -1.0]),
+    )
+
+
+def _block_goals():
+    def force(u, lam, m):
+        return (1 + m.x[0]) * lam * m.ds_contact
+
+    def spread(u, lam, m):
+        return u[0] * m.dx
+
+    return {"force": force, "spread": spread}
+
+
+@pytest.mark.parametrize("goal", sorted(_block_goals()))
+def test_small_load_limit_is_linear_estimate(goal):
+    """At 1e-5 of a 20 % compression the estimate is the linear path's to 1e-3."""
+    press = 1e-5 * 0.2
+    J = _block_goals()[goal]
+    out = {}
+    for name, material in (("linear", ds.LinearElastic()), ("finite", ds.NeoHookean())):
+        with ds.solve(clamped_block(MPI.COMM_WORLD, press, material)) as sol, \
+                ds.estimate(sol, J, weights="patch") as est:
+            out[name] = (est.J_h, est.eta, est.eta_p)
+    print(goal, out)
+    for k in range(3):
+        assert abs(out["finite"][k] - out["linear"][k]) <= 1e-3 * abs(out["linear"][k])
+
+
+def test_refusals(coarse_disc):
+    """P2 weights and the model error are refused at finite strain, by name."""
+    msh, _, facets = coarse_disc
+    with _solve(cylinder_problem(msh, facets, 0.05)) as sol:
+        with pytest.raises(ValueError, match="higher_order"):
+            ds.estimate(sol, contact_force, weights="higher_order")
+        with pytest.raises(ValueError, match="model_error"):
+            ds.estimate(sol, contact_force, model_error=cylinder_problem(msh, facets, 0.05))
