@@ -189,3 +189,52 @@ def test_refusals(coarse_disc):
             ds.estimate(sol, contact_force, weights="higher_order")
         with pytest.raises(ValueError, match="model_error"):
             ds.estimate(sol, contact_force, model_error=cylinder_problem(msh, facets, 0.05))
+
+
+def disc_mesh(comm, h):
+    """The quarter disc's mesh on ``comm`` (built on each process of COMM_SELF)."""
+    gmsh = pytest.importorskip("gmsh")
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        if comm.rank == 0:
+            gmsh.model.add("disc")
+            quarter_disc(gmsh.model, h)
+        return ds.read_mesh(gmsh.model, comm)
+    finally:
+        gmsh.finalize()
+
+
+def test_path_state_estimate_is_direct_estimate(coarse_disc):
+    """A state of a load path is estimated at its own (u, lam, t), not the path's last one."""
+    msh, _, facets = coarse_disc
+    with ds.solve_path(cylinder_problem(msh, facets, 0.2), None,
+                       load_factors=[0.5, 1.0]) as path:
+        first = ds.estimate(path.solutions[0], stress_average)
+        last = ds.estimate(path.solutions[-1], stress_average)
+        values = [(e.J_h, e.eta) for e in (first, last)]
+        first.destroy()
+        last.destroy()
+    for press, (J_h, eta) in zip((0.1, 0.2), values, strict=True):
+        with ds.solve(cylinder_problem(msh, facets, press)) as sol, \
+                ds.estimate(sol, stress_average) as est:
+            assert abs(est.J_h - J_h) <= 1e-7 * abs(J_h)
+            assert abs(est.eta - eta) <= 1e-5 * abs(eta)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("goal", sorted(GOALS))
+def test_one_process_and_two_agree(goal):
+    """eta, eta_p, R_A, R3 and J_h on COMM_WORLD equal those on COMM_SELF to round-off."""
+    out = {}
+    for name, comm in (("self", MPI.COMM_SELF), ("world", MPI.COMM_WORLD)):
+        msh, _, facets = disc_mesh(comm, 0.25)
+        with ds.solve(cylinder_problem(msh, facets, 0.2)) as sol, \
+                ds.estimate(sol, GOALS[goal]) as est:
+            n = est.indicators.function_space.dofmap.index_map.size_local
+            total = comm.allreduce(float(est.indicators.x.array[:n].sum()), op=MPI.SUM)
+            assert abs(total - est.eta) <= 1e-12 * abs(est.eta)
+            out[name] = np.array([est.J_h, est.eta, est.eta_p, est.active_set_remainder,
+                                  est.nonlinear_remainder])
+    print(goal, out)
+    assert np.allclose(out["world"], out["self"], rtol=1e-9, atol=1e-13 * abs(out["self"][0]))
