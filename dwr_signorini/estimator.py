@@ -437,7 +437,10 @@ def estimate(
     """Estimate J(w) - J(w_h) by eta_p or eta (Section 4), and an interval for J(w).
 
     Args:
-        sol: The discrete solution (its last Newton factorisation serves the dual solve).
+        sol: The discrete solution (its last Newton factorisation serves the dual solve), or
+            a finite-strain one (:mod:`~dwr_signorini.finite_strain_estimate`: the dual at
+            w_h, the patch weights, the interval widened by the third-order remainder; returns
+            its :class:`~dwr_signorini.finite_strain_estimate.FiniteStrainEstimate`).
         goal: ``goal(u, lam, m) -> ufl.Form``.
         estimator: ``"eta"`` (primal and dual residual, (15)) or ``"eta_p"`` (primal residual,
             (13)). eta_p is reported in both cases.
@@ -470,7 +473,8 @@ def estimate(
         ``Estimate.weights`` names the weights it was computed with.
 
     Raises:
-        TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution`, or ``goal`` is not
+        TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution` (or a finite-strain
+            solution), or ``goal`` is not
             callable or does not return a UFL form.
         ValueError: For an unknown ``estimator`` or ``weights``, or a goal that is not a scalar
             form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``.

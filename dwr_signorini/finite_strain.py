@@ -21,9 +21,10 @@ solves, with the Jacobian reassembled (UFL derivatives, the second derivative of
 
 i.e. the linearised gap closes on A and lam = 0 off it. The distances are exact for
 :class:`~dwr_signorini.obstacles.Plane`, :class:`~dwr_signorini.obstacles.Sphere` (a disc
-in 2D) and :class:`~dwr_signorini.obstacles.Cylinder`; other gaps are refused. Not covered
-yet (refused with a ValueError): friction, contact pairs, force control, plane stress, and the
-error estimate.
+in 2D) and :class:`~dwr_signorini.obstacles.Cylinder`; other gaps are refused. The goal's
+error estimate (the dual problem, eta_p, eta and the interval) is in
+:mod:`~dwr_signorini.finite_strain_estimate`. Not covered yet (refused with a ValueError):
+friction, contact pairs, force control, plane stress, and the adaptive loop.
 """
 
 from __future__ import annotations
@@ -440,14 +441,15 @@ def refuse(what: str, reason: str = "") -> None:
 
     Args:
         what: The function (or combination) refused.
-        reason: Why; default: the error estimate with the nonlinear residuals is missing.
+        reason: Why; default: the adaptive loop at finite strain is missing.
 
     Raises:
         ValueError: Always, naming ``what``.
     """
     reason = reason or (
-        "the error estimate with the nonlinear residuals is not implemented; use ds.solve or "
-        "ds.solve_path(problem, None, load_factors=...)"
+        "the adaptive loop (and a goal along a load path) is not implemented at finite strain; "
+        "solve with ds.solve or ds.solve_path(problem, None, load_factors=...) and estimate "
+        "a state with ds.estimate(sol, goal)"
     )
     raise ValueError(
         f"{what} does not take a finite-strain problem (material=NeoHookean/"
@@ -553,7 +555,7 @@ def path_entry(problem: Any, goal: Any, load_factors: Any, ncp_scale: Any, petsc
 
     Raises:
         ValueError: ``problems`` not one finite-strain problem, no ``load_factors``, a goal
-            (not estimated at finite strain yet) or ``adaptive``.
+            (estimate each state with :func:`~dwr_signorini.estimate` instead) or ``adaptive``.
     """
     from .settings import SolverOptions
 
