@@ -91,44 +91,48 @@ def _central(J, p, h):
     return (4 * d(h / 2) - d(h)) / 3
 
 
-@pytest.mark.parametrize("goal", sorted(GOALS))
+def _adjoint_rate(sol, z, parameter):
+    """-z . dF/dp of the obstacle's offset p or the top's shear traction q."""
+    comm = sol.disc.comm
+    if parameter == "offset":  # dF_i/dp = -c_i M_i on the active NCP rows (d = y - p)
+        system = sol.system
+        n = system.n_q
+        local = float(np.sum((z.xi.x.array[:n] * system.c * system.M)[sol.active]))
+        return comm.allreduce(local, op=MPI.SUM)
+    # dF_u/dq = -int (1, 0) . v ds(TOP)
+    return comm.allreduce(fem.assemble_scalar(fem.form(z.y[0] * sol.disc.m.ds(TOP))),
+                          op=MPI.SUM)
+
+
 @pytest.mark.parametrize("parameter", ["offset", "shear"])
-def test_dual_adjoint_identity(coarse_disc, goal, parameter):
-    """dJ/dp = -z . dF/dp to 1e-7 (central differences, settled active set)."""
+def test_dual_adjoint_identity(coarse_disc, parameter):
+    """dJ/dp = -z . dF/dp to 1e-7 for both goals (central differences, settled active set)."""
     msh, _, facets = coarse_disc
-    press, base = 0.2, {"offset": 0.0, "shear": 0.2}
-    data = dict(base)
+    base = {"offset": 0.0, "shear": 0.2}
 
     def problem_at(p):
-        return cylinder_problem(msh, facets, press, **{**data, parameter: p})
+        return cylinder_problem(msh, facets, 0.2, **{**base, parameter: p})
 
     with _solve(problem_at(base[parameter])) as sol:
         assert sol.num_active >= 2
-        active = sol.disc.comm.allgather(sol.active)
-        est = ds.estimate(sol, GOALS[goal], estimator="eta_p")
-        z = est.dual
         comm = sol.disc.comm
-        if parameter == "offset":  # dF_i/dp = -c_i M_i on the active NCP rows (d = y - p)
-            system = sol.system
-            n = system.n_q
-            local = float(np.sum((z.xi.x.array[:n] * system.c * system.M)[sol.active]))
-            adjoint = comm.allreduce(local, op=MPI.SUM)
-        else:  # dF_u/dq = -int (1, 0) . v ds(TOP)
-            form = fem.form(z.y[0] * sol.disc.m.ds(TOP))
-            adjoint = comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
-        guess = (sol.u, sol.lam)
+        active = comm.allgather(sol.active)
+        adjoint = {}
+        for name, goal in GOALS.items():
+            with ds.estimate(sol, goal, estimator="eta_p") as est:
+                adjoint[name] = _adjoint_rate(sol, est.dual, parameter)
 
         def J(p):
-            with _solve(sol.disc.for_problem(problem_at(p)), guess) as s:
+            with _solve(sol.disc.for_problem(problem_at(p)), (sol.u, sol.lam)) as s:
                 now = comm.allgather(s.active)
                 assert all(np.array_equal(a, b) for a, b in zip(now, active, strict=True))
-                return _goal_value(s, GOALS[goal])
+                return np.array([_goal_value(s, GOALS[name]) for name in adjoint])
 
         fd = _central(J, base[parameter], 1e-4)
-        est.destroy()
-    print(f"{goal} d/d{parameter}: adjoint {adjoint:.12e}, differences {fd:.12e}, "
-          f"relative {abs(adjoint - fd) / abs(fd):.1e}")
-    assert abs(adjoint - fd) <= 1e-7 * abs(fd)
+    for (name, value), diff in zip(adjoint.items(), fd, strict=True):
+        print(f"{name} d/d{parameter}: adjoint {value:.12e}, differences {diff:.12e}, "
+              f"relative {abs(value - diff) / abs(diff):.1e}")
+        assert abs(value - diff) <= 1e-7 * abs(diff)
 
 
 def test_exact_state_has_zero_estimate():
@@ -238,3 +242,56 @@ def test_one_process_and_two_agree(goal):
                                   est.nonlinear_remainder])
     print(goal, out)
     assert np.allclose(out["world"], out["self"], rtol=1e-9, atol=1e-13 * abs(out["self"][0]))
+
+
+#: The cylinder's uniform levels: 0-3 judged, 4 (51200 cells) and 3, 2 for the reference.
+JUDGED, FINEST = 4, 4
+
+
+@pytest.fixture(scope="module")
+def cylinder_levels():
+    """J_h and the estimate of both goals on uniform levels of the cylinder pressed by 25 %."""
+    from dwr_signorini.refine import refine_with_tags
+
+    msh, _, facets = from_model(quarter_disc, h=0.2)
+    rows = []
+    for level in range(FINEST + 1):
+        problem = cylinder_problem(msh, facets, 0.25)
+        with ds.solve_path(problem, None, load_factors=[0.5, 1.0]) as path:
+            sol = path.solutions[-1]
+            row = {"cells": sol.disc.num_cells}
+            for name, goal in GOALS.items():
+                if level < JUDGED:
+                    with ds.estimate(sol, goal) as est:
+                        row[name] = (est.J_h, est.eta, est.interval)
+                else:
+                    row[name] = (_goal_value(sol, goal), None, None)
+        rows.append(row)
+        msh, _, _, facets = refine_with_tags(problem, None)
+    return rows
+
+
+def _reference(values):
+    """Richardson's extrapolation of the three finest J_h with their observed rate."""
+    j1, j2, j3 = values[-3:]
+    ratio = (j2 - j1) / (j3 - j2)
+    return j3 + (j3 - j2) / (ratio - 1.0), ratio
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("goal", sorted(GOALS))
+def test_cylinder_interval_contains_reference(cylinder_levels, goal):
+    """Neo-Hookean disc pressed by 25 % of its radius onto a rigid flat: on the uniform levels
+    0-3 the interval contains J from J_h alone on levels 2-4 (Richardson); effectivities printed.
+    """
+    J_ref, ratio = _reference([row[goal][0] for row in cylinder_levels])
+    print(f"\n{goal}: reference {J_ref:.10e} (ratio of the finest differences {ratio:.2f})")
+    missed = []
+    for level, row in enumerate(cylinder_levels[:JUDGED]):
+        J_h, eta, (low, high) = row[goal]
+        inside = low <= J_ref <= high
+        print(f"level {level} cells {row['cells']:6d} J_h {J_h:.10e} eta {eta:+.3e} "
+              f"Ieff {(J_ref - J_h) / eta:.3f} interval ({low:.8e}, {high:.8e}) {inside}")
+        if not inside:
+            missed.append(level)
+    assert not missed
