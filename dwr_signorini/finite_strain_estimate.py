@@ -216,10 +216,18 @@ class _Forms:
         """L(w, z_h) = J(w) + rho(w)(z_h) as a form in (u_h, lambda_H)."""
         return self.goal.J + self.rho(z.y, z.xi)
 
-    def gateaux(self, form: ufl.Form, w_u: Any, w_lam: Any) -> ufl.Form:
-        """The derivative of ``form`` at w_h in the direction (w_u, w_lam)."""
+    def gateaux(self, form: ufl.Form, w_u: Any, w_lam: Any, order: int = 1) -> ufl.Form:
+        """The ``order``-th derivative of ``form`` at w_h in the direction (w_u, w_lam).
+
+        The direction enters through placeholder functions, replaced after the derivatives are
+        expanded: w_lam = lambda^+ - lambda_H holds lambda_H, which a repeated derivative must
+        not differentiate.
+        """
         sol = self.sol
-        return ufl.derivative(form, sol.u, w_u) + ufl.derivative(form, sol.lam, w_lam)
+        du, dlam = fem.Function(sol.disc.V), fem.Function(sol.disc.Q)
+        for _ in range(order):
+            form = ufl.derivative(form, sol.u, du) + ufl.derivative(form, sol.lam, dlam)
+        return ufl.replace(expand_derivatives(form), {du: w_u, dlam: w_lam})
 
     def active_set_remainder(self, u_plus: Any, lam_plus: Any, xi_plus: Any) -> ufl.Form:
         """R_A = (xi^+, (chi^+ - chi_h) [lam_h - c d(x + u_h)]) (Proposition 4)."""
@@ -234,12 +242,8 @@ class _Forms:
     def third_order(self, z: DualSolution, e_u: Any, e_lam: Any, e_y: Any, e_xi: Any
                     ) -> ufl.Form:
         """R3 ~ -1/12 [L'''(e_w, e_w, e_w) + 3 rho''(e_z)(e_w, e_w)] (module docstring)."""
-        third = self.lagrangian(z)
-        for _ in range(3):
-            third = self.gateaux(third, e_u, e_lam)
-        second = self.rho(e_y, e_xi)
-        for _ in range(2):
-            second = self.gateaux(second, e_u, e_lam)
+        third = self.gateaux(self.lagrangian(z), e_u, e_lam, order=3)
+        second = self.gateaux(self.rho(e_y, e_xi), e_u, e_lam, order=2)
         return -1.0 / 12.0 * (third + 3.0 * second)
 
 

@@ -263,9 +263,9 @@ def cylinder_levels():
             for name, goal in GOALS.items():
                 if level < JUDGED:
                     with ds.estimate(sol, goal) as est:
-                        row[name] = (est.J_h, est.eta, est.interval)
+                        row[name] = (est.J_h, est.eta, est.interval, est.nonlinear_remainder)
                 else:
-                    row[name] = (_goal_value(sol, goal), None, None)
+                    row[name] = (_goal_value(sol, goal), None, None, None)
         rows.append(row)
         msh, _, _, facets = refine_with_tags(problem, None)
     return rows
@@ -288,10 +288,46 @@ def test_cylinder_interval_contains_reference(cylinder_levels, goal):
     print(f"\n{goal}: reference {J_ref:.10e} (ratio of the finest differences {ratio:.2f})")
     missed = []
     for level, row in enumerate(cylinder_levels[:JUDGED]):
-        J_h, eta, (low, high) = row[goal]
+        J_h, eta, (low, high), R3 = row[goal]
         inside = low <= J_ref <= high
         print(f"level {level} cells {row['cells']:6d} J_h {J_h:.10e} eta {eta:+.3e} "
-              f"Ieff {(J_ref - J_h) / eta:.3f} interval ({low:.8e}, {high:.8e}) {inside}")
+              f"R3 {R3:+.2e} Ieff {(J_ref - J_h) / eta:.3f} interval ({low:.8e}, {high:.8e}) "
+              f"{inside}")
         if not inside:
             missed.append(level)
     assert not missed
+
+
+def test_third_order_remainder_is_third_derivative():
+    """R3 = -1/12 d^3/ds^3 L(x_h + s e) at s = 0 (x = (w, z), e the weights), against third
+    differences of the assembled Lagrangian, on the clamped block (contact everywhere, so the
+    NCP's max is linear along the path)."""
+    from dwr_signorini import finite_strain_estimate as fse
+    from dwr_signorini.goal import GoalForms
+    from dwr_signorini.quadrature import with_quadrature_degrees
+
+    with ds.solve(clamped_block(MPI.COMM_WORLD, 0.2, ds.NeoHookean())) as sol, \
+            ds.estimate(sol, stress_average) as est:
+        assert sol.num_active == sol.disc.comm.allreduce(sol.active.size, op=MPI.SUM)
+        goal = GoalForms(stress_average, sol.u, sol.lam, sol.disc)
+        forms = fse._Forms(sol, goal)
+        z = est.dual
+        w = fse._patch_weights(sol, z, est.reconstructor)
+        s = fem.Constant(sol.disc.mesh, 0.0)
+        L = ufl.replace(forms.lagrangian(z), {
+            sol.u: sol.u + s * w.w_u, sol.lam: sol.lam + s * w.w_lam,
+            z.y: z.y + s * w.w_y, z.xi: z.xi + s * w.w_xi})
+        compiled = sol.disc.form(with_quadrature_degrees(L, sol.disc.problem.quadrature_degree))
+
+        def f(value):
+            s.value = value
+            return sol.disc.comm.allreduce(fem.assemble_scalar(compiled), op=MPI.SUM)
+
+        def third(h):
+            return (f(2 * h) - 2 * f(h) + 2 * f(-h) - f(-2 * h)) / (2 * h**3)
+
+        h = 0.05
+        differences = (4 * third(h / 2) - third(h)) / 3
+        R3 = est.nonlinear_remainder
+    print(f"R3 {R3:.10e}, -1/12 third differences {-differences / 12:.10e}")
+    assert abs(R3 + differences / 12) <= 1e-4 * abs(R3)
