@@ -492,6 +492,7 @@ def estimate(
     if isinstance(sol, FiniteStrainSolution):  # the nonlinear residuals
         from .finite_strain_estimate import estimate as finite_strain_estimate
 
+        check_options_on_ranks(sol.disc.mesh, "estimate", options)
         return finite_strain_estimate(sol, goal, options, model_error)
     if not isinstance(sol, Solution):
         raise TypeError(
