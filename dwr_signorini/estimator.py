@@ -28,7 +28,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
-from .finite_strain import FiniteStrainSolution, refuse
+from .finite_strain import FiniteStrainSolution
 from .force import ForceControl
 from .goal import Goal, GoalForms, localize
 from .hierarchical import hierarchical_solutions
@@ -437,7 +437,10 @@ def estimate(
     """Estimate J(w) - J(w_h) by eta_p or eta (Section 4), and an interval for J(w).
 
     Args:
-        sol: The discrete solution (its last Newton factorisation serves the dual solve).
+        sol: The discrete solution (its last Newton factorisation serves the dual solve), or
+            a finite-strain one (:mod:`~dwr_signorini.finite_strain_estimate`: the dual at
+            w_h, the patch weights, the interval widened by the third-order remainder; returns
+            its :class:`~dwr_signorini.finite_strain_estimate.FiniteStrainEstimate`).
         goal: ``goal(u, lam, m) -> ufl.Form``.
         estimator: ``"eta"`` (primal and dual residual, (15)) or ``"eta_p"`` (primal residual,
             (13)). eta_p is reported in both cases.
@@ -470,15 +473,14 @@ def estimate(
         ``Estimate.weights`` names the weights it was computed with.
 
     Raises:
-        TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution`, or ``goal`` is not
+        TypeError: If ``sol`` is not a :class:`~dwr_signorini.Solution` (or a finite-strain
+            solution), or ``goal`` is not
             callable or does not return a UFL form.
         ValueError: For an unknown ``estimator`` or ``weights``, or a goal that is not a scalar
             form on the solution's mesh or uses ``lam`` outside ``m.ds_contact``.
         RuntimeError: If the dual solution (or a P2 solution of the weights) is not finite, or
             the iterative P2 solve of ``weights="hierarchical"`` does not converge.
     """
-    if isinstance(sol, FiniteStrainSolution):
-        refuse("estimate")
     keywords = EstimateOptions(estimator, weights, petsc_options, quadrature_degree)
     if options is None:
         options = keywords
@@ -487,6 +489,11 @@ def estimate(
             "options must be an EstimateOptions, given instead of the estimate's keyword "
             "arguments"
         )
+    if isinstance(sol, FiniteStrainSolution):  # the nonlinear residuals
+        from .finite_strain_estimate import estimate as finite_strain_estimate
+
+        check_options_on_ranks(sol.disc.mesh, "estimate", options)
+        return finite_strain_estimate(sol, goal, options, model_error)
     if not isinstance(sol, Solution):
         raise TypeError(
             f"sol must be the Solution returned by solve(), got {type(sol).__name__}"

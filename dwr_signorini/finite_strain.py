@@ -21,9 +21,10 @@ solves, with the Jacobian reassembled (UFL derivatives, the second derivative of
 
 i.e. the linearised gap closes on A and lam = 0 off it. The distances are exact for
 :class:`~dwr_signorini.obstacles.Plane`, :class:`~dwr_signorini.obstacles.Sphere` (a disc
-in 2D) and :class:`~dwr_signorini.obstacles.Cylinder`; other gaps are refused. Not covered
-yet (refused with a ValueError): friction, contact pairs, force control, plane stress, and the
-error estimate.
+in 2D) and :class:`~dwr_signorini.obstacles.Cylinder`; other gaps are refused. The goal's
+error estimate (the dual problem, eta_p, eta and the interval) is in
+:mod:`~dwr_signorini.finite_strain_estimate`. Not covered yet (refused with a ValueError):
+friction, contact pairs, force control, plane stress, and the adaptive loop.
 """
 
 from __future__ import annotations
@@ -94,6 +95,50 @@ def signed_distance(obstacle: Obstacle, y: Any) -> Any:
     return ufl.sqrt(ufl.dot(y - c, y - c)) - float(obstacle.radius)
 
 
+def cell_degree(disc: Any) -> int:
+    """The quadrature degree of the Newton system's cell integrals.
+
+    P1 on simplices: P(F) is constant per cell for constant E, nu (degree 2 is exact); E or nu
+    functions of x, or other cells, get the problem's data degree.
+    """
+    problem = disc.problem
+    simplex = disc.mesh.topology.cell_type in (CellType.triangle, CellType.tetrahedron)
+    varying = callable(problem.E) or callable(problem.nu)
+    return problem.quadrature_degree if varying or not simplex else 2
+
+
+def residual_forms(disc: Any, u: Any, lam: Any, t: Any, v: Any, dx: ufl.Measure,
+                   dsc: ufl.Measure) -> tuple[ufl.Form, ufl.Form, ufl.Form, Any]:
+    """The parts of R(u, lam)[v] (module docstring) and the distance d(x + u), as UFL.
+
+    A pure function of its arguments, so that the Newton system, the dual problem and the
+    estimator (:mod:`~dwr_signorini.finite_strain_estimate`) share one residual.
+
+    Args:
+        disc: The discretisation (material data, loads, measures).
+        u: The displacement (a function on T_h).
+        lam: The multiplier (a function on Lambda_H).
+        t: The load factor (a Constant or a number).
+        v: The displacement's test function or weight.
+        dx: The cell measure (with its quadrature degree).
+        dsc: The measure of Gamma_C (with its quadrature degree).
+
+    Returns:
+        ``(int P(F) : grad v dx, t l(v), -lam d'(x + u)[v] ds, d(x + u))``.
+    """
+    problem = disc.problem
+    E, nu = disc.fields.material(disc.m.x)
+    mu, lmbda = lame_parameters(E, nu, problem.model)
+    gdim = disc.mesh.geometry.dim
+    F = ufl.variable(ufl.Identity(gdim) + ufl.grad(u))
+    P = problem.material_law.first_piola(F, mu, lmbda)
+    d = signed_distance(check_obstacle(problem.gap), disc.m.x + u)
+    internal = ufl.inner(P, ufl.grad(v)) * dx
+    load = t * with_quadrature_degrees(disc.load_form(v), problem.quadrature_degree)
+    contact = -ufl.derivative(lam * d * dsc, u, v)
+    return internal, load, contact, d
+
+
 class FiniteStrainSystem:
     """The forms of the finite-strain Newton step on a discretisation (module docstring)."""
 
@@ -109,27 +154,16 @@ class FiniteStrainSystem:
         self.t = fem.Constant(disc.mesh, 1.0)
         v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
         mu_q = ufl.TestFunction(Q)
-        E, nu = disc.fields.material(m.x)
-        mu, lmbda = lame_parameters(E, nu, problem.model)
-        simplex = disc.mesh.topology.cell_type in (CellType.triangle, CellType.tetrahedron)
-        # P1 on simplices: P(F) is constant per cell for constant E, nu (degree 2 is exact);
-        # E or nu functions of x get the problem's data degree
-        varying = callable(problem.E) or callable(problem.nu)
-        degree = problem.quadrature_degree if varying or not simplex else 2
-        dx = m.dx(metadata={"quadrature_degree": degree})
+        E, _ = disc.fields.material(m.x)
+        dx = m.dx(metadata={"quadrature_degree": cell_degree(disc)})
         dsc = m.ds_contact(metadata={"quadrature_degree": problem.quadrature_degree})
         gdim = disc.mesh.geometry.dim
-        F = ufl.variable(ufl.Identity(gdim) + ufl.grad(self.u))
-        P = problem.material_law.first_piola(F, mu, lmbda)
         self._J_cells = fem.Function(fem.functionspace(disc.mesh, ("DG", 0)))
         self._J_expr = fem.Expression(
             ufl.det(ufl.Identity(gdim) + ufl.grad(self.u)),
             compat.interpolation_points(self._J_cells.function_space.element),
         )
-        d = signed_distance(self.obstacle, m.x + self.u)
-        internal = ufl.inner(P, ufl.grad(v)) * dx
-        load = self.t * with_quadrature_degrees(disc.load_form(v), problem.quadrature_degree)
-        contact = -ufl.derivative(self.lam * d * dsc, self.u, v)
+        internal, load, contact, d = residual_forms(disc, self.u, self.lam, self.t, v, dx, dsc)
         residual = internal - load + contact
         gap = d * mu_q * dsc
         coupling = ufl.derivative(gap, self.u, du)
@@ -231,6 +265,23 @@ class FiniteStrainSystem:
                 dofs, ghost = bc.dof_indices()
                 on_bc[dofs[:ghost]] = True
             rhs_u[on_bc] = w[on_bc]
+        self.newton_matrix(active)
+        rhs = self._J.createVecLeft()
+        rhs.array_w[:] = np.concatenate([rhs_u, rhs_lam])
+        x = rhs.duplicate()
+        self.ksp.solve(rhs, x)
+        out = x.array_r.copy()
+        for obj in (rhs, x):
+            obj.destroy()
+        return out[: self.n_u], out[self.n_u:]
+
+    def newton_matrix(self, active: np.ndarray) -> PETSc.Mat:
+        """Assemble the Newton matrix of the set ``active`` at (u, lam) into the system's KSP.
+
+        The saddle matrix of the module docstring, kept (``_J``) with the KSP that factors it
+        at its next solve; the dual problem solves with its transpose.
+        """
+        comm = self.disc.comm
         blocks = {k: self._matrix(k) for k in ("J", "B", "BT")}
         scale = blocks["B"].createVecLeft()
         scale.array_w[:] = -active.astype(float)
@@ -242,16 +293,11 @@ class FiniteStrainSystem:
         nest = PETSc.Mat().createNest([[blocks["J"], blocks["BT"]], [blocks["B"], D]], comm=comm)
         if self._J is not None:
             self._J.destroy()
-        self._J = nest.convert("aij")
+        self._J = nest.convert("aij")  # in place: nest is the kept matrix
         self.ksp.setOperators(self._J)
-        rhs = self._J.createVecLeft()
-        rhs.array_w[:] = np.concatenate([rhs_u, rhs_lam])
-        x = rhs.duplicate()
-        self.ksp.solve(rhs, x)
-        out = x.array_r.copy()
-        for obj in (*blocks.values(), D, nest, scale, rhs, x):
+        for obj in (*blocks.values(), D, scale):
             obj.destroy()
-        return out[: self.n_u], out[self.n_u:]
+        return self._J
 
     def _matrix(self, name: str, bcs: bool = True) -> PETSc.Mat:
         A = fem_petsc.assemble_matrix(self.forms[name], bcs=self.disc.bcs if bcs else [])
@@ -395,14 +441,15 @@ def refuse(what: str, reason: str = "") -> None:
 
     Args:
         what: The function (or combination) refused.
-        reason: Why; default: the error estimate with the nonlinear residuals is missing.
+        reason: Why; default: the adaptive loop at finite strain is missing.
 
     Raises:
         ValueError: Always, naming ``what``.
     """
     reason = reason or (
-        "the error estimate with the nonlinear residuals is not implemented; use ds.solve or "
-        "ds.solve_path(problem, None, load_factors=...)"
+        "the adaptive loop (and a goal along a load path) is not implemented at finite strain; "
+        "solve with ds.solve or ds.solve_path(problem, None, load_factors=...) and estimate "
+        "a state with ds.estimate(sol, goal)"
     )
     raise ValueError(
         f"{what} does not take a finite-strain problem (material=NeoHookean/"
@@ -508,7 +555,7 @@ def path_entry(problem: Any, goal: Any, load_factors: Any, ncp_scale: Any, petsc
 
     Raises:
         ValueError: ``problems`` not one finite-strain problem, no ``load_factors``, a goal
-            (not estimated at finite strain yet) or ``adaptive``.
+            (estimate each state with :func:`~dwr_signorini.estimate` instead) or ``adaptive``.
     """
     from .settings import SolverOptions
 
