@@ -342,6 +342,9 @@ class Discretization:
         Args:
             mu: A normal multiplier (trial, test or discrete function).
 
+        Returns:
+            The linear form ``w(mu)`` (UFL), a scalar for a discrete ``mu``.
+
         Raises:
             ValueError: If the problem has no obstacle under a given force.
         """
