@@ -42,7 +42,6 @@ from dolfinx.fem import petsc as fem_petsc
 from dolfinx.mesh import CellType
 
 from . import compat
-from .fields import lame_parameters
 from .lifetime import Releasable, destroy_attributes
 from .obstacles import Cylinder, Obstacle, Plane, Sphere
 from .quadrature import with_quadrature_degrees
@@ -109,8 +108,7 @@ class FiniteStrainSystem:
         self.t = fem.Constant(disc.mesh, 1.0)
         v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
         mu_q = ufl.TestFunction(Q)
-        E, nu = disc.fields.material(m.x)
-        mu, lmbda = lame_parameters(E, nu, problem.model)
+        E, _ = disc.fields.material(m.x)
         simplex = disc.mesh.topology.cell_type in (CellType.triangle, CellType.tetrahedron)
         # P1 on simplices: P(F) is constant per cell for constant E, nu (degree 2 is exact);
         # E or nu functions of x get the problem's data degree
@@ -119,8 +117,7 @@ class FiniteStrainSystem:
         dx = m.dx(metadata={"quadrature_degree": degree})
         dsc = m.ds_contact(metadata={"quadrature_degree": problem.quadrature_degree})
         gdim = disc.mesh.geometry.dim
-        F = ufl.variable(ufl.Identity(gdim) + ufl.grad(self.u))
-        P = problem.material_law.first_piola(F, mu, lmbda)
+        P = disc.fields.first_piola(self.u)  # the goals' m.P(u)
         self._J_cells = fem.Function(fem.functionspace(disc.mesh, ("DG", 0)))
         self._J_expr = fem.Expression(
             ufl.det(ufl.Identity(gdim) + ufl.grad(self.u)),

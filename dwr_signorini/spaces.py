@@ -27,7 +27,7 @@ from dolfinx import mesh as dmesh
 
 from . import compat
 from .collective import shadow
-from .fields import MeshFields
+from .fields import MeshFields, deformation_gradient
 from .pairs import MasterTrace, TraceGeometry
 from .problem import SignoriniProblem
 from .quadrature import expand_integer_powers, is_polynomial
@@ -84,6 +84,22 @@ class Measures:
             The stress tensor (UFL), with the problem's E, nu and model.
         """
         return self.fields.sigma(u)
+
+    def F(self, u: Any) -> Any:
+        """The deformation gradient F = I + grad u (any material law)."""
+        return deformation_gradient(u)
+
+    def P(self, u: Any) -> Any:
+        """The first Piola-Kirchhoff stress of the material law, per cell tag as E, nu are.
+
+        P = dpsi/dF(I + grad u) at finite strain; sigma(u) for the linear material
+        (:meth:`~dwr_signorini.fields.MeshFields.first_piola`).
+        """
+        return self.fields.first_piola(u)
+
+    def cauchy(self, u: Any) -> Any:
+        """The Cauchy stress P F^T / det F; sigma(u) for the linear material."""
+        return self.fields.cauchy(u)
 
     def epsilon(self, u: Any) -> Any:
         """Strain eps(u) = sym(grad u).
