@@ -74,6 +74,7 @@ figures:
 	$(FENICSX) mpirun -n $(NP) python3 demos/analytic_2d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/obstacle_3d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/hertz.py --dim 2
+	$(FENICSX) mpirun -n $(NP) python3 demos/finite_strain.py
 	mkdir -p docs/img
 	cp results/bar_2d/convergence_cells.png docs/img/bar_convergence_cells.png
 	cp results/bar_2d/convergence_time.png docs/img/bar_convergence_time.png
@@ -84,6 +85,8 @@ figures:
 	cp results/obstacle_3d/solution.png docs/img/obstacle_solution.png
 	cp results/hertz_2d/pressure_profile.png docs/img/hertz_pressure_profile.png
 	cp results/hertz_2d/errors_dofs.png docs/img/hertz_errors_dofs.png
+	for f in deformed_meshes contact_pressure force_displacement; do \
+		cp results/finite_strain/$$f.png docs/img/finite_strain_$$f.png; done
 
 # Optional peer codes for benchmarks/peers.py (env/peer-packages.txt: GetFEM), never a dependency
 # of the package. `make peer-env` runs apt-get through $(FENICSX), so the packages go where every

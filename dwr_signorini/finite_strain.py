@@ -152,6 +152,11 @@ class FiniteStrainSystem:
         self.u_D = np.zeros_like(self.u.x.array)
         for bc in disc.prescribed_bcs:
             bc.set(self.u_D)
+        #: The owned dofs on Gamma_D (a blocked condition's dof_indices() may count ghost
+        #: dofs among its owned ones: filtered by index).
+        self.owned_bc_dofs = np.unique(np.concatenate(
+            [bc.dof_indices()[0] for bc in disc.bcs] + [np.zeros(0, np.int32)]))
+        self.owned_bc_dofs = self.owned_bc_dofs[self.owned_bc_dofs < self.n_u]
         #: The prescribed values at t = 0 (zero, or those of a path's initial state).
         self.u_D0 = np.zeros_like(self.u_D)
         self.ksp = PETSc.KSP().create(disc.comm)
@@ -184,9 +189,8 @@ class FiniteStrainSystem:
     def increment(self) -> np.ndarray:
         """The owned displacement increment the prescribed values ask for (0 off Gamma_D)."""
         w = np.zeros(self.n_u)
-        for bc in self.disc.bcs:
-            dofs, ghost = bc.dof_indices()
-            w[dofs[:ghost]] = self.target[dofs[:ghost]] - self.u.x.array[dofs[:ghost]]
+        dofs = self.owned_bc_dofs
+        w[dofs] = self.target[dofs] - self.u.x.array[dofs]
         return w
 
     def update(self, du: np.ndarray, dlam: np.ndarray) -> None:
@@ -210,9 +214,7 @@ class FiniteStrainSystem:
         """R (owned, zero on the Dirichlet rows), G (owned) and the size of R's terms."""
         parts = [self._owned(k) for k in ("internal", "load", "contact")]
         R = parts[0] - parts[1] + parts[2]
-        for bc in self.disc.bcs:
-            dofs, ghost = bc.dof_indices()
-            R[dofs[:ghost]] = 0.0
+        R[self.owned_bc_dofs] = 0.0
         comm = self.disc.comm
         scale = max(np.sqrt(comm.allreduce(float(p @ p), op=MPI.SUM)) for p in parts)
         return R, self._owned("G"), max(scale, 1e-300)
@@ -232,9 +234,7 @@ class FiniteStrainSystem:
             rhs_u = rhs_u - lift_u
             rhs_lam = np.where(active, rhs_lam + lift_lam, rhs_lam)
             on_bc = w != 0.0
-            for bc in self.disc.bcs:
-                dofs, ghost = bc.dof_indices()
-                on_bc[dofs[:ghost]] = True
+            on_bc[self.owned_bc_dofs] = True
             rhs_u[on_bc] = w[on_bc]
         blocks = {k: self._matrix(k) for k in ("J", "B", "BT")}
         scale = blocks["B"].createVecLeft()

@@ -86,19 +86,38 @@ class Measures:
         return self.fields.sigma(u)
 
     def F(self, u: Any) -> Any:
-        """The deformation gradient F = I + grad u (any material law)."""
+        """The deformation gradient F = I + grad u (for any material law).
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            F (UFL tensor).
+        """
         return deformation_gradient(u)
 
     def P(self, u: Any) -> Any:
-        """The first Piola-Kirchhoff stress of the material law, per cell tag as E, nu are.
+        """The first Piola-Kirchhoff stress dpsi/dF(I + grad u) of the material law.
 
-        P = dpsi/dF(I + grad u) at finite strain; sigma(u) for the linear material
-        (:meth:`~dwr_signorini.fields.MeshFields.first_piola`).
+        With E, nu per cell tag as given; Hooke's sigma(u) for the linear material.
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            P (UFL tensor), :meth:`~dwr_signorini.fields.MeshFields.first_piola`.
         """
         return self.fields.first_piola(u)
 
     def cauchy(self, u: Any) -> Any:
-        """The Cauchy stress P F^T / det F; sigma(u) for the linear material."""
+        """The Cauchy stress P F^T / det F; Hooke's sigma(u) for the linear material.
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            sigma (UFL tensor) at the reference points, :meth:`~.MeshFields.cauchy`.
+        """
         return self.fields.cauchy(u)
 
     def epsilon(self, u: Any) -> Any:

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import dwr_signorini as ds
+from dwr_signorini import cases
 
 from .test_finite_strain import (
     CONTACT,
@@ -71,3 +72,19 @@ def test_start_with_loads_refused():
             ds.solve_path(loaded, None, load_factors=[1.0], initial_guess=pressed.solutions[-1])
         with pytest.raises(TypeError, match="FiniteStrainSolution"):
             ds.solve_path(press, None, load_factors=[1.0], initial_guess=(1, 2))
+
+
+@pytest.mark.mpi
+def test_clamped_top_ranks_agree():
+    """A vector-valued Dirichlet condition (the rubber cylinder's plate, both components) whose
+    dofs the partition splits: the contact force on all ranks equals the one-process solve's
+    (each rank solves that too)."""
+    forces = []
+    for comm in (MPI.COMM_SELF, MPI.COMM_WORLD):
+        press, _ = cases.rubber_cylinder_problems(
+            cases.rubber_cylinder_mesh(comm, h_contact=0.2, h=0.3), approach=0.1)
+        with ds.solve_path(press, None, load_factors=[0.5, 1.0]) as path:
+            forces.append(cases.measure_contact(path.solutions[-1]).force)
+    print(f"\ncontact force: one process {forces[0]:.14f}, all {forces[1]:.14f}")
+    assert forces[0] > 0.01
+    assert abs(forces[1] - forces[0]) < 1e-9 * forces[0]
