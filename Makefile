@@ -133,6 +133,21 @@ export ENV_ADD_SH
 peer-env:
 	$(FENICSX) sh -ec "$$ENV_ADD_SH" peer-env $(PEER_PACKAGES) python3 benchmarks/peers.py --check
 
+# Optional PyPI peers for benchmarks/peer_felupe.py (env/peer-pypi.txt: felupe), never a
+# dependency of the package: pip installs them with --no-deps into benchmarks/.peers (ignored by
+# git), which the benchmark puts on sys.path; numpy and scipy come from the environment. The
+# wheels are fetched by the host's pip (a cached Debian root may not trust the host's
+# certificates) and installed by the environment's own pip from them, offline. Ends with
+# `peer_felupe.py --check`.
+PEER_PYPI := env/peer-pypi.txt
+PEER_PYPI_DIR := benchmarks/.peers
+.PHONY: peer-felupe
+peer-felupe:
+	python3 -m pip download --quiet --no-deps --only-binary=:all: -d $(PEER_PYPI_DIR)/wheels -r $(PEER_PYPI)
+	$(FENICSX) python3 -m pip install --quiet --no-index --no-deps --upgrade \
+		--find-links $(PEER_PYPI_DIR)/wheels --target $(PEER_PYPI_DIR) -r $(PEER_PYPI)
+	$(FENICSX) python3 benchmarks/peer_felupe.py --check
+
 # `make docs-check`: the site built anew with warnings as errors (-W, every page read again), every
 # internal link, anchor and image checked (docs/check_site.py), and the landing page and a demo page
 # rendered by headless Chromium to docs/screenshots/*.png. Chromium is not in the environment's
