@@ -58,7 +58,7 @@ import ufl
 from dolfinx import fem
 
 import dwr_signorini as ds
-from dwr_signorini import cases
+from dwr_signorini import cases, compat
 from dwr_signorini.io import OutputDirectory, write_json
 from dwr_signorini.viz.canvas import new_figure, save_figure
 
@@ -131,7 +131,7 @@ def deformed_cells(sol) -> tuple | None:
     W = fem.functionspace(V.mesh, ("DG", 0))
     p = fem.Function(W)
     p.interpolate(fem.Expression(-ufl.tr(sol.disc.m.cauchy(sol.u)) / 2,
-                                 W.element.interpolation_points()))
+                                 compat.interpolation_points(W.element)))
     pieces = comm.gather((x, p.x.array[W.dofmap.list[:n, 0]]), root=0)
     return None if pieces is None else tuple(np.concatenate(v) for v in zip(*pieces, strict=True))
 
