@@ -105,7 +105,7 @@ class ContactMeasure:
         width: The deformed length of the active macro facets.
         x: Per macro facet (rank 0, sorted by x): the deformed midpoint's abscissa.
         lam: lambda_H, the force per reference length.
-        pressure: The Cauchy contact pressure, force per deformed length, lambda |E| / |e|.
+        pressure: The Cauchy contact pressure, force per deformed length, ``lambda |E| / |e|``.
         active: Whether the facet is in contact.
     """
 
@@ -120,8 +120,9 @@ class ContactMeasure:
 def measure_contact(sol: Any) -> ContactMeasure:
     """The contact data of a 2D finite-strain solution (collective; the arrays on rank 0).
 
-    Per macro facet E (reference) with deformed image e: |E| = int_E dS,
-    |e| = int_E |F t| dS (t the unit tangent), the deformed midpoint int_E (x + u) dS / |E|.
+    Per macro facet E (reference) with deformed image e: ``|E| = int_E dS``,
+    ``|e| = int_E |F t| dS`` (t the unit tangent), the deformed midpoint
+    ``int_E (x + u) dS / |E|``.
 
     Args:
         sol: A :class:`~dwr_signorini.finite_strain.FiniteStrainSolution` of a 2D problem.
