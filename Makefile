@@ -74,6 +74,7 @@ figures:
 	$(FENICSX) mpirun -n $(NP) python3 demos/analytic_2d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/obstacle_3d.py
 	$(FENICSX) mpirun -n $(NP) python3 demos/hertz.py --dim 2
+	$(FENICSX) mpirun -n $(NP) python3 demos/finite_strain.py
 	mkdir -p docs/img
 	cp results/bar_2d/convergence_cells.png docs/img/bar_convergence_cells.png
 	cp results/bar_2d/convergence_time.png docs/img/bar_convergence_time.png
@@ -84,6 +85,8 @@ figures:
 	cp results/obstacle_3d/solution.png docs/img/obstacle_solution.png
 	cp results/hertz_2d/pressure_profile.png docs/img/hertz_pressure_profile.png
 	cp results/hertz_2d/errors_dofs.png docs/img/hertz_errors_dofs.png
+	for f in deformed_meshes contact_pressure force_displacement; do \
+		cp results/finite_strain/$$f.png docs/img/finite_strain_$$f.png; done
 
 # Optional peer codes for benchmarks/peers.py (env/peer-packages.txt: GetFEM), never a dependency
 # of the package. `make peer-env` runs apt-get through $(FENICSX), so the packages go where every
@@ -129,6 +132,21 @@ export ENV_ADD_SH
 .PHONY: peer-env
 peer-env:
 	$(FENICSX) sh -ec "$$ENV_ADD_SH" peer-env $(PEER_PACKAGES) python3 benchmarks/peers.py --check
+
+# Optional PyPI peers for benchmarks/peer_felupe.py (env/peer-pypi.txt: felupe), never a
+# dependency of the package: pip installs them with --no-deps into benchmarks/.peers (ignored by
+# git), which the benchmark puts on sys.path; numpy and scipy come from the environment. The
+# wheels are fetched by the host's pip (a cached Debian root may not trust the host's
+# certificates) and installed by the environment's own pip from them, offline. Ends with
+# `peer_felupe.py --check`.
+PEER_PYPI := env/peer-pypi.txt
+PEER_PYPI_DIR := benchmarks/.peers
+.PHONY: peer-felupe
+peer-felupe:
+	python3 -m pip download --quiet --no-deps --only-binary=:all: -d $(PEER_PYPI_DIR)/wheels -r $(PEER_PYPI)
+	$(FENICSX) python3 -m pip install --quiet --no-index --no-deps --upgrade \
+		--find-links $(PEER_PYPI_DIR)/wheels --target $(PEER_PYPI_DIR) -r $(PEER_PYPI)
+	$(FENICSX) python3 benchmarks/peer_felupe.py --check
 
 # `make docs-check`: the site built anew with warnings as errors (-W, every page read again), every
 # internal link, anchor and image checked (docs/check_site.py), and the landing page and a demo page

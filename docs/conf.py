@@ -109,6 +109,13 @@ demo_pages = {
         ("friction_convergence_cells.png", "Error and estimate against the number of cells."),
         ("friction_mesh_level06.png", "The adaptive mesh of level 6."),
     ],
+    "finite_strain": [
+        ("finite_strain_deformed_meshes.png",
+         "The deformed meshes: first and last press step, and slid by one radius."),
+        ("finite_strain_contact_pressure.png",
+         "The Cauchy contact pressure along the contact per press step, and after the slide."),
+        ("finite_strain_force_displacement.png", "The contact force against the approach."),
+    ],
     "cattaneo_mindlin": [
         ("cattaneo_mindlin_traction.png",
          "lambda_t of the last shear step against Cattaneo and Mindlin's traction."),

@@ -25,7 +25,12 @@ from .validation import MaterialData, call_user, is_real, nonzero_literal
 if TYPE_CHECKING:
     from .problem import SignoriniProblem
 
-__all__ = ["MeshFields", "gap_value", "lame_parameters", "stress"]
+__all__ = ["MeshFields", "deformation_gradient", "gap_value", "lame_parameters", "stress"]
+
+
+def deformation_gradient(u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """The deformation gradient F = I + grad u of a displacement (UFL)."""
+    return ufl.Identity(len(u)) + ufl.grad(u)
 
 
 def lame_parameters(E: float, nu: float, model: str = "plane_strain") -> tuple[float, float]:
@@ -219,6 +224,43 @@ class MeshFields:
             return stress(u, problem.E, problem.nu, problem.model, constants=True)
         E, nu = self.material(ufl.SpatialCoordinate(extract_unique_domain(u)))
         return stress(u, E, nu, problem.model)
+
+    def first_piola(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """The first Piola-Kirchhoff stress P(F(u)) of the problem's material law.
+
+        P = dpsi/dF at F = I + grad u (a UFL derivative of the strain energy) for a hyperelastic
+        law, with mu, lambda from E, nu as given (per cell tag as DG0 fields, as in the Newton
+        system); for :class:`~dwr_signorini.LinearElastic` it is Hooke's sigma(u) (:meth:`sigma`):
+        at small strain the stress measures coincide.
+
+        Args:
+            u: A displacement on this mesh (UFL vector).
+
+        Returns:
+            P as a UFL tensor (d x d, not symmetric at finite strain).
+        """
+        law = self.problem.material_law
+        if not law.finite_strain:
+            return self.sigma(u)
+        E, nu = self.material(ufl.SpatialCoordinate(extract_unique_domain(u)))
+        mu, lmbda = lame_parameters(E, nu, self.problem.model)
+        return law.first_piola(ufl.variable(deformation_gradient(u)), mu, lmbda)
+
+    def cauchy(self, u: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """The Cauchy stress sigma = P F^T / det F of the problem's material law.
+
+        For :class:`~dwr_signorini.LinearElastic` it is Hooke's sigma(u) (:meth:`sigma`).
+
+        Args:
+            u: A displacement on this mesh (UFL vector).
+
+        Returns:
+            The Cauchy stress as a UFL tensor, a field on the reference configuration.
+        """
+        if not self.problem.material_law.finite_strain:
+            return self.sigma(u)
+        F = deformation_gradient(u)
+        return self.first_piola(u) * F.T / ufl.det(F)
 
     def elastic_form(self, u: Any, v: Any, dx: ufl.Measure) -> ufl.Form:
         """a(u, v) = (sigma(u), eps(v)) (Section 2) on this mesh."""

@@ -30,6 +30,8 @@ friction, contact pairs, force control, plane stress, and the adaptive loop.
 from __future__ import annotations
 
 import logging
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,15 +45,14 @@ from dolfinx.fem import petsc as fem_petsc
 from dolfinx.mesh import CellType
 
 from . import compat
-from .fields import lame_parameters
 from .lifetime import Releasable, destroy_attributes
 from .obstacles import Cylinder, Obstacle, Plane, Sphere
 from .quadrature import with_quadrature_degrees
 from .semismooth import ConvergenceError
 
 __all__ = [
-    "FiniteStrainPath", "FiniteStrainSolution", "check_obstacle", "check_options", "refuse",
-    "signed_distance", "solve", "solve_path"]
+    "FiniteStrainPath", "FiniteStrainSolution", "FiniteStrainStep", "check_obstacle",
+    "check_options", "refuse", "signed_distance", "solve", "solve_path"]
 
 logger = logging.getLogger("dwr_signorini.newton")
 
@@ -127,11 +128,7 @@ def residual_forms(disc: Any, u: Any, lam: Any, t: Any, v: Any, dx: ufl.Measure,
         ``(int P(F) : grad v dx, t l(v), -lam d'(x + u)[v] ds, d(x + u))``.
     """
     problem = disc.problem
-    E, nu = disc.fields.material(disc.m.x)
-    mu, lmbda = lame_parameters(E, nu, problem.model)
-    gdim = disc.mesh.geometry.dim
-    F = ufl.variable(ufl.Identity(gdim) + ufl.grad(u))
-    P = problem.material_law.first_piola(F, mu, lmbda)
+    P = disc.fields.first_piola(u)  # the goals' m.P(u)
     d = signed_distance(check_obstacle(problem.gap), disc.m.x + u)
     internal = ufl.inner(P, ufl.grad(v)) * dx
     load = t * with_quadrature_degrees(disc.load_form(v), problem.quadrature_degree)
@@ -187,6 +184,13 @@ class FiniteStrainSystem:
         self.u_D = np.zeros_like(self.u.x.array)
         for bc in disc.prescribed_bcs:
             bc.set(self.u_D)
+        #: The owned dofs on Gamma_D (a blocked condition's dof_indices() may count ghost
+        #: dofs among its owned ones: filtered by index).
+        self.owned_bc_dofs = np.unique(np.concatenate(
+            [bc.dof_indices()[0] for bc in disc.bcs] + [np.zeros(0, np.int32)]))
+        self.owned_bc_dofs = self.owned_bc_dofs[self.owned_bc_dofs < self.n_u]
+        #: The prescribed values at t = 0 (zero, or those of a path's initial state).
+        self.u_D0 = np.zeros_like(self.u_D)
         self.ksp = PETSc.KSP().create(disc.comm)
         self.ksp.setType("preonly")
         self.ksp.getPC().setType("lu")
@@ -206,16 +210,19 @@ class FiniteStrainSystem:
         return out
 
     def set_load(self, t: float) -> None:
-        """The load factor t: loads t l, prescribed values t u_D (reached by the next step)."""
+        """The load factor t: loads t l, prescribed values u_D0 + t (u_D - u_D0).
+
+        They are reached by the next step; u_D0 is zero unless the path starts from a state
+        (:func:`solve_path`).
+        """
         self.t.value = t
-        self.target = t * self.u_D
+        self.target = self.u_D0 + t * (self.u_D - self.u_D0)
 
     def increment(self) -> np.ndarray:
         """The owned displacement increment the prescribed values ask for (0 off Gamma_D)."""
         w = np.zeros(self.n_u)
-        for bc in self.disc.bcs:
-            dofs, ghost = bc.dof_indices()
-            w[dofs[:ghost]] = self.target[dofs[:ghost]] - self.u.x.array[dofs[:ghost]]
+        dofs = self.owned_bc_dofs
+        w[dofs] = self.target[dofs] - self.u.x.array[dofs]
         return w
 
     def update(self, du: np.ndarray, dlam: np.ndarray) -> None:
@@ -239,9 +246,7 @@ class FiniteStrainSystem:
         """R (owned, zero on the Dirichlet rows), G (owned) and the size of R's terms."""
         parts = [self._owned(k) for k in ("internal", "load", "contact")]
         R = parts[0] - parts[1] + parts[2]
-        for bc in self.disc.bcs:
-            dofs, ghost = bc.dof_indices()
-            R[dofs[:ghost]] = 0.0
+        R[self.owned_bc_dofs] = 0.0
         comm = self.disc.comm
         scale = max(np.sqrt(comm.allreduce(float(p @ p), op=MPI.SUM)) for p in parts)
         return R, self._owned("G"), max(scale, 1e-300)
@@ -261,9 +266,7 @@ class FiniteStrainSystem:
             rhs_u = rhs_u - lift_u
             rhs_lam = np.where(active, rhs_lam + lift_lam, rhs_lam)
             on_bc = w != 0.0
-            for bc in self.disc.bcs:
-                dofs, ghost = bc.dof_indices()
-                on_bc[dofs[:ghost]] = True
+            on_bc[self.owned_bc_dofs] = True
             rhs_u[on_bc] = w[on_bc]
         self.newton_matrix(active)
         rhs = self._J.createVecLeft()
@@ -484,6 +487,25 @@ def _solution(system: FiniteStrainSystem, history: list[dict[str, Any]], t: floa
 
 
 @dataclass
+class FiniteStrainStep:
+    """What one requested load factor of :func:`solve_path` took.
+
+    Attributes:
+        factor: The requested load factor t.
+        newton_iterations: Newton steps of every solve towards it, failed ones included.
+        cuts: The load factors whose step failed and was halved on the way (in order).
+        steps: The load factors solved on the way, the intermediate ones included.
+        seconds: Wall time of the step (all its solves), on rank 0's clock.
+    """
+
+    factor: float
+    newton_iterations: int
+    cuts: list[float]
+    steps: list[float]
+    seconds: float
+
+
+@dataclass
 class FiniteStrainPath(Releasable):
     """The states of :func:`solve_path` on a finite-strain problem.
 
@@ -492,12 +514,14 @@ class FiniteStrainPath(Releasable):
         factors: The requested load factors.
         cuts: The load factors at which a step failed and was halved (in order).
         steps: Every load factor solved, the intermediate ones of halved steps included.
+        records: One :class:`FiniteStrainStep` per requested load factor.
     """
 
     solutions: list[FiniteStrainSolution]
     factors: list[float]
     cuts: list[float] = field(default_factory=list)
     steps: list[float] = field(default_factory=list)
+    records: list[FiniteStrainStep] = field(default_factory=list)
 
     def destroy(self) -> None:
         """Release the Newton system (collective)."""
@@ -505,7 +529,11 @@ class FiniteStrainPath(Releasable):
             self.solutions[0].system.destroy()
 
 
-def solve_path(problem: Any, load_factors: Any, options: Any, max_cuts: int = MAX_CUTS
+Callback = Callable[[FiniteStrainStep, FiniteStrainSolution, None], None]
+
+
+def solve_path(problem: Any, load_factors: Any, options: Any, max_cuts: int = MAX_CUTS,
+               start: FiniteStrainSolution | None = None, callback: Callback | None = None
                ) -> FiniteStrainPath:
     """Solve a finite-strain problem over increasing load factors t (loads t l, t u_D).
 
@@ -513,8 +541,23 @@ def solve_path(problem: Any, load_factors: Any, options: Any, max_cuts: int = MA
     (:class:`~dwr_signorini.ConvergenceError`) is halved and retried from that state, at most
     ``max_cuts`` times per requested factor; the factors where a step was cut are reported.
 
+    From a ``start`` state (a solution of an earlier path on the same macro mesh, e.g. a body
+    pressed, then slid) the prescribed values move from the start's values u_D0 on Gamma_D to
+    the problem's: u_D0 + t (u_D - u_D0); the loads are t l, so the problem must have none.
+
+    Args:
+        problem: The finite-strain problem.
+        load_factors: Increasing factors in (0, inf).
+        options: The :class:`~dwr_signorini.settings.SolverOptions` (checked).
+        max_cuts: The most halvings per requested factor.
+        start: The initial state, or None (zero).
+        callback: Called as ``callback(step, solution, None)`` after each requested factor
+            (a :class:`FiniteStrainStep`; no estimate at finite strain yet).
+
     Raises:
-        ValueError: Load factors not increasing in (0, inf).
+        TypeError: ``start`` not a :class:`FiniteStrainSolution`.
+        ValueError: Load factors not increasing in (0, inf); ``start`` on another mesh, or
+            with a problem that has loads.
         ConvergenceError: A step still failing after ``max_cuts`` halvings.
     """
     from .spaces import discretize
@@ -522,36 +565,74 @@ def solve_path(problem: Any, load_factors: Any, options: Any, max_cuts: int = MA
     factors = [float(t) for t in load_factors]
     if not factors or any(b <= a for a, b in zip([0.0, *factors], factors, strict=False)):
         raise ValueError(f"load_factors must increase from above 0, got {load_factors!r}")
-    system = FiniteStrainSystem(discretize(problem), options.ncp_scale)
-    path = FiniteStrainPath([], factors)
-    done = 0.0
+    if start is not None and not isinstance(start, FiniteStrainSolution):
+        raise TypeError(f"start must be a FiniteStrainSolution, got {type(start).__name__}")
+    disc = discretize(problem) if start is None else start.disc.for_problem(problem)
+    system = FiniteStrainSystem(disc, options.ncp_scale)
     try:
-        for target in factors:
-            cuts, h = 0, target - done
-            while done < target:
-                t = min(target, done + h / 2 ** cuts)
-                saved = system.u.x.array.copy(), system.lam.x.array.copy()
-                try:
-                    history = newton(system, t, options.max_iterations, options.rtol)
-                except ConvergenceError:
-                    system.u.x.array[:], system.lam.x.array[:] = saved
-                    cuts += 1
-                    path.cuts.append(t)
-                    if cuts > max_cuts:
-                        raise
-                    continue
-                path.steps.append(t)
-                done = t
-            path.solutions.append(_solution(system, history, target))
+        if start is not None:
+            _start_from(system, start)
+        return _path(system, factors, options, max_cuts, callback)
     except BaseException:
         system.destroy()
         raise
+
+
+def _start_from(system: FiniteStrainSystem, start: FiniteStrainSolution) -> None:
+    """The system's state and prescribed values at t = 0 from a solution (``solve_path``)."""
+    system.set_load(1.0)
+    loads = system._owned("load")
+    if system.disc.comm.allreduce(bool(np.any(loads != 0.0)), op=MPI.LOR):
+        raise ValueError(
+            "solve_path from an initial state takes a problem without body force or tractions "
+            "(its loads t l would start from zero, not from the state's loads)"
+        )
+    system.u.x.array[:] = start.u.x.array
+    system.lam.x.array[:] = start.lam.x.array
+    system.u_D0[:] = start.u.x.array
+
+
+def _path(system: FiniteStrainSystem, factors: list[float], options: Any, max_cuts: int,
+          callback: Callback | None) -> FiniteStrainPath:
+    """The steps of :func:`solve_path` (module docstring), halving failed ones."""
+    path = FiniteStrainPath([], factors)
+    done = 0.0
+    for target in factors:
+        tic = time.perf_counter()
+        record = FiniteStrainStep(target, 0, [], [], 0.0)
+        cuts, h = 0, target - done
+        while done < target:
+            t = min(target, done + h / 2 ** cuts)
+            saved = system.u.x.array.copy(), system.lam.x.array.copy()
+            try:
+                history = newton(system, t, options.max_iterations, options.rtol)
+            except ConvergenceError as error:
+                record.newton_iterations += max(len(error.history) - 1, 0)
+                system.u.x.array[:], system.lam.x.array[:] = saved
+                cuts += 1
+                record.cuts.append(t)
+                if cuts > max_cuts:
+                    raise
+                continue
+            record.newton_iterations += len(history) - 1
+            record.steps.append(t)
+            done = t
+        record.seconds = system.disc.comm.bcast(time.perf_counter() - tic, root=0)
+        path.cuts += record.cuts
+        path.steps += record.steps
+        path.records.append(record)
+        path.solutions.append(_solution(system, history, target))
+        if callback is not None:
+            callback(record, path.solutions[-1], None)
     return path
 
 
 def path_entry(problem: Any, goal: Any, load_factors: Any, ncp_scale: Any, petsc_options: Any,
-               method: Any, adaptive: bool) -> FiniteStrainPath:
+               method: Any, adaptive: bool, initial_guess: Any = None,
+               callback: Callback | None = None) -> FiniteStrainPath:
     """:func:`dwr_signorini.solve_path` with ``load_factors``: checks, then :func:`solve_path`.
+
+    ``initial_guess`` is its ``start``.
 
     Raises:
         ValueError: ``problems`` not one finite-strain problem, no ``load_factors``, a goal
@@ -568,4 +649,4 @@ def path_entry(problem: Any, goal: Any, load_factors: Any, ncp_scale: Any, petsc
     if goal is not None or adaptive:
         refuse("solve_path with a goal or adaptive=True")
     options = check_options(SolverOptions(petsc_options, method, ncp_scale))
-    return solve_path(problem, load_factors, options)
+    return solve_path(problem, load_factors, options, start=initial_guess, callback=callback)

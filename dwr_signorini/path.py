@@ -220,7 +220,11 @@ def solve_path(
             hyperelastic ``material``, ``goal`` None): the increasing load factors t of its
             loads and prescribed displacements; a failed step is halved and retried
             (:func:`dwr_signorini.finite_strain.solve_path`, which returns a
-            :class:`~dwr_signorini.finite_strain.FiniteStrainPath`).
+            :class:`~dwr_signorini.finite_strain.FiniteStrainPath`). There ``callback`` is
+            called as ``callback(step, solution, None)`` per factor (a
+            :class:`~dwr_signorini.finite_strain.FiniteStrainStep`), and ``initial_guess`` may
+            be the last solution of an earlier finite-strain path on the same mesh: the path
+            starts from it, its prescribed values moving from the state's to the problem's.
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -232,7 +236,8 @@ def solve_path(
     """
     if load_factors is not None or getattr(problems, "finite_strain", False):
         return finite_strain.path_entry(
-            problems, goal, load_factors, ncp_scale, petsc_options, method, adaptive
+            problems, goal, load_factors, ncp_scale, petsc_options, method, adaptive,
+            initial_guess, callback,
         )
     problems = _check_problems(problems)
     check_same_on_ranks(

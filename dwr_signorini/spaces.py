@@ -27,7 +27,7 @@ from dolfinx import mesh as dmesh
 
 from . import compat
 from .collective import shadow
-from .fields import MeshFields
+from .fields import MeshFields, deformation_gradient
 from .pairs import MasterTrace, TraceGeometry
 from .problem import SignoriniProblem
 from .quadrature import expand_integer_powers, is_polynomial
@@ -84,6 +84,41 @@ class Measures:
             The stress tensor (UFL), with the problem's E, nu and model.
         """
         return self.fields.sigma(u)
+
+    def F(self, u: Any) -> Any:
+        """The deformation gradient F = I + grad u (for any material law).
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            F (UFL tensor).
+        """
+        return deformation_gradient(u)
+
+    def P(self, u: Any) -> Any:
+        """The first Piola-Kirchhoff stress dpsi/dF(I + grad u) of the material law.
+
+        With E, nu per cell tag as given; Hooke's sigma(u) for the linear material.
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            P (UFL tensor), :meth:`~dwr_signorini.fields.MeshFields.first_piola`.
+        """
+        return self.fields.first_piola(u)
+
+    def cauchy(self, u: Any) -> Any:
+        """The Cauchy stress P F^T / det F; Hooke's sigma(u) for the linear material.
+
+        Args:
+            u: A displacement (UFL vector).
+
+        Returns:
+            sigma (UFL tensor) at the reference points, :meth:`~.MeshFields.cauchy`.
+        """
+        return self.fields.cauchy(u)
 
     def epsilon(self, u: Any) -> Any:
         """Strain eps(u) = sym(grad u).

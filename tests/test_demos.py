@@ -568,3 +568,55 @@ def test_two_bodies_parallel(runs):
         assert (a["cells_lower"], a["cells_upper"]) == (b["cells_lower"], b["cells_upper"])
         for key in ("J_low", "J_high", "F", "a_h", "peak"):
             assert _close(a[key], b[key], 1e-8), (key, a[key], b[key])
+
+
+# --------------------------------------------------------------------------------------------------
+# Finite strain
+# --------------------------------------------------------------------------------------------------
+
+SMALL_ARGS["finite_strain"] = ["--h-contact", "0.1", "--press-steps", "2", "--slide-steps", "2"]
+FINITE_STRAIN_PNGS = ["deformed_meshes.png", "contact_pressure.png", "force_displacement.png"]
+
+
+def _finite_strain_rows(out: Path) -> list[dict]:
+    """The demo's path table: files written, CSV and JSON equal, fields per step."""
+    for name in FINITE_STRAIN_PNGS:
+        assert (out / name).read_bytes()[:8] == PNG_SIGNATURE, name
+    rows = _csv(out / "path.csv")
+    data = json.loads((out / "path.json").read_text())
+    assert len(rows) == len(data["levels"]) == 4
+    for rc, rj in zip(rows, data["levels"], strict=True):
+        for key in ("force", "width", "approach", "slide", "newton_iterations"):
+            assert _close(rc[key], rj[key], 1e-15), key
+    for name in ("path.xdmf", "path_contact.xdmf", "summary.json"):
+        assert (out / name).stat().st_size > 0, name
+    return rows
+
+
+def test_finite_strain_serial(runs):
+    """The rows are the library's for the same path; the slide keeps the pressed state."""
+    out = runs("finite_strain", 1)
+    rows = _finite_strain_rows(out)
+    assert [r["phase"] for r in rows] == ["press", "press", "slide", "slide"]
+    from dwr_signorini import cases
+
+    press, _ = cases.rubber_cylinder_problems(
+        cases.rubber_cylinder_mesh(MPI.COMM_SELF, h_contact=0.1))
+    with ds.solve_path(press, None, load_factors=[0.5, 1.0]) as path:
+        for row, sol in zip(rows[:2], path.solutions, strict=True):
+            c = cases.measure_contact(sol)
+            assert _close(row["force"], c.force, 1e-10) and _close(row["width"], c.width, 1e-10)
+            assert row["num_active"] == sol.num_active
+    for row in rows[2:]:  # frictionless: the translated state, the same force and width
+        assert _close(row["force"], rows[1]["force"], 1e-8)
+        assert _close(row["width"], rows[1]["width"], 1e-8)
+    assert "not shown here: the error estimate" in (DEMOS / "finite_strain.py").read_text().lower()
+
+
+def test_finite_strain_parallel(runs):
+    serial = _finite_strain_rows(runs("finite_strain", 1))
+    parallel = _finite_strain_rows(runs("finite_strain", 2))
+    for a, b in zip(parallel, serial, strict=True):
+        assert a["num_cells"] == b["num_cells"] and a["num_active"] == b["num_active"]
+        for key in ("force", "width"):
+            assert _close(a[key], b[key], 1e-9), (key, a[key], b[key])

@@ -9,7 +9,9 @@ Not in the paper, with gmsh meshes (:mod:`dwr_signorini.meshes`), tags and load 
   measured against the theory (:mod:`~dwr_signorini.cases.cattaneo_mindlin_measure`, with
   :mod:`~dwr_signorini.cases.measurement`);
 * :mod:`~dwr_signorini.cases.indentation_3d`: a sphere pressed into a block, the goal the total
-  contact force (the benchmarks' 3D problem).
+  contact force (the benchmarks' 3D problem);
+* :mod:`~dwr_signorini.cases.rubber_cylinder`: finite strain, a Neo-Hookean cylinder pressed
+  onto a rigid flat and slid along it (the finite-strain demo and the felupe benchmark).
 
 They build on :mod:`dwr_signorini.examples` (its boundary tags, material record and goal
 interface) and are installed with the package, so they work outside the checkout.
@@ -47,6 +49,13 @@ from .cattaneo_mindlin_measure import (
 from .indentation_3d import INDENTATION_MATERIAL, goal_total_force, indentation_problem
 from .load_path import CM_CONTACT, CM_TOP
 from .measurement import CMMeasure
+from .rubber_cylinder import (
+    RC_DEFAULTS,
+    ContactMeasure,
+    measure_contact,
+    rubber_cylinder_mesh,
+    rubber_cylinder_problems,
+)
 
 __all__ = [
     "CM_CONTACT",
@@ -55,7 +64,9 @@ __all__ = [
     "CM_SYMMETRY_Y",
     "CM_TOP",
     "INDENTATION_MATERIAL",
+    "RC_DEFAULTS",
     "CMMeasure",
+    "ContactMeasure",
     "ContactPatch",
     "ContactProfile",
     "cattaneo_mindlin_mesh",
@@ -73,9 +84,12 @@ __all__ = [
     "hertz_radius",
     "indentation_problem",
     "measure_cattaneo_mindlin",
+    "measure_contact",
     "measure_contact_patch",
     "reversal_stick_half_width",
     "reversal_traction",
+    "rubber_cylinder_mesh",
+    "rubber_cylinder_problems",
     "stick_half_width",
     "stick_radius",
 ]
