@@ -15,6 +15,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import scipy.sparse
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
@@ -31,6 +32,7 @@ __all__ = [
     "check_pair_facets",
     "csr_matrix",
     "entity_points",
+    "facet_cell_blocks",
     "facet_tag",
     "master_dofs",
     "master_facets",
@@ -122,8 +124,7 @@ def side_cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> Side
 
 def cell_dofs(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
     """V's global block dofs of the local ``cells``, shape (len(cells), dofs per cell)."""
-    width = V.dofmap.dof_layout.num_dofs
-    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32).reshape(-1, width)
+    local = V.dofmap.list[np.asarray(cells, dtype=np.int32)]
     return V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape)
 
 
@@ -182,6 +183,40 @@ def facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
     return np.array([lookup.get(int(f), -1) for f in facets], dtype=np.int64)
 
 
+#: How many points :func:`facet_cell_blocks` expands at once (bounds its temporary memory).
+BLOCK_CHUNK = 1 << 16
+
+
+def facet_cell_blocks(
+    facet: np.ndarray, key: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """sum_q rows_q cols_q^T over the points q of each (facet, key) pair.
+
+    Args:
+        facet: The facet of each point.
+        key: The cell key of each point (the points of one pair share its rows' and columns'
+            dofs).
+        rows: The row values per point, shape (q, a).
+        cols: The column values per point, shape (q, j).
+
+    Returns:
+        The first point of each pair (an index into the points) and the blocks, shape
+        (pairs, a, j).
+    """
+    order = np.lexsort((key, facet))
+    f, k = facet[order], key[order]
+    start = np.flatnonzero(np.r_[True, (np.diff(f) != 0) | (np.diff(k) != 0)]) if len(f) else (
+        np.zeros(0, np.int64))
+    blocks = np.zeros((len(start), rows.shape[1], cols.shape[1]))
+    owner = np.repeat(np.arange(len(start)), np.diff(np.r_[start, len(f)]))
+    for lo in range(0, len(f), BLOCK_CHUNK):
+        at, mine = order[lo:lo + BLOCK_CHUNK], owner[lo:lo + BLOCK_CHUNK]
+        first = np.flatnonzero(np.r_[True, np.diff(mine) != 0])  # each pair once per chunk
+        blocks[mine[first]] += np.add.reduceat(
+            np.einsum("qa,qj->qaj", rows[at], cols[at]), first, axis=0)
+    return order[start], blocks
+
+
 def csr_matrix(
     comm: MPI.Comm, rows: list, cols: list, vals: list, first: int, row_sizes: tuple,
     col_sizes: tuple,
@@ -192,15 +227,10 @@ def csr_matrix(
     c = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, np.int64)
     v = np.concatenate(vals) if vals else np.zeros(0)
     keep = v != 0.0
-    r, c, v = r[keep], c[keep], v[keep]
-    key = r * col_sizes[1] + c
-    uniq, inverse = np.unique(key, return_inverse=True)
-    summed = np.zeros(len(uniq))
-    np.add.at(summed, inverse, v)
-    ur, uc = uniq // col_sizes[1], uniq % col_sizes[1]
-    indptr = np.zeros(n + 1, dtype=PETSc.IntType)
-    np.add.at(indptr, ur + 1, 1)
-    indptr = np.cumsum(indptr).astype(PETSc.IntType)
+    summed = scipy.sparse.csr_matrix((v[keep], (r[keep], c[keep])), shape=(n, col_sizes[1]))
+    summed.sum_duplicates()  # (sorted column indices per row, as PETSc's CSR wants them)
+    indptr = summed.indptr.astype(PETSc.IntType)
+    uc, summed = summed.indices, summed.data
     return PETSc.Mat().createAIJ(
         size=(row_sizes, col_sizes),
         csr=(indptr, uc.astype(PETSc.IntType), summed),

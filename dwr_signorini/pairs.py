@@ -68,6 +68,7 @@ from .pair_facets import (
     cell_dofs,
     check_pair_facets,
     csr_matrix,
+    facet_cell_blocks,
     master_dofs,
     master_facets,
     slave_facets,
@@ -252,7 +253,7 @@ class TraceGeometry:
         gdim = slave.shape[1]
         V0 = fem.functionspace(self.disc.slave_mesh, ("DG", 0, (gdim,)))
         out = fem.Function(V0, name="contact_frame")
-        cells = np.array([V0.dofmap.cell_dofs(f)[0] for f in range(len(slave))], dtype=np.int64)
+        cells = V0.dofmap.list[:len(slave), 0].astype(np.int64)
         out.x.array[(cells[:, None] * gdim + np.arange(gdim)).ravel()] = frame.ravel()
         out.x.scatter_forward()
         return out
@@ -372,7 +373,8 @@ class MasterTrace:
         basis = FacetBasis(self.Ws.ufl_element().basix_element, geometry.facets, rule)
         projected = rule.points + rule.gap[:, None] * geometry.normals[rule.facet]
         phi = cell_basis(disc.mesh, V, master.geometry, rule.master, projected)
-        terms = [(rule.facet, rule.weights, basis.theta, phi, master.dofs[rule.master])]
+        terms = [(rule.facet, rule.weights, basis.theta, phi, master.dofs[rule.master],
+                  rule.master)]
         terms += self._uncovered(basis, cell_dofs(V, geometry.slave_local))
         self.P = self._projection(basis, terms)
         self.gap = self._gap(basis)
@@ -399,40 +401,42 @@ class MasterTrace:
         phi = cell_basis(self.disc.mesh, self.V, self.geometry.slave.geometry, facet, x)
         theta = np.concatenate([basis.full_theta[on], basis.theta[at]])
         weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
-        return [(facet, weights, theta, phi, slave_dofs[facet])]
+        return [(facet, weights, theta, phi, slave_dofs[facet], facet)]
 
     def _projection(self, basis: FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
         """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
 
+        The points of one facet and one cell are summed into one block (rows of the facet,
+        columns of the cell) before the blocks are expanded per component: the matrix entries
+        grow with the facet-cell pairs, not with the rule's points.
+
         Args:
             basis: W's basis on the slave facets.
-            terms: (facet, weight, theta(x_q), phi(y_q), global dofs of phi's cell) per point:
-                the master points y_q = Pi(x_q) of the rule, and the slave's own points on the
-                uncovered parts (:meth:`_uncovered`).
+            terms: (facet, weight, theta(x_q), phi(y_q), global dofs of phi's cell, cell key) per
+                point: the master points y_q = Pi(x_q) of the rule, and the slave's own points
+                on the uncovered parts (:meth:`_uncovered`).
         """
         W, V = self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
         inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
-        w_dofs = wmap.local_to_global(
-            np.array([W.dofmap.cell_dofs(int(f)) for f in range(len(basis.mass))],
-                     dtype=np.int32).ravel()
-        ).reshape(len(basis.mass), -1) if len(basis.mass) else np.zeros((0, 1), np.int64)
+        num = len(basis.mass)
+        w_dofs = wmap.local_to_global(W.dofmap.list[:num].ravel()).reshape(num, -1)
         rows, cols, vals = [], [], []
-        for facet, weights, theta, phi, dofs in terms:
+        for facet, weights, theta, phi, dofs, key in terms:
             # per point: the facet's rows (a) times the cell's columns (j)
             local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
             # a facet the master covers in part: the mean (no polynomial through the jump at
             # the master's end); its integral against a constant is the same
             part = basis.partial[facet]
             local[part] = (weights[part] / basis.measure[facet[part]])[:, None]
-            r_q = w_dofs[facet]
-            v_q = np.einsum("qa,qj->qaj", local, phi)
-            shape = v_q.shape
+            at, blocks = facet_cell_blocks(facet, key, local, phi)
+            r_q, d_q = w_dofs[facet[at]], dofs[at]
+            shape = blocks.shape
             for c in range(bs):
                 rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
-                cols.append(np.broadcast_to((dofs * bs + c)[:, None, :], shape).ravel())
-                vals.append(v_q.ravel())
+                cols.append(np.broadcast_to((d_q * bs + c)[:, None, :], shape).ravel())
+                vals.append(blocks.ravel())
         return csr_matrix(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
                     (wmap.size_local * bs, wmap.size_global * bs),
                     (vmap.size_local * V.dofmap.index_map_bs,
@@ -461,8 +465,7 @@ class MasterTrace:
         np.add.at(hit, macro, basis.covered)
         np.add.at(size, macro, basis.measure)
         value[hit[macro] <= MIN_MACRO_COVER * size[macro]] = self.disc.problem.miss_gap
-        dofs = np.array([Ws.dofmap.cell_dofs(f) for f in range(len(rhs))], dtype=np.int32)
-        gap.x.array[dofs.ravel()] = value.ravel()
+        gap.x.array[Ws.dofmap.list[:len(rhs)].ravel()] = value.ravel()
         gap.x.scatter_forward()
         return gap
 
