@@ -34,19 +34,17 @@ from pathlib import Path
 from mpi4py import MPI
 
 import numpy as np
-import ufl
-from dolfinx import mesh as dmesh
 
 import dwr_signorini as ds
-from dwr_signorini import compat, pair_facets, pairs
+from dwr_signorini import pair_facets, pairs
 from dwr_signorini.io import write_csv
 from dwr_signorini.mortar import mortar_rule
 from dwr_signorini.search import candidate_rule
 from dwr_signorini.spaces import discretize
+from tests import pair_geometries as G
 
 RESULTS = Path(__file__).resolve().parent / "results"
 comm = MPI.COMM_WORLD
-BOTTOM, TOP, MASTER, SLAVE = 1, 2, 3, 4
 
 
 def print0(*args: object) -> None:
@@ -54,40 +52,13 @@ def print0(*args: object) -> None:
         print(*args, flush=True)
 
 
-def _box(n: int, z0: float, height: float) -> tuple[np.ndarray, np.ndarray]:
-    """Nodes and tetrahedra of [0, 1]^2 x [z0, z0 + height], n x n x 2 cells."""
-    box = dmesh.create_box(MPI.COMM_SELF, [[0.0, 0.0, z0], [1.0, 1.0, z0 + height]], [n, n, 2])
-    return box.geometry.x.copy(), compat.geometry_dofmap(box).astype(np.int64)
-
-
 def two_boxes(n: int) -> ds.SignoriniProblem:
     """The pair of the module docstring."""
-    lower, upper = _box(n, 0.0, 1.0), _box(n + 1, 1.0, 0.5)
-    if comm.rank == 0:
-        x = np.concatenate([lower[0], upper[0]])
-        cells = np.concatenate([lower[1], upper[1] + len(lower[0])])
-    else:
-        x, cells = np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)
-    element = dmesh.create_unit_cube(MPI.COMM_SELF, 1, 1, 1).ufl_domain().ufl_coordinate_element()
-    msh = compat.create_mesh(comm, cells, x, ufl.Mesh(element))
-    fdim = 2
-    msh.topology.create_connectivity(fdim, 3)
-    eps = 1e-9
-    upper_cells = dmesh.locate_entities(msh, 3, lambda p: p[2] > 1.0 - eps)
-    upper_facets = dmesh.compute_incident_entities(msh.topology, upper_cells, 3, fdim)
-    middle = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 1.0))
-    slave = np.intersect1d(middle, upper_facets)
-    master = np.setdiff1d(middle, upper_facets)
-    bottom = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 0.0))
-    top = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 1.5))
-    indices = np.concatenate([bottom, top, master, slave]).astype(np.int32)
-    values = np.concatenate([np.full(len(f), t, dtype=np.int32) for f, t in (
-        (bottom, BOTTOM), (top, TOP), (master, MASTER), (slave, SLAVE))])
-    order = np.argsort(indices)
-    tags = dmesh.meshtags(msh, fdim, indices[order], values[order])
-    return ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=SLAVE, master=MASTER),
+    msh, tags = G.tet_boxes(comm, n)
+    return ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=G.TET_SLAVE,
+                                                                 master=G.TET_MASTER),
                                E=1.0, nu=0.3, model="3d",
-                               dirichlet={BOTTOM: 0.0, TOP: (0.0, 0.0, -0.01)})
+                               dirichlet={G.TET_BOTTOM: 0.0, G.TET_TOP: (0.0, 0.0, -0.01)})
 
 
 def _timed(build, repeat: int) -> tuple[float, object]:

@@ -1,9 +1,10 @@
 """The facets of a contact pair's two sides: geometry, normals, cells, dofs and basis values.
 
 What :mod:`~dwr_signorini.pairs` reads off the fine mesh before the mortar rule
-(:mod:`~dwr_signorini.mortar`) meets the two sides: this rank's slave facets, the master facets
-gathered on every rank, the global dofs of a space on their cells, the values of its basis at
-points of those cells, and the sparse matrix the trace is assembled into.
+(:mod:`~dwr_signorini.mortar`) meets the two sides: this rank's slave facets and owned master
+facets (:mod:`~dwr_signorini.exchange` sends each rank those it needs), the global dofs of a
+space on their cells, the values of its basis at points of those cells, and the sparse matrix
+the trace is assembled into.
 """
 
 from __future__ import annotations
@@ -34,7 +35,6 @@ __all__ = [
     "entity_points",
     "facet_cell_blocks",
     "facet_tag",
-    "master_dofs",
     "master_facets",
     "side_cells",
     "slave_facets",
@@ -44,7 +44,7 @@ __all__ = [
 
 @dataclass
 class Side:
-    """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
+    """Facets of one side of a pair with their cells."""
 
     vertices: np.ndarray  # (m, nv, gdim)
     normals: np.ndarray  # (m, gdim)
@@ -94,12 +94,7 @@ def slave_facets(disc: Any) -> tuple[Side, np.ndarray, np.ndarray]:
 
 
 def master_facets(disc: Any, tag: int) -> tuple[Side, np.ndarray]:
-    """The owned master facets of ``tag`` gathered on every rank, and this rank's cells.
-
-    Returns:
-        The gathered facets (``dofs`` empty: :func:`master_dofs` adds a space's), and the
-        local index of the cell beside each of this rank's owned facets of ``tag``.
-    """
+    """This rank's owned master facets of ``tag`` (no dofs) and the local cell beside each."""
     fine = disc.mesh
     tdim = fine.topology.dim
     n_own = fine.topology.index_map(tdim - 1).size_local
@@ -107,9 +102,7 @@ def master_facets(disc: Any, tag: int) -> tuple[Side, np.ndarray]:
     facets = facets[facets < n_own].astype(np.int32)
     f2c = fine.topology.connectivity(tdim - 1, tdim)
     cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    mine = side_cells(fine, cells, entity_points(fine, tdim - 1, facets))
-    parts = disc.comm.allgather(tuple(getattr(mine, f) for f in Side.fields()))
-    return Side(*(np.concatenate([p[k] for p in parts]) for k in range(5))), cells
+    return side_cells(fine, cells, entity_points(fine, tdim - 1, facets)), cells
 
 
 def side_cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> Side:
@@ -126,21 +119,6 @@ def cell_dofs(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
     """V's global block dofs of the local ``cells``, shape (len(cells), dofs per cell)."""
     local = V.dofmap.list[np.asarray(cells, dtype=np.int32)]
     return V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape)
-
-
-def master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np.ndarray:
-    """V's global block dofs of the master cells, gathered in :class:`TraceGeometry`'s order.
-
-    Args:
-        disc: The discretisation.
-        V: The displacement space.
-        cells: Per pair, the local cells of this rank's owned master facets.
-    """
-    out = []
-    for local in cells:
-        out.extend(disc.comm.allgather(cell_dofs(V, local)))
-    width = V.dofmap.dof_layout.num_dofs
-    return np.concatenate(out) if out else np.zeros((0, width), np.int64)
 
 
 def cell_basis(
