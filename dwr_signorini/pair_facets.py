@@ -197,21 +197,45 @@ def facet_cell_blocks(
 
 def csr_matrix(
     comm: MPI.Comm, rows: list, cols: list, vals: list, first: int, row_sizes: tuple,
-    col_sizes: tuple,
+    col_sizes: tuple, bs: int = 1,
 ) -> PETSc.Mat:
-    """An AIJ matrix from owned global rows, columns and values (duplicates summed)."""
-    n = row_sizes[0]
-    r = np.concatenate(rows).astype(np.int64) - first if rows else np.zeros(0, np.int64)
+    """An AIJ matrix from owned global rows, columns and values (duplicates summed).
+
+    Args:
+        comm: The communicator.
+        rows: Global row indices (blocks of ``bs`` rows), arrays to concatenate.
+        cols: Global column indices (blocks of ``bs`` columns), likewise.
+        vals: The values, likewise.
+        first: The first owned row (of the expanded rows).
+        row_sizes: (owned, global) rows, expanded.
+        col_sizes: (owned, global) columns, expanded.
+        bs: Each value stands for the diagonal of a ``bs`` x ``bs`` block: entry (r, c) is
+            (r bs + k, c bs + k) for k < bs, expanded after the duplicates are summed.
+    """
+    n = row_sizes[0] // bs
+    r = np.concatenate(rows).astype(np.int64) - first // bs if rows else np.zeros(0, np.int64)
     c = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, np.int64)
     v = np.concatenate(vals) if vals else np.zeros(0)
     keep = v != 0.0
-    summed = scipy.sparse.csr_matrix((v[keep], (r[keep], c[keep])), shape=(n, col_sizes[1]))
+    summed = scipy.sparse.csr_matrix((v[keep], (r[keep], c[keep])),
+                                     shape=(n, col_sizes[1] // bs))
     summed.sum_duplicates()  # (sorted column indices per row, as PETSc's CSR wants them)
-    indptr = summed.indptr.astype(PETSc.IntType)
-    uc, summed = summed.indices, summed.data
+    indptr, indices, data = _expand(summed, bs)
     return PETSc.Mat().createAIJ(
         size=(row_sizes, col_sizes),
-        csr=(indptr, uc.astype(PETSc.IntType), summed),
+        csr=(indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType), data),
         comm=comm,
     )
 
+
+def _expand(block: scipy.sparse.csr_matrix, bs: int) -> tuple[np.ndarray, ...]:
+    """The CSR arrays of block (x) I_bs (row r bs + k holds row r's entries at columns c bs + k)."""
+    if bs == 1:
+        return block.indptr, block.indices, block.data
+    count = np.diff(block.indptr)
+    row = np.repeat(np.arange(block.shape[0]), bs)
+    k = np.tile(np.arange(bs), block.shape[0])
+    sizes = count[row]
+    indptr = np.concatenate([[0], np.cumsum(sizes)])
+    gather = np.repeat(block.indptr[row] - indptr[:-1], sizes) + np.arange(indptr[-1])
+    return indptr, block.indices[gather] * bs + np.repeat(k, sizes), block.data[gather]

@@ -465,14 +465,13 @@ class MasterTrace:
             at, blocks = facet_cell_blocks(facet, key, local, phi)
             r_q, d_q = w_dofs[facet[at]], dofs[at]
             shape = blocks.shape
-            for c in range(bs):
-                rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
-                cols.append(np.broadcast_to((d_q * bs + c)[:, None, :], shape).ravel())
-                vals.append(blocks.ravel())
+            rows.append(np.broadcast_to(r_q[:, :, None], shape).ravel())
+            cols.append(np.broadcast_to(d_q[:, None, :], shape).ravel())
+            vals.append(blocks.ravel())
         return csr_matrix(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
-                    (wmap.size_local * bs, wmap.size_global * bs),
-                    (vmap.size_local * V.dofmap.index_map_bs,
-                     vmap.size_global * V.dofmap.index_map_bs))
+                          (wmap.size_local * bs, wmap.size_global * bs),
+                          (vmap.size_local * V.dofmap.index_map_bs,
+                           vmap.size_global * V.dofmap.index_map_bs), bs=bs)
 
     def _gap(self, basis: FacetBasis) -> fem.Function:
         """The gap g projected per facet from its covered part (zero elsewhere).
