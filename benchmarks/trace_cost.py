@@ -8,9 +8,10 @@ pair (one uniform refinement):
 
 * ``search``: the trace geometry (:class:`~dwr_signorini.pairs.TraceGeometry`: the facets, the
   mortar rule of P1 and the share), with the candidate search
-  (:func:`~dwr_signorini.search.candidate_rule`, a KD-tree of the master facets' centres), and
-  ``full``: the same with every slave facet against every master facet
-  (:func:`~dwr_signorini.mortar.mortar_rule`, as before the candidate search);
+  (:func:`~dwr_signorini.search.candidate_parts`, a KD-tree of the master facets' centres and
+  the batched clipping of :mod:`~dwr_signorini.clipping`), and ``full``: the same with every
+  slave facet against the master facets in its shadow, one facet at a time
+  (:func:`~dwr_signorini.mortar.mortar_rule`, the per-facet rule);
 * ``P1``, ``P2``: the projections of the P1 and P2 spaces on the geometry (the P2 rule's search
   included);
 * P2 only up to ``--p2-up-to`` slave facets (its memory, below);
@@ -38,8 +39,7 @@ import numpy as np
 import dwr_signorini as ds
 from dwr_signorini import pair_facets, pairs
 from dwr_signorini.io import write_csv
-from dwr_signorini.mortar import mortar_rule
-from dwr_signorini.search import candidate_rule
+from dwr_signorini.search import candidate_parts
 from dwr_signorini.spaces import discretize
 from tests import pair_geometries as G
 
@@ -74,6 +74,12 @@ def _timed(build, repeat: int) -> tuple[float, object]:
     return best, out
 
 
+def _no_candidates(slave: np.ndarray, *args: object, **kwargs: object) -> tuple:
+    """No facet kept from candidates: every one searched against the master facets in its
+    shadow (:func:`~dwr_signorini.mortar.mortar_rule`, the per-facet rule)."""
+    return [], np.arange(len(slave), dtype=np.int64)
+
+
 def measure(n: int, repeat: int, full: bool, p2: bool) -> dict[str, float]:
     """One row of the table."""
     disc = discretize(two_boxes(n))
@@ -86,14 +92,15 @@ def measure(n: int, repeat: int, full: bool, p2: bool) -> dict[str, float]:
         return pairs.MasterTrace(disc, disc.vector_space(2), geometry)
 
     t_p2, trace2 = _timed(p2_trace, repeat) if p2 else (float("nan"), None)
-    row = {"n": n, "slave_facets": slaves, "master_facets": len(geometry.master.cell),
+    row = {"n": n, "slave_facets": slaves,
+           "master_facets": comm.allreduce(len(geometry.exchanges[0].own.cell), op=MPI.SUM),
            "search": t_search, "P1": t_p1, "P2": t_p2}
     if full:
-        pairs.candidate_rule = mortar_rule
+        pairs.candidate_parts = _no_candidates
         try:
             t_full, reference = _timed(lambda: pairs.TraceGeometry(disc), 1)
         finally:
-            pairs.candidate_rule = candidate_rule
+            pairs.candidate_parts = candidate_parts
         row["full"] = t_full
         row["full / search"] = t_full / t_search
         a, b = np.zeros(len(geometry.vertices)), np.zeros(len(geometry.vertices))

@@ -9,10 +9,14 @@ the discretisation of the pair (one uniform refinement), per size in one run:
   P1 projection), the largest wall time over the ranks;
 * ``P2``: the P2 projection of the estimator's weights (its rule's search included);
 * ``solve``: :func:`dwr_signorini.solve` of the discretisation, its trace already built (the
-  Newton steps: assembly, factorisation, solves), and ``trace / solve``, ``(trace + P2) / solve``;
+  Newton steps: assembly, factorisation, solves), and ``trace / solve``,
+  ``(trace + P2) / solve``;
 * ``held``: the most master facets a rank holds, of ``master facets`` in all;
-* ``trace MB``: the resident memory the traces added (largest over the ranks), ``peak MB``: the
-  peak resident memory of a rank after the solve (``ru_maxrss``; it only grows over the sizes).
+* wall and CPU times (the largest over the ranks; on a shared machine the wall time also
+  counts the waits for a core), the ratios of both;
+* ``traces MB``: the resident memory the traces hold (largest over the ranks), ``peak MB``: the
+  peak resident memory of a rank after the traces and after the solve (``ru_maxrss``; it only
+  grows over the sizes, so each size's peak shows where it exceeds the smaller sizes').
 
 Beyond ``--solve-up-to`` slave facets only the traces are built (``solve`` empty). The table goes
 to ``benchmarks/results/trace_scaling_np<ranks>.csv``::
@@ -60,39 +64,52 @@ def resident_mb() -> float:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
-def wall(build) -> tuple[float, object]:
-    """The largest wall time over the ranks of the collective ``build()``, and its result."""
+def timed(build) -> tuple[float, float, object]:
+    """The largest wall and CPU times over the ranks of the collective ``build()``, its result.
+
+    (The CPU time of the process, its threads included: on a machine shared with other jobs
+    the wall time also counts the waits for a core.)
+    """
     comm.barrier()
-    tic = time.perf_counter()
+    tic, cpu = time.perf_counter(), time.process_time()
     out = build()
-    return comm.allreduce(time.perf_counter() - tic, op=MPI.MAX), out
+    cpu = time.process_time() - cpu
+    return (comm.allreduce(time.perf_counter() - tic, op=MPI.MAX),
+            comm.allreduce(cpu, op=MPI.MAX), out)
+
+
+def peak_mb() -> float:
+    """The peak resident memory of a rank so far [MB], the largest over the ranks."""
+    return comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                          op=MPI.MAX)
 
 
 def measure(n: int, solve: bool) -> dict[str, object]:
     """One row of the table."""
     disc = discretize(problem(n))
     before = resident_mb()
-    t_trace, trace = wall(disc.master_trace)
-    t_p2, _ = wall(lambda: disc.master_trace(disc.vector_space(2)))
+    t_trace, c_trace, trace = timed(disc.master_trace)
+    t_p2, c_p2, _ = timed(lambda: disc.master_trace(disc.vector_space(2)))
     geometry = trace.geometry
     row = {
         "n": n,
         "slave facets": comm.allreduce(len(geometry.vertices), op=MPI.SUM),
-        "master facets": comm.allreduce(len(geometry._exchanges[0].own.cell), op=MPI.SUM),
+        "master facets": comm.allreduce(len(geometry.exchanges[0].own.cell), op=MPI.SUM),
         "held": comm.allreduce(len(geometry.master.cell), op=MPI.MAX),
-        "trace [s]": t_trace,
-        "P2 [s]": t_p2,
-        "trace MB": comm.allreduce(resident_mb() - before, op=MPI.MAX),
+        "trace [s]": t_trace, "trace CPU [s]": c_trace,
+        "P2 [s]": t_p2, "P2 CPU [s]": c_p2,
+        "traces MB": comm.allreduce(resident_mb() - before, op=MPI.MAX),
+        "peak MB, traces": peak_mb(),
     }
     if solve:
-        t_solve, sol = wall(lambda: ds.solve(disc))
+        t_solve, c_solve, sol = timed(lambda: ds.solve(disc))
         with sol:
             row["Newton steps"] = sol.newton_iterations
-        row["solve [s]"] = t_solve
+        row["solve [s]"], row["solve CPU [s]"] = t_solve, c_solve
         row["trace / solve"] = t_trace / t_solve
-        row["(trace + P2) / solve"] = (t_trace + t_p2) / t_solve
-    row["peak MB"] = comm.allreduce(
-        resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX)
+        row["trace / solve, CPU"] = c_trace / c_solve
+        row["(trace + P2) / solve, CPU"] = (c_trace + c_p2) / c_solve
+        row["peak MB, solve"] = peak_mb()
     disc.destroy()
     return row
 

@@ -105,14 +105,17 @@ def _overlap(poly: np.ndarray, a: np.ndarray, b: np.ndarray, tol: np.ndarray) ->
     """
     def separated(p: np.ndarray, q: np.ndarray) -> np.ndarray:
         edges = np.roll(p, -1, axis=1) - p
-        axes = np.stack([edges[..., 1], -edges[..., 0]], axis=2)
-        length = np.linalg.norm(axes, axis=2)
+        ax, ay = edges[..., 1], -edges[..., 0]  # (k, a)
+        length = np.hypot(ax, ay)
         valid = length > 0.0
-        axes = axes / np.where(valid, length, 1.0)[..., None]
-        own = np.einsum("kad,kvd->kav", axes, p)
-        other = np.einsum("kad,kvd->kav", axes, q)
-        apart = ((own.max(axis=2) <= other.min(axis=2) + tol[:, None])
-                 | (other.max(axis=2) <= own.min(axis=2) + tol[:, None])) & valid
+        ax, ay = ax / np.where(valid, length, 1.0), ay / np.where(valid, length, 1.0)
+
+        def extent(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            on = ax[:, :, None] * r[:, None, :, 0] + ay[:, :, None] * r[:, None, :, 1]
+            return on.min(axis=2), on.max(axis=2)
+
+        (own_lo, own_hi), (lo, hi) = extent(p), extent(q)
+        apart = ((own_hi <= lo + tol[:, None]) | (hi <= own_lo + tol[:, None])) & valid
         return apart.any(axis=1)
 
     p, q = poly[a], poly[b]

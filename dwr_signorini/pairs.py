@@ -159,6 +159,8 @@ class TraceGeometry:
         slave: Those facets with their cells (``dofs`` empty: each trace adds its space's).
         slave_cells: The fine cell beside each slave facet (global index).
         master: The master facets of all pairs that this rank holds (``dofs`` empty likewise).
+        exchanges: Per pair, the :class:`~dwr_signorini.exchange.MasterExchange` of its master
+            facets (this rank's own, and those it holds).
         facets: The slave facets' coordinate map (:class:`~dwr_signorini.mortar.FacetMap`).
         measure, covered: The measure of each slave facet and of its covered part.
         frame: The normal of the contact frame on the fine slave facets (vector DG0,
@@ -186,12 +188,12 @@ class TraceGeometry:
         self.vertices, self.normals = self.slave.vertices, self.slave.normals
         self.slave_cells = self.slave.cell
         self.facets = FacetMap(self.vertices)
-        self._exchanges = []
+        self.exchanges = []
         for pair in disc.problem.pairs:
             exchange = MasterExchange(disc.comm, *master_facets(disc, pair.master))
             slave, _, w = self._pair_slaves(pair)
             exchange.boxes(facet_reach(slave)[0], search_radius(slave, w, exchange.reach))
-            self._exchanges.append(exchange)
+            self.exchanges.append(exchange)
         self._rules: dict[int, list[MortarRule]] = {}
         rule = self.rule(1)
         f, _, _, w = self.facets.quadrature(1)
@@ -204,12 +206,12 @@ class TraceGeometry:
     @property
     def master(self) -> Side:
         """The master facets of every pair held by this rank (:mod:`~dwr_signorini.exchange`)."""
-        sides = [x.side for x in self._exchanges]
+        sides = [x.side for x in self.exchanges]
         return Side(*(np.concatenate([getattr(m, f) for m in sides]) for f in Side.fields()))
 
     def master_dofs(self, V: fem.FunctionSpace) -> np.ndarray:
         """V's global block dofs of the cells of :attr:`master` (collective)."""
-        return np.concatenate([x.dofs(V) for x in self._exchanges])
+        return np.concatenate([x.dofs(V) for x in self.exchanges])
 
     def rule(self, degree: int) -> MortarRule:
         """The mortar rule for a space of ``degree`` (exact to degree 2 ``degree``), kept.
@@ -227,8 +229,8 @@ class TraceGeometry:
         """
         if degree not in self._rules:
             self._rules[degree] = [self._pair_rule(pair, x, degree) for pair, x in zip(
-                self.disc.problem.pairs, self._exchanges, strict=True)]
-        offsets = np.cumsum([0] + [len(x.number) for x in self._exchanges])
+                self.disc.problem.pairs, self.exchanges, strict=True)]
+        offsets = np.cumsum([0] + [len(x.number) for x in self.exchanges])
         rules = [MortarRule(r.facet, r.points, r.weights, r.master + offset, r.gap)
                  for r, offset in zip(self._rules[degree], offsets, strict=False)]
         return merge_rules(rules, self.vertices.shape[2])
