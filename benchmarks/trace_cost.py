@@ -8,9 +8,10 @@ pair (one uniform refinement):
 
 * ``search``: the trace geometry (:class:`~dwr_signorini.pairs.TraceGeometry`: the facets, the
   mortar rule of P1 and the share), with the candidate search
-  (:func:`~dwr_signorini.search.candidate_rule`, a KD-tree of the master facets' centres), and
-  ``full``: the same with every slave facet against every master facet
-  (:func:`~dwr_signorini.mortar.mortar_rule`, as before the candidate search);
+  (:func:`~dwr_signorini.search.candidate_parts`, a KD-tree of the master facets' centres and
+  the batched clipping of :mod:`~dwr_signorini.clipping`), and ``full``: the same with every
+  slave facet against the master facets in its shadow, one facet at a time
+  (:func:`~dwr_signorini.mortar.mortar_rule`, the per-facet rule);
 * ``P1``, ``P2``: the projections of the P1 and P2 spaces on the geometry (the P2 rule's search
   included);
 * P2 only up to ``--p2-up-to`` slave facets (its memory, below);
@@ -34,19 +35,16 @@ from pathlib import Path
 from mpi4py import MPI
 
 import numpy as np
-import ufl
-from dolfinx import mesh as dmesh
 
 import dwr_signorini as ds
-from dwr_signorini import compat, pair_facets, pairs
+from dwr_signorini import pair_facets, pairs
 from dwr_signorini.io import write_csv
-from dwr_signorini.mortar import mortar_rule
-from dwr_signorini.search import candidate_rule
+from dwr_signorini.search import candidate_parts
 from dwr_signorini.spaces import discretize
+from tests import pair_geometries as G
 
 RESULTS = Path(__file__).resolve().parent / "results"
 comm = MPI.COMM_WORLD
-BOTTOM, TOP, MASTER, SLAVE = 1, 2, 3, 4
 
 
 def print0(*args: object) -> None:
@@ -54,40 +52,13 @@ def print0(*args: object) -> None:
         print(*args, flush=True)
 
 
-def _box(n: int, z0: float, height: float) -> tuple[np.ndarray, np.ndarray]:
-    """Nodes and tetrahedra of [0, 1]^2 x [z0, z0 + height], n x n x 2 cells."""
-    box = dmesh.create_box(MPI.COMM_SELF, [[0.0, 0.0, z0], [1.0, 1.0, z0 + height]], [n, n, 2])
-    return box.geometry.x.copy(), compat.geometry_dofmap(box).astype(np.int64)
-
-
 def two_boxes(n: int) -> ds.SignoriniProblem:
     """The pair of the module docstring."""
-    lower, upper = _box(n, 0.0, 1.0), _box(n + 1, 1.0, 0.5)
-    if comm.rank == 0:
-        x = np.concatenate([lower[0], upper[0]])
-        cells = np.concatenate([lower[1], upper[1] + len(lower[0])])
-    else:
-        x, cells = np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)
-    element = dmesh.create_unit_cube(MPI.COMM_SELF, 1, 1, 1).ufl_domain().ufl_coordinate_element()
-    msh = compat.create_mesh(comm, cells, x, ufl.Mesh(element))
-    fdim = 2
-    msh.topology.create_connectivity(fdim, 3)
-    eps = 1e-9
-    upper_cells = dmesh.locate_entities(msh, 3, lambda p: p[2] > 1.0 - eps)
-    upper_facets = dmesh.compute_incident_entities(msh.topology, upper_cells, 3, fdim)
-    middle = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 1.0))
-    slave = np.intersect1d(middle, upper_facets)
-    master = np.setdiff1d(middle, upper_facets)
-    bottom = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 0.0))
-    top = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 1.5))
-    indices = np.concatenate([bottom, top, master, slave]).astype(np.int32)
-    values = np.concatenate([np.full(len(f), t, dtype=np.int32) for f, t in (
-        (bottom, BOTTOM), (top, TOP), (master, MASTER), (slave, SLAVE))])
-    order = np.argsort(indices)
-    tags = dmesh.meshtags(msh, fdim, indices[order], values[order])
-    return ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=SLAVE, master=MASTER),
+    msh, tags = G.tet_boxes(comm, n)
+    return ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=G.TET_SLAVE,
+                                                                 master=G.TET_MASTER),
                                E=1.0, nu=0.3, model="3d",
-                               dirichlet={BOTTOM: 0.0, TOP: (0.0, 0.0, -0.01)})
+                               dirichlet={G.TET_BOTTOM: 0.0, G.TET_TOP: (0.0, 0.0, -0.01)})
 
 
 def _timed(build, repeat: int) -> tuple[float, object]:
@@ -103,6 +74,12 @@ def _timed(build, repeat: int) -> tuple[float, object]:
     return best, out
 
 
+def _no_candidates(slave: np.ndarray, *args: object, **kwargs: object) -> tuple:
+    """No facet kept from candidates: every one searched against the master facets in its
+    shadow (:func:`~dwr_signorini.mortar.mortar_rule`, the per-facet rule)."""
+    return [], np.arange(len(slave), dtype=np.int64)
+
+
 def measure(n: int, repeat: int, full: bool, p2: bool) -> dict[str, float]:
     """One row of the table."""
     disc = discretize(two_boxes(n))
@@ -115,14 +92,15 @@ def measure(n: int, repeat: int, full: bool, p2: bool) -> dict[str, float]:
         return pairs.MasterTrace(disc, disc.vector_space(2), geometry)
 
     t_p2, trace2 = _timed(p2_trace, repeat) if p2 else (float("nan"), None)
-    row = {"n": n, "slave_facets": slaves, "master_facets": len(geometry.master.cell),
+    row = {"n": n, "slave_facets": slaves,
+           "master_facets": comm.allreduce(len(geometry.exchanges[0].own.cell), op=MPI.SUM),
            "search": t_search, "P1": t_p1, "P2": t_p2}
     if full:
-        pairs.candidate_rule = mortar_rule
+        pairs.candidate_parts = _no_candidates
         try:
             t_full, reference = _timed(lambda: pairs.TraceGeometry(disc), 1)
         finally:
-            pairs.candidate_rule = candidate_rule
+            pairs.candidate_parts = candidate_parts
         row["full"] = t_full
         row["full / search"] = t_full / t_search
         a, b = np.zeros(len(geometry.vertices)), np.zeros(len(geometry.vertices))

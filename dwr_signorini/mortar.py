@@ -44,7 +44,9 @@ import basix
 import numpy as np
 
 __all__ = [
-    "FacetBasis", "FacetMap", "MortarRule", "check_planar", "entry", "facet_normals", "mortar_rule",
+    "FacetBasis", "FacetMap", "MortarRule", "check_planar", "entry", "facet_normals", "facet_reach",
+    "in_shadow",
+    "mortar_rule",
     "tabulate", "warp",
 ]
 
@@ -148,21 +150,12 @@ def mortar_rule(
     windows = np.broadcast_to(np.asarray(window, dtype=float), (len(slave),))
     out: list[list[np.ndarray]] = [[], [], [], [], []]
     # bounding spheres: a master facet whose sphere's shadow along n misses F's cannot meet F
-    centres = master.mean(axis=1)
-    reach = np.linalg.norm(master - centres[:, None], axis=2).max(axis=1) if len(master) else (
-        np.zeros(0))
-    slave_centres = slave.mean(axis=1)
-    slave_reach = np.linalg.norm(slave - slave_centres[:, None], axis=2).max(axis=1)
+    centres, reach = facet_reach(master)
+    slave_centres, slave_reach = facet_reach(slave)
     for i in range(len(slave)):
         n = slave_normals[i]
-        d = centres - slave_centres[i]
-        along = d @ n
-        lateral = np.linalg.norm(d - np.outer(along, n), axis=1)
-        near = np.flatnonzero(
-            (master_normals @ n < 0.0)
-            & (lateral <= (1.0 + 1e-9) * (reach + slave_reach[i]))
-            & (along >= -(windows[i] + reach + slave_reach[i]))  # not wholly behind the window
-        )
+        near = np.flatnonzero(in_shadow(centres, reach, master_normals, slave_centres[i], n,
+                                        slave_reach[i], windows[i]))
         if len(near) == 0:
             continue
         found = pieces(slave[i], n, master[near], master_normals[near], rule, windows[i])
@@ -179,6 +172,34 @@ def mortar_rule(
         return MortarRule(empty.astype(np.int64), np.zeros((0, gdim)), empty,
                           empty.astype(np.int64), empty)
     return MortarRule(*(np.concatenate(a) for a in out))
+
+
+def facet_reach(facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The centres of facets (m, nv, gdim) and the largest distance of a vertex from its centre."""
+    centres = facets.mean(axis=1)
+    return centres, np.linalg.norm(facets - centres[:, None], axis=2).max(axis=1) if len(
+        facets) else np.zeros(0)
+
+
+def in_shadow(
+    centres: np.ndarray, reach: np.ndarray, normals: np.ndarray, centre: np.ndarray,
+    n: np.ndarray, slave_reach: float, window: float,
+) -> np.ndarray:
+    """Which master facets may meet a slave facet's rays (the rule looks at no others).
+
+    A master facet (bounding sphere: ``centres``, ``reach``) that faces the slave facet (centre
+    ``centre``, normal ``n``, reach ``slave_reach``), whose sphere's shadow along n meets the
+    facet's, and which is not wholly behind the window.
+
+    Returns:
+        A boolean mask over the master facets.
+    """
+    d = centres - centre
+    along = d @ n
+    lateral = np.linalg.norm(d - np.outer(along, n), axis=1)
+    return ((normals @ n < 0.0)
+            & (lateral <= (1.0 + 1e-9) * (reach + slave_reach))
+            & (along >= -(window + reach + slave_reach)))
 
 
 def _ray(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:

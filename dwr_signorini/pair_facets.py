@@ -1,9 +1,10 @@
 """The facets of a contact pair's two sides: geometry, normals, cells, dofs and basis values.
 
 What :mod:`~dwr_signorini.pairs` reads off the fine mesh before the mortar rule
-(:mod:`~dwr_signorini.mortar`) meets the two sides: this rank's slave facets, the master facets
-gathered on every rank, the global dofs of a space on their cells, the values of its basis at
-points of those cells, and the sparse matrix the trace is assembled into.
+(:mod:`~dwr_signorini.mortar`) meets the two sides: this rank's slave facets and owned master
+facets (:mod:`~dwr_signorini.exchange` sends each rank those it needs), the global dofs of a
+space on their cells, the values of its basis at points of those cells, and the sparse matrix
+the trace is assembled into.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import scipy.sparse
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
@@ -31,8 +33,8 @@ __all__ = [
     "check_pair_facets",
     "csr_matrix",
     "entity_points",
+    "facet_cell_blocks",
     "facet_tag",
-    "master_dofs",
     "master_facets",
     "side_cells",
     "slave_facets",
@@ -42,7 +44,7 @@ __all__ = [
 
 @dataclass
 class Side:
-    """Facets of one side of a pair with their cells (the master's gathered on every rank)."""
+    """Facets of one side of a pair with their cells."""
 
     vertices: np.ndarray  # (m, nv, gdim)
     normals: np.ndarray  # (m, gdim)
@@ -92,12 +94,7 @@ def slave_facets(disc: Any) -> tuple[Side, np.ndarray, np.ndarray]:
 
 
 def master_facets(disc: Any, tag: int) -> tuple[Side, np.ndarray]:
-    """The owned master facets of ``tag`` gathered on every rank, and this rank's cells.
-
-    Returns:
-        The gathered facets (``dofs`` empty: :func:`master_dofs` adds a space's), and the
-        local index of the cell beside each of this rank's owned facets of ``tag``.
-    """
+    """This rank's owned master facets of ``tag`` (no dofs) and the local cell beside each."""
     fine = disc.mesh
     tdim = fine.topology.dim
     n_own = fine.topology.index_map(tdim - 1).size_local
@@ -105,9 +102,7 @@ def master_facets(disc: Any, tag: int) -> tuple[Side, np.ndarray]:
     facets = facets[facets < n_own].astype(np.int32)
     f2c = fine.topology.connectivity(tdim - 1, tdim)
     cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    mine = side_cells(fine, cells, entity_points(fine, tdim - 1, facets))
-    parts = disc.comm.allgather(tuple(getattr(mine, f) for f in Side.fields()))
-    return Side(*(np.concatenate([p[k] for p in parts]) for k in range(5))), cells
+    return side_cells(fine, cells, entity_points(fine, tdim - 1, facets)), cells
 
 
 def side_cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> Side:
@@ -122,24 +117,8 @@ def side_cells(msh: dmesh.Mesh, cells: np.ndarray, vertices: np.ndarray) -> Side
 
 def cell_dofs(V: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
     """V's global block dofs of the local ``cells``, shape (len(cells), dofs per cell)."""
-    width = V.dofmap.dof_layout.num_dofs
-    local = np.array([V.dofmap.cell_dofs(c) for c in cells], dtype=np.int32).reshape(-1, width)
+    local = V.dofmap.list[np.asarray(cells, dtype=np.int32)]
     return V.dofmap.index_map.local_to_global(local.ravel()).reshape(local.shape)
-
-
-def master_dofs(disc: Any, V: fem.FunctionSpace, cells: list[np.ndarray]) -> np.ndarray:
-    """V's global block dofs of the master cells, gathered in :class:`TraceGeometry`'s order.
-
-    Args:
-        disc: The discretisation.
-        V: The displacement space.
-        cells: Per pair, the local cells of this rank's owned master facets.
-    """
-    out = []
-    for local in cells:
-        out.extend(disc.comm.allgather(cell_dofs(V, local)))
-    width = V.dofmap.dof_layout.num_dofs
-    return np.concatenate(out) if out else np.zeros((0, width), np.int64)
 
 
 def cell_basis(
@@ -182,28 +161,81 @@ def facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
     return np.array([lookup.get(int(f), -1) for f in facets], dtype=np.int64)
 
 
+#: How many points :func:`facet_cell_blocks` expands at once (bounds its temporary memory).
+BLOCK_CHUNK = 1 << 16
+
+
+def facet_cell_blocks(
+    facet: np.ndarray, key: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """sum_q rows_q cols_q^T over the points q of each (facet, key) pair.
+
+    Args:
+        facet: The facet of each point.
+        key: The cell key of each point (the points of one pair share its rows' and columns'
+            dofs).
+        rows: The row values per point, shape (q, a).
+        cols: The column values per point, shape (q, j).
+
+    Returns:
+        The first point of each pair (an index into the points) and the blocks, shape
+        (pairs, a, j).
+    """
+    order = np.lexsort((key, facet))
+    f, k = facet[order], key[order]
+    start = np.flatnonzero(np.r_[True, (np.diff(f) != 0) | (np.diff(k) != 0)]) if len(f) else (
+        np.zeros(0, np.int64))
+    blocks = np.zeros((len(start), rows.shape[1], cols.shape[1]))
+    owner = np.repeat(np.arange(len(start)), np.diff(np.r_[start, len(f)]))
+    for lo in range(0, len(f), BLOCK_CHUNK):
+        at, mine = order[lo:lo + BLOCK_CHUNK], owner[lo:lo + BLOCK_CHUNK]
+        first = np.flatnonzero(np.r_[True, np.diff(mine) != 0])  # each pair once per chunk
+        blocks[mine[first]] += np.add.reduceat(
+            np.einsum("qa,qj->qaj", rows[at], cols[at]), first, axis=0)
+    return order[start], blocks
+
+
 def csr_matrix(
     comm: MPI.Comm, rows: list, cols: list, vals: list, first: int, row_sizes: tuple,
-    col_sizes: tuple,
+    col_sizes: tuple, bs: int = 1,
 ) -> PETSc.Mat:
-    """An AIJ matrix from owned global rows, columns and values (duplicates summed)."""
-    n = row_sizes[0]
-    r = np.concatenate(rows).astype(np.int64) - first if rows else np.zeros(0, np.int64)
+    """An AIJ matrix from owned global rows, columns and values (duplicates summed).
+
+    Args:
+        comm: The communicator.
+        rows: Global row indices (blocks of ``bs`` rows), arrays to concatenate.
+        cols: Global column indices (blocks of ``bs`` columns), likewise.
+        vals: The values, likewise.
+        first: The first owned row (of the expanded rows).
+        row_sizes: (owned, global) rows, expanded.
+        col_sizes: (owned, global) columns, expanded.
+        bs: Each value stands for the diagonal of a ``bs`` x ``bs`` block: entry (r, c) is
+            (r bs + k, c bs + k) for k < bs, expanded after the duplicates are summed.
+    """
+    n = row_sizes[0] // bs
+    r = np.concatenate(rows).astype(np.int64) - first // bs if rows else np.zeros(0, np.int64)
     c = np.concatenate(cols).astype(np.int64) if cols else np.zeros(0, np.int64)
     v = np.concatenate(vals) if vals else np.zeros(0)
     keep = v != 0.0
-    r, c, v = r[keep], c[keep], v[keep]
-    key = r * col_sizes[1] + c
-    uniq, inverse = np.unique(key, return_inverse=True)
-    summed = np.zeros(len(uniq))
-    np.add.at(summed, inverse, v)
-    ur, uc = uniq // col_sizes[1], uniq % col_sizes[1]
-    indptr = np.zeros(n + 1, dtype=PETSc.IntType)
-    np.add.at(indptr, ur + 1, 1)
-    indptr = np.cumsum(indptr).astype(PETSc.IntType)
+    summed = scipy.sparse.csr_matrix((v[keep], (r[keep], c[keep])),
+                                     shape=(n, col_sizes[1] // bs))
+    summed.sum_duplicates()  # (sorted column indices per row, as PETSc's CSR wants them)
+    indptr, indices, data = _expand(summed, bs)
     return PETSc.Mat().createAIJ(
         size=(row_sizes, col_sizes),
-        csr=(indptr, uc.astype(PETSc.IntType), summed),
+        csr=(indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType), data),
         comm=comm,
     )
 
+
+def _expand(block: scipy.sparse.csr_matrix, bs: int) -> tuple[np.ndarray, ...]:
+    """The CSR arrays of block (x) I_bs (row r bs + k holds row r's entries at columns c bs + k)."""
+    if bs == 1:
+        return block.indptr, block.indices, block.data
+    count = np.diff(block.indptr)
+    row = np.repeat(np.arange(block.shape[0]), bs)
+    k = np.tile(np.arange(bs), block.shape[0])
+    sizes = count[row]
+    indptr = np.concatenate([[0], np.cumsum(sizes)])
+    gather = np.repeat(block.indptr[row] - indptr[:-1], sizes) + np.arange(indptr[-1])
+    return indptr, block.indices[gather] * bs + np.repeat(k, sizes), block.data[gather]

@@ -35,10 +35,11 @@ facet stays on its slave cell (P v is v there). Each facet's shares sum to its c
 fraction, and what leaves the slave cell is that fraction, so the moved indicators sum to the
 term.
 
-**One geometry per mesh.** The slave and master facets (the master facets gathered once), the
-mortar rule of each degree, the contact frame and the share do not depend on the displacement
-space: :class:`TraceGeometry` holds them once per mesh, and the :class:`MasterTrace` of each space
-(P1 of the solves, P2 of the weights) adds its projection. The discretisation owns both and
+**One geometry per mesh.** The slave and master facets (each rank holding the master facets its
+slave facets need, :mod:`~dwr_signorini.exchange`), the mortar rule of each degree, the
+contact frame and the share do not depend on the displacement space: :class:`TraceGeometry`
+holds them once per mesh, and the :class:`MasterTrace` of each space (P1 of the solves, P2 of
+the weights) adds its projection. The discretisation owns both and
 releases them in its ``destroy()``.
 
 **Images name what they project.** :meth:`MasterTrace.apply` returns P f as a function of W
@@ -57,10 +58,13 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from .exchange import MasterExchange
 from .mortar import (
     FacetBasis,
     FacetMap,
     MortarRule,
+    facet_reach,
+    mortar_rule,
 )
 from .pair_facets import (
     Side,
@@ -68,12 +72,12 @@ from .pair_facets import (
     cell_dofs,
     check_pair_facets,
     csr_matrix,
-    master_dofs,
+    facet_cell_blocks,
     master_facets,
     slave_facets,
     windows,
 )
-from .search import candidate_rule
+from .search import candidate_parts, merge_rules, search_radius
 from .timing import timed
 
 __all__ = [
@@ -140,8 +144,9 @@ class ContactPair:
 class TraceGeometry:
     """The geometry of a mesh's pairs: facets, mortar rules, contact frame, share (module).
 
-    Built once per mesh by the discretisation (collective: every rank gathers the master
-    facets of its pairs) and shared by the :class:`MasterTrace` of each displacement space.
+    Built once per mesh by the discretisation (collective: each rank receives the master
+    facets its slave facets need, :mod:`~dwr_signorini.exchange`) and shared by the
+    :class:`MasterTrace` of each displacement space.
 
     Args:
         disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
@@ -153,7 +158,9 @@ class TraceGeometry:
         vertices, normals: This rank's slave facets (owned cells of ``disc.slave_mesh``).
         slave: Those facets with their cells (``dofs`` empty: each trace adds its space's).
         slave_cells: The fine cell beside each slave facet (global index).
-        master: The master facets of all pairs, gathered (``dofs`` empty likewise).
+        master: The master facets of all pairs that this rank holds (``dofs`` empty likewise).
+        exchanges: Per pair, the :class:`~dwr_signorini.exchange.MasterExchange` of its master
+            facets (this rank's own, and those it holds).
         facets: The slave facets' coordinate map (:class:`~dwr_signorini.mortar.FacetMap`).
         measure, covered: The measure of each slave facet and of its covered part.
         frame: The normal of the contact frame on the fine slave facets (vector DG0,
@@ -181,15 +188,13 @@ class TraceGeometry:
         self.vertices, self.normals = self.slave.vertices, self.slave.normals
         self.slave_cells = self.slave.cell
         self.facets = FacetMap(self.vertices)
-        masters, self.master_cells = [], []
+        self.exchanges = []
         for pair in disc.problem.pairs:
-            master, local = master_facets(disc, pair.master)
-            masters.append(master)
-            self.master_cells.append(local)
-        self._masters = masters
-        self.master = Side(*(np.concatenate([getattr(m, f) for m in masters])
-                              for f in Side.fields()))
-        self._rules: dict[int, MortarRule] = {}
+            exchange = MasterExchange(disc.comm, *master_facets(disc, pair.master))
+            slave, _, w = self._pair_slaves(pair)
+            exchange.boxes(facet_reach(slave)[0], search_radius(slave, w, exchange.reach))
+            self.exchanges.append(exchange)
+        self._rules: dict[int, list[MortarRule]] = {}
         rule = self.rule(1)
         f, _, _, w = self.facets.quadrature(1)
         num = len(self.vertices)
@@ -198,33 +203,63 @@ class TraceGeometry:
         self.frame = self._frame(rule)
         self.share_weights, self._home = self._share_matrices(rule)
 
+    @property
+    def master(self) -> Side:
+        """The master facets of every pair held by this rank (:mod:`~dwr_signorini.exchange`)."""
+        sides = [x.side for x in self.exchanges]
+        return Side(*(np.concatenate([getattr(m, f) for m in sides]) for f in Side.fields()))
+
+    def master_dofs(self, V: fem.FunctionSpace) -> np.ndarray:
+        """V's global block dofs of the cells of :attr:`master` (collective)."""
+        return np.concatenate([x.dofs(V) for x in self.exchanges])
+
     def rule(self, degree: int) -> MortarRule:
         """The mortar rule for a space of ``degree`` (exact to degree 2 ``degree``), kept.
 
         The pieces do not depend on the degree (the share is the same from any rule); the
         Gauss points on them do. Each degree asked for runs the mortar search once per mesh,
-        with each pair's penetration window (:func:`windows`).
+        with each pair's penetration window (:func:`windows`). Collective the first time.
 
         Args:
             degree: The degree of the displacement space.
 
         Returns:
-            The :class:`~dwr_signorini.mortar.MortarRule` of this rank's slave facets.
+            The :class:`~dwr_signorini.mortar.MortarRule` of this rank's slave facets, its
+            ``master`` an index into :attr:`master`.
         """
         if degree not in self._rules:
-            rules, offset = [], 0
-            vertices, normals = self.vertices, self.normals
-            for pair, master in zip(self.disc.problem.pairs, self._masters, strict=True):
-                on = np.flatnonzero(self._slave_tag == pair.slave)
-                r = candidate_rule(vertices[on], normals[on], master.vertices, master.normals,
-                                   2 * degree, windows(pair, vertices[on]))
-                rules.append(MortarRule(on[r.facet], r.points, r.weights, r.master + offset,
-                                        r.gap))
-                offset += len(master.cell)
-            self._rules[degree] = MortarRule(*(np.concatenate([getattr(r, f) for r in rules])
-                                               for f in ("facet", "points", "weights",
-                                                         "master", "gap")))
-        return self._rules[degree]
+            self._rules[degree] = [self._pair_rule(pair, x, degree) for pair, x in zip(
+                self.disc.problem.pairs, self.exchanges, strict=True)]
+        offsets = np.cumsum([0] + [len(x.number) for x in self.exchanges])
+        rules = [MortarRule(r.facet, r.points, r.weights, r.master + offset, r.gap)
+                 for r, offset in zip(self._rules[degree], offsets, strict=False)]
+        return merge_rules(rules, self.vertices.shape[2])
+
+    def _pair_slaves(self, pair: ContactPair) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """This rank's slave facets of ``pair``: vertices, indices, penetration windows."""
+        on = np.flatnonzero(self._slave_tag == pair.slave)
+        slave = self.vertices[on]
+        w = np.broadcast_to(np.asarray(windows(pair, slave), dtype=float), (len(on),))
+        return slave, on, w
+
+    def _pair_rule(self, pair: ContactPair, exchange: MasterExchange, degree: int) -> MortarRule:
+        """One pair's rule: the candidate search, then the facets it leaves against their shadow.
+
+        Collective (the facets left over ask every rank for the master facets in their
+        shadow, :meth:`~dwr_signorini.exchange.MasterExchange.shadows`).
+        """
+        slave, on, w = self._pair_slaves(pair)
+        normals = self.normals[on]
+        held = exchange.side
+        parts, full = candidate_parts(slave, normals, held.vertices, held.normals, 2 * degree,
+                                      w, exchange.reach, exchange.number)
+        exchange.shadows(slave[full], normals[full], w[full])
+        held, order = exchange.side, np.argsort(exchange.number, kind="stable")
+        r = mortar_rule(slave[full], normals[full], held.vertices[order], held.normals[order],
+                        2 * degree, w[full])
+        parts.append(MortarRule(full[r.facet], r.points, r.weights, order[r.master], r.gap))
+        r = merge_rules(parts, slave.shape[2])
+        return MortarRule(on[r.facet], r.points, r.weights, r.master, r.gap)
 
     @property
     def on_pairs(self) -> np.ndarray:
@@ -257,7 +292,7 @@ class TraceGeometry:
         gdim = slave.shape[1]
         V0 = fem.functionspace(self.disc.slave_mesh, ("DG", 0, (gdim,)))
         out = fem.Function(V0, name="contact_frame")
-        cells = np.array([V0.dofmap.cell_dofs(f)[0] for f in range(len(slave))], dtype=np.int64)
+        cells = V0.dofmap.list[:len(slave), 0].astype(np.int64)
         out.x.array[(cells[:, None] * gdim + np.arange(gdim)).ravel()] = frame.ravel()
         out.x.scatter_forward()
         return out
@@ -326,7 +361,7 @@ class TraceGeometry:
 class MasterTrace:
     """The projection P of the master trace onto W and the gap, for one space (module).
 
-    Collective (every rank gathers the master dofs of its pairs).
+    Collective (each rank receives the master dofs of the master facets it holds).
 
     Args:
         disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
@@ -373,11 +408,12 @@ class MasterTrace:
         self.rule = rule = geometry.rule(degree)
         master = geometry.master
         master = Side(master.vertices, master.normals, master.geometry,
-                       master_dofs(disc, V, geometry.master_cells), master.cell)
+                      geometry.master_dofs(V), master.cell)
         basis = FacetBasis(self.Ws.ufl_element().basix_element, geometry.facets, rule)
         projected = rule.points + rule.gap[:, None] * geometry.normals[rule.facet]
         phi = cell_basis(disc.mesh, V, master.geometry, rule.master, projected)
-        terms = [(rule.facet, rule.weights, basis.theta, phi, master.dofs[rule.master])]
+        terms = [(rule.facet, rule.weights, basis.theta, phi, master.dofs[rule.master],
+                  rule.master)]
         terms += self._uncovered(basis, cell_dofs(V, geometry.slave_local))
         self.P = self._projection(basis, terms)
         self.gap = self._gap(basis)
@@ -405,44 +441,45 @@ class MasterTrace:
         phi = cell_basis(self.disc.mesh, self.V, self.geometry.slave.geometry, facet, x)
         theta = np.concatenate([basis.full_theta[on], basis.theta[at]])
         weights = np.concatenate([basis.full_weights[on], -self.rule.weights[at]])
-        return [(facet, weights, theta, phi, slave_dofs[facet])]
+        return [(facet, weights, theta, phi, slave_dofs[facet], facet)]
 
     def _projection(self, basis: FacetBasis, terms: list[tuple[np.ndarray, ...]]) -> PETSc.Mat:
         """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
 
+        The points of one facet and one cell are summed into one block (rows of the facet,
+        columns of the cell) before the blocks are expanded per component: the matrix entries
+        grow with the facet-cell pairs, not with the rule's points.
+
         Args:
             basis: W's basis on the slave facets.
-            terms: (facet, weight, theta(x_q), phi(y_q), global dofs of phi's cell) per point:
-                the master points y_q = Pi(x_q) of the rule, and the slave's own points on the
-                uncovered parts (:meth:`_uncovered`).
+            terms: (facet, weight, theta(x_q), phi(y_q), global dofs of phi's cell, cell key) per
+                point: the master points y_q = Pi(x_q) of the rule, and the slave's own points
+                on the uncovered parts (:meth:`_uncovered`).
         """
         W, V = self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
         inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
-        w_dofs = wmap.local_to_global(
-            np.array([W.dofmap.cell_dofs(int(f)) for f in range(len(basis.mass))],
-                     dtype=np.int32).ravel()
-        ).reshape(len(basis.mass), -1) if len(basis.mass) else np.zeros((0, 1), np.int64)
+        num = len(basis.mass)
+        w_dofs = wmap.local_to_global(W.dofmap.list[:num].ravel()).reshape(num, -1)
         rows, cols, vals = [], [], []
-        for facet, weights, theta, phi, dofs in terms:
+        for facet, weights, theta, phi, dofs, key in terms:
             # per point: the facet's rows (a) times the cell's columns (j)
             local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
             # a facet the master covers in part: the mean (no polynomial through the jump at
             # the master's end); its integral against a constant is the same
             part = basis.partial[facet]
             local[part] = (weights[part] / basis.measure[facet[part]])[:, None]
-            r_q = w_dofs[facet]
-            v_q = np.einsum("qa,qj->qaj", local, phi)
-            shape = v_q.shape
-            for c in range(bs):
-                rows.append(np.broadcast_to((r_q * bs + c)[:, :, None], shape).ravel())
-                cols.append(np.broadcast_to((dofs * bs + c)[:, None, :], shape).ravel())
-                vals.append(v_q.ravel())
+            at, blocks = facet_cell_blocks(facet, key, local, phi)
+            r_q, d_q = w_dofs[facet[at]], dofs[at]
+            shape = blocks.shape
+            rows.append(np.broadcast_to(r_q[:, :, None], shape).ravel())
+            cols.append(np.broadcast_to(d_q[:, None, :], shape).ravel())
+            vals.append(blocks.ravel())
         return csr_matrix(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
-                    (wmap.size_local * bs, wmap.size_global * bs),
-                    (vmap.size_local * V.dofmap.index_map_bs,
-                     vmap.size_global * V.dofmap.index_map_bs))
+                          (wmap.size_local * bs, wmap.size_global * bs),
+                          (vmap.size_local * V.dofmap.index_map_bs,
+                           vmap.size_global * V.dofmap.index_map_bs), bs=bs)
 
     def _gap(self, basis: FacetBasis) -> fem.Function:
         """The gap g projected per facet from its covered part (zero elsewhere).
@@ -467,8 +504,7 @@ class MasterTrace:
         np.add.at(hit, macro, basis.covered)
         np.add.at(size, macro, basis.measure)
         value[hit[macro] <= MIN_MACRO_COVER * size[macro]] = self.disc.problem.miss_gap
-        dofs = np.array([Ws.dofmap.cell_dofs(f) for f in range(len(rhs))], dtype=np.int32)
-        gap.x.array[dofs.ravel()] = value.ravel()
+        gap.x.array[Ws.dofmap.list[:len(rhs)].ravel()] = value.ravel()
         gap.x.scatter_forward()
         return gap
 

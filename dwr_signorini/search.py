@@ -12,9 +12,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .mortar import MortarRule, mortar_rule
+from .clipping import batched_rule
+from .mortar import MortarRule, facet_reach, mortar_rule
 
-__all__ = ["SEARCH_DEPTH", "candidate_rule"]
+__all__ = [
+    "SEARCH_DEPTH", "candidate_parts", "candidate_rule", "merge_rules",
+    "search_depth", "search_radius",
+]
 
 
 #: How deep the candidate search looks along a slave facet's normal, in facet diameters: the
@@ -34,16 +38,10 @@ def candidate_rule(
     """The mortar rule of each slave facet against its candidate master facets only.
 
     :func:`~dwr_signorini.mortar.mortar_rule` of every slave facet against the master facets
-    that a KD-tree of their centres finds near it. A slave facet F of diameter d is searched
-    against the master facets whose centres lie within D + reach(F) + max reach(master) of F's
-    centre, D = max(:data:`SEARCH_DEPTH` d, w_F + d) with w_F F's penetration window: every
-    master facet that a ray of F meets at |t| <= D is among them, and none outside is met at
-    |t| <= D. The result is kept where those candidates cover F and every point's
-    |gap| <= D - d (so no master outside the ball could be nearer, nor in the layer of the
-    nearest, nor within the window behind F: D - d >= w_F); elsewhere (a facet covered in part
-    or not at all, or a gap larger than the search) F is searched against every master facet.
-    The rule is the full search's, up to round-off where a master outside the ball cuts a piece
-    of F without being chosen for it.
+    that a KD-tree of their centres finds near it (:func:`candidate_parts`); a facet that they
+    do not cover within the searched depth is searched against every master facet. The rule is
+    the full search's, up to round-off where a master outside the ball cuts a piece of F without
+    being chosen for it.
 
     Args:
         slave: The slave facets' vertices, shape (m_s, nv, gdim).
@@ -59,50 +57,174 @@ def candidate_rule(
         facets.
     """
     windows = np.broadcast_to(np.asarray(window, dtype=float), (len(slave),))
+    parts, full = candidate_parts(slave, slave_normals, master, master_normals, degree, windows)
+    if len(full):
+        r = mortar_rule(slave[full], slave_normals[full], master, master_normals, degree,
+                        windows[full])
+        parts.append(MortarRule(full[r.facet], r.points, r.weights, r.master, r.gap))
+    return merge_rules(parts, slave.shape[2])
+
+
+def search_depth(slave: np.ndarray, windows: np.ndarray) -> np.ndarray:
+    """D = max(:data:`SEARCH_DEPTH` d, w_F + d) per slave facet, d its diameter."""
+    diameter = 2.0 * facet_reach(slave)[1]
+    return np.maximum(SEARCH_DEPTH * diameter, windows + diameter)
+
+
+def search_radius(slave: np.ndarray, windows: np.ndarray, master_reach: float) -> np.ndarray:
+    """The radius around each slave facet's centre within which its candidates' centres lie.
+
+    D + reach(F) + ``master_reach`` (:func:`search_depth`, :func:`candidate_parts`).
+    """
+    return (1.0 + 1e-9) * (search_depth(slave, windows) + facet_reach(slave)[1] + master_reach)
+
+
+def candidate_parts(
+    slave: np.ndarray,
+    slave_normals: np.ndarray,
+    master: np.ndarray,
+    master_normals: np.ndarray,
+    degree: int,
+    windows: np.ndarray,
+    master_reach: float | None = None,
+    keys: np.ndarray | None = None,
+) -> tuple[list[MortarRule], np.ndarray]:
+    """The rules of the slave facets that their candidates cover, and the facets left over.
+
+    A slave facet F of diameter d is searched against the master facets whose centres lie
+    within :func:`search_radius` of F's centre: every master facet that a ray of F meets at
+    |t| <= D is among them, and none outside is met at |t| <= D. The result is kept where those
+    candidates cover F and every point's |gap| <= D - d (so no master outside the ball could
+    be nearer, nor in the layer of the nearest, nor within the window behind F: D - d >= w_F);
+    the other facets (covered in part or not at all, or a gap larger than the search) are
+    left for a search against every master facet.
+
+    Args:
+        slave: The slave facets' vertices, shape (m_s, nv, gdim).
+        slave_normals: Their outward unit normals.
+        master: The master facets' vertices, shape (m_m, nv, gdim).
+        master_normals: Their outward unit normals.
+        degree: The polynomial degree integrated exactly on each piece.
+        windows: The penetration window of each slave facet.
+        master_reach: The largest reach of a master facet (default: of those given; the
+            largest over all ranks where the masters are distributed).
+        keys: The master facets' global numbers, the order in which each facet meets its
+            candidates (default: their index; the same order on any number of ranks).
+
+    Returns:
+        The rules of the kept facets (``facet`` indexing ``slave``) and the facets left over.
+    """
     if len(slave) == 0 or len(master) == 0:
-        return mortar_rule(slave, slave_normals, master, master_normals, degree, windows)
-    centres, slave_centres = master.mean(axis=1), slave.mean(axis=1)
-    reach = np.linalg.norm(master - centres[:, None], axis=2).max(axis=1)
-    slave_reach = np.linalg.norm(slave - slave_centres[:, None], axis=2).max(axis=1)
-    diameter = 2.0 * slave_reach
-    depth = np.maximum(SEARCH_DEPTH * diameter, windows + diameter)
-    near = cKDTree(centres).query_ball_point(
-        slave_centres, (1.0 + 1e-9) * (depth + slave_reach + reach.max())
-    )
-    parts, full = [], []
-    for i, candidates in enumerate(near):
-        c = np.asarray(candidates, dtype=np.int64)
-        r = mortar_rule(slave[i:i + 1], slave_normals[i:i + 1], master[c], master_normals[c],
-                        degree, windows[i]) if len(c) else None
-        if r is None or not _kept(r, slave[i], depth[i] - diameter[i]):
-            full.append(i)
-            continue
-        parts.append(MortarRule(np.full(len(r.facet), i, dtype=np.int64), r.points, r.weights,
-                                c[r.master], r.gap))
-    if full:
-        f = np.asarray(full, dtype=np.int64)
-        r = mortar_rule(slave[f], slave_normals[f], master, master_normals, degree, windows[f])
-        parts.append(MortarRule(f[r.facet], r.points, r.weights, r.master, r.gap))
-    rule = MortarRule(*(np.concatenate([getattr(p, k) for p in parts]) for k in (
-        "facet", "points", "weights", "master", "gap")))
-    order = np.argsort(rule.facet, kind="stable")
-    return MortarRule(*(getattr(rule, k)[order] for k in (
-        "facet", "points", "weights", "master", "gap")))
-
-
-def _kept(rule: MortarRule, facet: np.ndarray, depth: float) -> bool:
-    """Whether a one-facet rule from the candidates covers the facet within ``depth``."""
-    if len(rule.weights) == 0 or np.max(np.abs(rule.gap)) > depth:
-        return False
-    if len(facet) == 2:
-        measure = float(np.linalg.norm(facet[1] - facet[0]))
+        return [], np.arange(len(slave), dtype=np.int64)
+    centres, reach = facet_reach(master)
+    reach_max = reach.max() if master_reach is None else master_reach
+    keys = np.arange(len(master)) if keys is None else keys
+    facet, candidate = _candidates(cKDTree(centres), slave, slave_normals, windows,
+                                   search_radius(slave, windows, reach_max),
+                                   (centres, reach, master_normals, keys))
+    args = (slave, slave_normals, master, master_normals, degree, windows)
+    lo, hi = np.searchsorted(facet, np.arange(len(slave))), np.searchsorted(
+        facet, np.arange(len(slave)), side="right")
+    if slave.shape[2] == 3:
+        rule, alone = batched_rule(*args, facet, candidate)
+        parts = [rule]
     else:
-        measure = _polygon_fan_area(facet)
-    return float(rule.weights.sum()) >= (1.0 - 1e-9) * measure
+        parts, alone = [], np.unique(facet)
+    parts += [_one(args, i, candidate[lo[i]:hi[i]]) for i in alone]
+    rule = merge_rules(parts, slave.shape[2])
+    kept = _kept(rule, slave, search_depth(slave, windows) - 2.0 * facet_reach(slave)[1])
+    at = kept[rule.facet]
+    kept_rule = MortarRule(*(getattr(rule, k)[at] for k in _FIELDS))
+    return [kept_rule], np.flatnonzero(~kept)
 
 
-def _polygon_fan_area(facet: np.ndarray) -> float:
-    """The area of a flat triangle or quadrilateral facet (vertices in dolfinx's order)."""
-    ring = facet if len(facet) == 3 else facet[[0, 1, 3, 2]]
-    return 0.5 * float(np.linalg.norm(sum(
-        np.cross(ring[k] - ring[0], ring[k + 1] - ring[0]) for k in range(1, len(ring) - 1))))
+#: The fields of a :class:`~dwr_signorini.mortar.MortarRule`.
+_FIELDS = ("facet", "points", "weights", "master", "gap")
+
+#: How many slave facets ask the KD-tree at once (bounds the lists it returns).
+_QUERY_CHUNK = 4096
+
+
+def _candidates(
+    tree: cKDTree, slave: np.ndarray, normals: np.ndarray, windows: np.ndarray,
+    radius: np.ndarray, masters: tuple[np.ndarray, ...],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The (slave facet, master facet) pairs that the rule reads, each facet's sorted by keys.
+
+    The master facets whose centres the KD-tree finds within ``radius`` of each slave facet's
+    centre, of which those in its shadow (:func:`~dwr_signorini.mortar.in_shadow`: the
+    rule looks at no others).
+
+    Args:
+        tree: The KD-tree of the master facets' centres.
+        slave: The slave facets' vertices.
+        normals: Their outward unit normals.
+        windows: Their penetration windows.
+        radius: Their search radii.
+        masters: The master facets' centres, reaches, normals and keys.
+    """
+    centres, reach, master_normals, keys = masters
+    slave_centres, slave_reach = facet_reach(slave)
+    facets, found = [], []
+    for lo in range(0, len(slave), _QUERY_CHUNK):
+        near = tree.query_ball_point(slave_centres[lo:lo + _QUERY_CHUNK],
+                                     radius[lo:lo + _QUERY_CHUNK])
+        sizes = np.array([len(c) for c in near], dtype=np.int64)
+        c = np.concatenate([np.asarray(x, dtype=np.int64) for x in near]) if len(near) else (
+            np.zeros(0, np.int64))
+        f = np.repeat(np.arange(lo, lo + len(near)), sizes)
+        n = normals[f]
+        d = centres[c] - slave_centres[f]
+        along = np.einsum("pd,pd->p", d, n)
+        lateral = np.linalg.norm(d - along[:, None] * n, axis=1)
+        both = reach[c] + slave_reach[f]
+        ok = ((np.einsum("pd,pd->p", master_normals[c], n) < 0.0)
+              & (lateral <= (1.0 + 1e-9) * both) & (along >= -(windows[f] + both)))
+        f, c = f[ok], c[ok]
+        order = np.lexsort((keys[c], f))
+        facets.append(f[order])
+        found.append(c[order])
+    return np.concatenate(facets), np.concatenate(found)
+
+
+def _one(args: tuple, i: int, c: np.ndarray) -> MortarRule:
+    """The per-facet rule of slave facet i against the master facets c (in that order)."""
+    slave, slave_normals, master, master_normals, degree, windows = args
+    r = mortar_rule(slave[i:i + 1], slave_normals[i:i + 1], master[c], master_normals[c],
+                    degree, windows[i])
+    return MortarRule(np.full(len(r.facet), i, dtype=np.int64), r.points, r.weights,
+                      c[r.master], r.gap)
+
+
+def merge_rules(parts: list[MortarRule], gdim: int) -> MortarRule:
+    """The rules of disjoint sets of facets as one, its points in the order of the facets."""
+    fields = _FIELDS
+    if not parts:
+        empty = np.zeros(0)
+        return MortarRule(empty.astype(np.int64), np.zeros((0, gdim)), empty,
+                          empty.astype(np.int64), empty)
+    rule = MortarRule(*(np.concatenate([getattr(p, k) for p in parts]) for k in fields))
+    order = np.argsort(rule.facet, kind="stable")
+    return MortarRule(*(getattr(rule, k)[order] for k in fields))
+
+
+def _kept(rule: MortarRule, slave: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """Which facets the candidates' rule covers within ``depth`` (per facet)."""
+    m = len(slave)
+    covered = np.bincount(rule.facet, weights=rule.weights, minlength=m)
+    far = np.zeros(m)
+    np.maximum.at(far, rule.facet, np.abs(rule.gap))
+    if slave.shape[1] == 2:
+        measure = np.linalg.norm(slave[:, 1] - slave[:, 0], axis=1)
+    else:
+        measure = _facet_areas(slave)
+    hit = np.bincount(rule.facet, minlength=m) > 0
+    return hit & (far <= depth) & (covered >= (1.0 - 1e-9) * measure)
+
+
+def _facet_areas(facets: np.ndarray) -> np.ndarray:
+    """The areas of flat triangle or quadrilateral facets (vertices in dolfinx's order)."""
+    ring = facets if facets.shape[1] == 3 else facets[:, [0, 1, 3, 2]]
+    fan = sum(np.cross(ring[:, k] - ring[:, 0], ring[:, k + 1] - ring[:, 0])
+              for k in range(1, ring.shape[1] - 1))
+    return 0.5 * np.linalg.norm(fan, axis=1)

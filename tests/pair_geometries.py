@@ -7,6 +7,7 @@
 * :func:`punch`: a flat punch [-w, w] x [0, 0.4] on a block [-1, 1] x [-1, 0], both structured
   (transfinite); the block's top has 2 n macro facets of 1/n and the punch's edges fall at
   w = 0.5 + 0.3 / n, inside a block facet.
+* :func:`tet_boxes`: two stacked boxes of tetrahedra, non-matching (n and n + 1 cells a side).
 """
 
 from __future__ import annotations
@@ -155,3 +156,57 @@ def hex_blocks(comm, n_lower=3, n_upper=4, jitter=0.3, seed=7):
     keep = values > 0
     facet_tags = dmesh.meshtags(msh, tdim - 1, facets[keep].astype(np.int32), values[keep])
     return msh, cell_tags, facet_tags
+
+
+# two stacked boxes of tetrahedra: facet tags
+TET_BOTTOM, TET_TOP, TET_MASTER, TET_SLAVE = 1, 2, 3, 4
+
+
+def _tet_box(n: int, z0: float, height: float):
+    """Nodes and tetrahedra of [0, 1]^2 x [z0, z0 + height], n x n x 2 cells of 6."""
+    from mpi4py import MPI
+
+    from dolfinx import mesh as dmesh
+
+    from dwr_signorini import compat
+
+    box = dmesh.create_box(MPI.COMM_SELF, [[0.0, 0.0, z0], [1.0, 1.0, z0 + height]], [n, n, 2])
+    return box.geometry.x.copy(), compat.geometry_dofmap(box).astype(np.int64)
+
+
+def tet_boxes(comm, n: int, gap: float = 0.0):
+    """[0, 1]^2 x [0, 1] (n x n x 2 cells of 6 tetrahedra) under [0, 1]^2 x [1 + gap, 1.5 + gap]
+    ((n + 1) x (n + 1) x 2), one mesh whose bodies share no vertex: the contact facets do not
+    match. Returns (mesh, facet tags): TET_SLAVE the upper box's bottom, TET_MASTER the
+    lower box's top, TET_BOTTOM and TET_TOP the outer faces."""
+    from mpi4py import MPI
+
+    import ufl
+    from dolfinx import mesh as dmesh
+
+    from dwr_signorini import compat
+
+    lower, upper = _tet_box(n, 0.0, 1.0), _tet_box(n + 1, 1.0 + gap, 0.5)
+    if comm.rank == 0:
+        x = np.concatenate([lower[0], upper[0]])
+        cells = np.concatenate([lower[1], upper[1] + len(lower[0])])
+    else:
+        x, cells = np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)
+    unit = dmesh.create_unit_cube(MPI.COMM_SELF, 1, 1, 1)
+    msh = compat.create_mesh(comm, cells, x, ufl.Mesh(unit.ufl_domain().ufl_coordinate_element()))
+    fdim = 2
+    msh.topology.create_connectivity(fdim, 3)
+    eps = 1e-9
+    upper_cells = dmesh.locate_entities(msh, 3, lambda p: p[2] > 1.0 + gap - eps)
+    upper_facets = dmesh.compute_incident_entities(msh.topology, upper_cells, 3, fdim)
+    middle = dmesh.locate_entities_boundary(
+        msh, fdim, lambda p: np.isclose(p[2], 1.0) | np.isclose(p[2], 1.0 + gap))
+    slave = np.intersect1d(middle, upper_facets)
+    master = np.setdiff1d(middle, upper_facets)
+    bottom = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 0.0))
+    top = dmesh.locate_entities_boundary(msh, fdim, lambda p: np.isclose(p[2], 1.5 + gap))
+    indices = np.concatenate([bottom, top, master, slave]).astype(np.int32)
+    values = np.concatenate([np.full(len(f), t, dtype=np.int32) for f, t in (
+        (bottom, TET_BOTTOM), (top, TET_TOP), (master, TET_MASTER), (slave, TET_SLAVE))])
+    order = np.argsort(indices)
+    return msh, dmesh.meshtags(msh, fdim, indices[order], values[order])

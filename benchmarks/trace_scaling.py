@@ -1,0 +1,137 @@
+"""The master trace against the pair's solve: time and memory per rank, from 1e3 slave facets up.
+
+The pair of ``benchmarks/trace_cost.py`` (two stacked boxes of tetrahedra, non-matching contact
+faces, ``tests/pair_geometries.tet_boxes``; 8 (n + 1)^2 fine slave facets). For each n, on
+the discretisation of the pair (one uniform refinement), per size in one run:
+
+* ``trace``: the trace the solve needs, built before it (:class:`~dwr_signorini.pairs.
+  TraceGeometry`: the master facets each rank needs, the P1 mortar rule, frame and share; and the
+  P1 projection), the largest wall time over the ranks;
+* ``P2``: the P2 projection of the estimator's weights (its rule's search included);
+* ``solve``: :func:`dwr_signorini.solve` of the discretisation, its trace already built (the
+  Newton steps: assembly, factorisation, solves), and ``trace / solve``,
+  ``(trace + P2) / solve``;
+* ``held``: the most master facets a rank holds, of ``master facets`` in all;
+* wall and CPU times (the largest over the ranks; on a shared machine the wall time also
+  counts the waits for a core), the ratios of both;
+* ``traces MB``: the resident memory the traces hold (largest over the ranks), ``peak MB``: the
+  peak resident memory of a rank after the traces and after the solve (``ru_maxrss``; it only
+  grows over the sizes, so each size's peak shows where it exceeds the smaller sizes').
+
+Beyond ``--solve-up-to`` slave facets only the traces are built (``solve`` empty). The table goes
+to ``benchmarks/results/trace_scaling_np<ranks>.csv``::
+
+    scripts/fenicsx python3 benchmarks/trace_scaling.py --sizes 10 23 47 95
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/trace_scaling.py --sizes 10 23 47 95
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+import dwr_signorini as ds
+from dwr_signorini.io import write_csv
+from dwr_signorini.spaces import discretize
+from tests import pair_geometries as G
+
+RESULTS = Path(__file__).resolve().parent / "results"
+comm = MPI.COMM_WORLD
+
+
+def print0(*args: object) -> None:
+    if comm.rank == 0:
+        print(*args, flush=True)
+
+
+def problem(n: int) -> ds.SignoriniProblem:
+    """The pair of the module docstring."""
+    msh, tags = G.tet_boxes(comm, n)
+    return ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=G.TET_SLAVE,
+                                                                 master=G.TET_MASTER),
+                               E=1.0, nu=0.3, model="3d",
+                               dirichlet={G.TET_BOTTOM: 0.0, G.TET_TOP: (0.0, 0.0, -0.01)})
+
+
+def resident_mb() -> float:
+    """This process's resident memory now [MB]."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def timed(build) -> tuple[float, float, object]:
+    """The largest wall and CPU times over the ranks of the collective ``build()``, its result.
+
+    (The CPU time of the process, its threads included: on a machine shared with other jobs
+    the wall time also counts the waits for a core.)
+    """
+    comm.barrier()
+    tic, cpu = time.perf_counter(), time.process_time()
+    out = build()
+    cpu = time.process_time() - cpu
+    return (comm.allreduce(time.perf_counter() - tic, op=MPI.MAX),
+            comm.allreduce(cpu, op=MPI.MAX), out)
+
+
+def peak_mb() -> float:
+    """The peak resident memory of a rank so far [MB], the largest over the ranks."""
+    return comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                          op=MPI.MAX)
+
+
+def measure(n: int, solve: bool) -> dict[str, object]:
+    """One row of the table."""
+    disc = discretize(problem(n))
+    before = resident_mb()
+    t_trace, c_trace, trace = timed(disc.master_trace)
+    t_p2, c_p2, _ = timed(lambda: disc.master_trace(disc.vector_space(2)))
+    geometry = trace.geometry
+    row = {
+        "n": n,
+        "slave facets": comm.allreduce(len(geometry.vertices), op=MPI.SUM),
+        "master facets": comm.allreduce(len(geometry.exchanges[0].own.cell), op=MPI.SUM),
+        "held": comm.allreduce(len(geometry.master.cell), op=MPI.MAX),
+        "trace [s]": t_trace, "trace CPU [s]": c_trace,
+        "P2 [s]": t_p2, "P2 CPU [s]": c_p2,
+        "traces MB": comm.allreduce(resident_mb() - before, op=MPI.MAX),
+        "peak MB, traces": peak_mb(),
+    }
+    if solve:
+        t_solve, c_solve, sol = timed(lambda: ds.solve(disc))
+        with sol:
+            row["Newton steps"] = sol.newton_iterations
+        row["solve [s]"], row["solve CPU [s]"] = t_solve, c_solve
+        row["trace / solve"] = t_trace / t_solve
+        row["trace / solve, CPU"] = c_trace / c_solve
+        row["(trace + P2) / solve, CPU"] = (c_trace + c_p2) / c_solve
+        row["peak MB, solve"] = peak_mb()
+    disc.destroy()
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[10, 23, 47])
+    parser.add_argument("--solve-up-to", type=int, default=20_000,
+                        help="solve the pair only up to this many slave facets")
+    args = parser.parse_args()
+    rows = []
+    for n in args.sizes:
+        row = measure(n, 8 * (n + 1) ** 2 <= args.solve_up_to)
+        rows.append(row)
+        print0("  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                         for k, v in row.items()))
+    if comm.rank == 0:
+        RESULTS.mkdir(exist_ok=True)
+        keys = list(dict.fromkeys(k for r in rows for k in r))
+        write_csv(RESULTS / f"trace_scaling_np{comm.size}.csv",
+                  [{k: r.get(k, "") for k in keys} for r in rows])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,218 @@
+"""The 3D mortar rule of many slave facets at once: numpy over all candidate pairs.
+
+:func:`~dwr_signorini.mortar.mortar_rule` cuts each slave facet F into its pieces in a Python
+loop (:func:`~dwr_signorini.mortar._pieces_3d`): the facing master facets projected onto F's
+plane along n_F and clipped against F (Sutherland-Hodgman), those behind the window dropped,
+and from each piece the pieces crossed first cut away where two of them overlap.
+:func:`batched_rule` does the same for all (slave facet, candidate master facet) pairs at once,
+on polygons padded to a fixed number of vertices: the clipping, the areas, the window and the
+separating-axes test of the pieces of each facet. Where no two pieces of a facet overlap (every
+facet of a surface whose projected master facets tile it) the pieces are the rule's, and their
+Gauss points (a fan of triangles each) are placed at once; a facet whose pieces overlap (two
+master layers) is left to the per-facet rule. The points, their order and the pieces are the
+per-facet rule's (the same operations in the same order).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .mortar import (
+    _PIECE_TOL,
+    NONAFFINE_EXTRA_DEGREE,
+    MortarRule,
+    _reference_rule,
+    facet_reach,
+)
+
+__all__ = ["batched_rule"]
+
+
+def _ring(facets: np.ndarray) -> np.ndarray:
+    """Facets' vertices in order around them (a quadrilateral's 0, 1, 3, 2)."""
+    return facets if facets.shape[1] == 3 else facets[:, [0, 1, 3, 2]]
+
+
+def _shoelace(poly: np.ndarray) -> np.ndarray:
+    """Signed areas of polygons (k, nv, 2), padded with repeats of their last vertex."""
+    x, y = poly[..., 0], poly[..., 1]
+    return 0.5 * (np.einsum("kv,kv->k", x, np.roll(y, -1, axis=1))
+                  - np.einsum("kv,kv->k", y, np.roll(x, -1, axis=1)))
+
+
+def _pad(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Each polygon's vertices beyond its ``count`` replaced by its last one."""
+    size = poly.shape[1]
+    last = np.maximum(count - 1, 0)
+    index = np.minimum(np.arange(size)[None], last[:, None])
+    return np.take_along_axis(poly, index[..., None], axis=1)
+
+
+def _half(poly: np.ndarray, count: np.ndarray, a: np.ndarray, b: np.ndarray):
+    """One Sutherland-Hodgman step for all polygons: the part left of the line a -> b.
+
+    The vertices kept and the crossings, in the order of the per-facet step
+    (:func:`~dwr_signorini.mortar._half`).
+    """
+    k, size = poly.shape[:2]
+    valid = np.arange(size)[None] < count[:, None]
+    e = b - a
+    side = e[:, None, 0] * (poly[..., 1] - a[:, None, 1]) - e[:, None, 1] * (
+        poly[..., 0] - a[:, None, 0])
+    nxt = np.where(np.arange(size)[None] + 1 < count[:, None], np.arange(size)[None] + 1, 0)
+    q = np.take_along_axis(poly, nxt[..., None], axis=1)
+    sq = np.take_along_axis(side, nxt, axis=1)
+    keep = valid & (side >= 0.0)
+    cross = valid & ((side >= 0.0) != (sq >= 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(cross, side / np.where(cross, side - sq, 1.0), 0.0)
+    meet = poly + (q - poly) * t[..., None]
+    slots = np.stack([poly, meet], axis=2).reshape(k, 2 * size, 2)
+    used = np.stack([keep, cross], axis=2).reshape(k, 2 * size)
+    order = np.argsort(~used, axis=1, kind="stable")
+    return np.take_along_axis(slots, order[..., None], axis=1), used.sum(axis=1)
+
+
+def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray):
+    """Convex ``subject`` polygons (padded) clipped by convex ``clip`` ones (ccw, one size).
+
+    Returns:
+        The pieces (padded) and their numbers of vertices.
+    """
+    m, size = clip.shape[1], subject.shape[1]
+    for i in range(m):
+        subject, count = _half(subject, count, clip[:, i], clip[:, (i + 1) % m])
+        subject = subject[:, :size + i + 1]  # each half-plane adds at most one vertex
+    return subject, count
+
+
+def _pairs_within(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All pairs (a < b) of indices with the same (sorted) ``group``."""
+    n = len(group)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    end = np.searchsorted(group, group, side="right")
+    counts = end - np.arange(n) - 1
+    a = np.repeat(np.arange(n), counts)
+    start = np.repeat(np.cumsum(counts) - counts, counts)
+    return a, a + 1 + (np.arange(len(a)) - start)
+
+
+def _overlap(poly: np.ndarray, a: np.ndarray, b: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """Whether the padded convex polygons a and b may overlap in more than an edge.
+
+    The separating-axes test of :func:`~dwr_signorini.mortar._overlaps`, pair by pair.
+    """
+    def separated(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        edges = np.roll(p, -1, axis=1) - p
+        ax, ay = edges[..., 1], -edges[..., 0]  # (k, a)
+        length = np.hypot(ax, ay)
+        valid = length > 0.0
+        ax, ay = ax / np.where(valid, length, 1.0), ay / np.where(valid, length, 1.0)
+
+        def extent(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            on = ax[:, :, None] * r[:, None, :, 0] + ay[:, :, None] * r[:, None, :, 1]
+            return on.min(axis=2), on.max(axis=2)
+
+        (own_lo, own_hi), (lo, hi) = extent(p), extent(q)
+        apart = ((own_hi <= lo + tol[:, None]) | (hi <= own_lo + tol[:, None])) & valid
+        return apart.any(axis=1)
+
+    p, q = poly[a], poly[b]
+    return ~(separated(p, q) | separated(q, p))
+
+
+def batched_rule(
+    slave: np.ndarray, slave_normals: np.ndarray, master: np.ndarray,
+    master_normals: np.ndarray, degree: int, windows: np.ndarray, facet: np.ndarray,
+    candidate: np.ndarray,
+) -> tuple[MortarRule, np.ndarray]:
+    """The 3D mortar rule of every slave facet against its candidates (module docstring).
+
+    Args:
+        slave: The slave facets' vertices, shape (m_s, nv, 3).
+        slave_normals: Their outward unit normals.
+        master: The master facets' vertices, shape (m_m, nv, 3).
+        master_normals: Their outward unit normals.
+        degree: The polynomial degree integrated exactly on each piece.
+        windows: The penetration window of each slave facet.
+        facet: The slave facet of each candidate pair, sorted.
+        candidate: The master facet of each pair, each facet's in the order it meets them.
+
+    Returns:
+        The rule of the facets whose pieces do not overlap (``facet`` indexing ``slave``,
+        ``master`` indexing ``master``, in the order of the pairs), and the facets whose pieces
+        overlap (to the per-facet rule).
+    """
+    bilinear = slave.shape[1] != 3 or master.shape[1] != 3
+    points, weights = _reference_rule(2, degree + (NONAFFINE_EXTRA_DEGREE if bilinear else 0))
+    n = slave_normals
+    e1 = slave[:, 1] - slave[:, 0]
+    e1 /= np.linalg.norm(e1, axis=1)[:, None]
+    frame = np.stack([e1, np.cross(n, e1)], axis=1)  # (m_s, 2, 3)
+    origin = slave[:, 0]
+    ring = np.einsum("fvd,fkd->fvk", _ring(slave) - origin[:, None], frame)
+    ring = np.where((_shoelace(ring) >= 0.0)[:, None, None], ring, ring[:, ::-1])
+    area_F = _shoelace(ring)
+    # the per-facet rule's filters: in the shadow, facing, the boxes meet
+    centres, reach = facet_reach(master)
+    slave_centres, slave_reach = facet_reach(slave)
+    nf = n[facet]
+    d = centres[candidate] - slave_centres[facet]
+    along = np.einsum("pd,pd->p", d, nf)
+    lateral = np.linalg.norm(d - along[:, None] * nf, axis=1)
+    s_reach = reach[candidate] + slave_reach[facet]
+    facing = np.einsum("pd,pd->p", master_normals[candidate], nf) < 0.0
+    ok = facing & (lateral <= (1.0 + 1e-9) * s_reach) & (along >= -(windows[facet] + s_reach))
+    facet, candidate = facet[ok], candidate[ok]
+    proj = np.einsum("pvd,pkd->pvk", _ring(master[candidate]) - origin[facet][:, None],
+                     frame[facet])
+    lo, hi = ring.min(axis=1)[facet], ring.max(axis=1)[facet]
+    ok = np.all(proj.max(axis=1) > lo, axis=1) & np.all(proj.min(axis=1) < hi, axis=1)
+    facet, candidate, proj = facet[ok], candidate[ok], proj[ok]
+    proj = np.where((_shoelace(proj) >= 0.0)[:, None, None], proj, proj[:, ::-1])
+    piece, count = _clip(proj, np.full(len(proj), proj.shape[1]), ring[facet])
+    piece = _pad(piece, count)
+    tol = _PIECE_TOL * area_F[facet]
+    ok = (count >= 3) & (_shoelace(piece) > tol)
+    # the window, at the centre of the piece's vertices
+    centre = np.einsum("pvk,pv->pk", piece, np.arange(piece.shape[1])[None] < count[:, None])
+    centre /= np.maximum(count, 1)[:, None]
+    x = origin[facet] + np.einsum("pk,pkd->pd", centre, frame[facet])
+    ok &= _ray(x, n[facet], master[candidate, 0], master_normals[candidate]) >= -windows[facet]
+    facet, candidate, piece, count = facet[ok], candidate[ok], piece[ok], count[ok]
+    a, b = _pairs_within(facet)
+    clash = _overlap(piece, a, b, 1e-9 * np.sqrt(area_F[facet[a]]))
+    overlapping = np.unique(facet[a[clash]])
+    fast = ~np.isin(facet, overlapping)
+    rule = _fan(piece[fast], count[fast], facet[fast], candidate[fast], origin, frame,
+                (points, weights), area_F)
+    gap = _ray(rule.points, n[rule.facet], master[rule.master, 0], master_normals[rule.master])
+    return MortarRule(rule.facet, rule.points, rule.weights, rule.master, gap), overlapping
+
+
+def _fan(piece: np.ndarray, count: np.ndarray, facet: np.ndarray, master: np.ndarray,
+         origin: np.ndarray, frame: np.ndarray, rule: tuple, area_F: np.ndarray) -> MortarRule:
+    """The Gauss points of the pieces: fans of triangles (v_0, v_k, v_k+1).
+
+    As the per-facet :func:`~dwr_signorini.mortar._fan`; ``gap`` left empty.
+    """
+    points, weights = rule
+    size = piece.shape[1]
+    b, c = piece[:, 1:-1] - piece[:, :1], piece[:, 2:] - piece[:, :1]  # (k, size - 2, 2)
+    area = 0.5 * (b[..., 0] * c[..., 1] - b[..., 1] * c[..., 0])
+    keep = (np.arange(size - 2)[None] < (count - 2)[:, None]) & (
+        area > _PIECE_TOL * area_F[facet][:, None])
+    k, t = np.nonzero(keep)  # row-major: the pieces' order, then their triangles'
+    xy = (piece[k, 0][:, None] + points[None, :, :1] * b[k, t][:, None]
+          + points[None, :, 1:] * c[k, t][:, None])  # (triangles, q, 2)
+    q = len(weights)
+    f = np.repeat(facet[k], q)
+    x = origin[f] + np.einsum("pk,pkd->pd", xy.reshape(-1, 2), frame[f])
+    w = ((2.0 * area[k, t])[:, None] * weights[None]).ravel()
+    return MortarRule(f, x, w, np.repeat(master[k], q), np.zeros(0))
+
+
+def _ray(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:
+    """The ray parameters t of x + t n on the planes through p0 with normals nm, row by row."""
+    return np.einsum("pd,pd->p", p0 - x, nm) / np.einsum("pd,pd->p", n, nm)
