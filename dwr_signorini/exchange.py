@@ -115,9 +115,9 @@ class MasterExchange:
             Shape (held facets, dofs per cell), in the order of :attr:`side`.
         """
         own = cell_dofs(V, self.cells)
-        wanted = self.comm.alltoall([self.number[self._source == r] - self.first
-                                     for r in range(self.comm.size)])
-        received = self.comm.alltoall([own[w] for w in wanted])
+        wanted = self.comm.alltoall([self.number[self._source == r]
+                                     for r in range(self.comm.size)])  # global numbers
+        received = self.comm.alltoall([own[w - self.first] for w in wanted])
         out = np.zeros((len(self.number), V.dofmap.dof_layout.num_dofs), np.int64)
         for r, values in enumerate(received):
             out[self._source == r] = values

@@ -461,7 +461,8 @@ class MasterTrace:
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
         inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
         num = len(basis.mass)
-        w_dofs = wmap.local_to_global(W.dofmap.list[:num].ravel()).reshape(num, -1)
+        w_dofs = wmap.local_to_global(W.dofmap.list[:num].ravel()).reshape(
+            num, W.dofmap.list.shape[1])
         rows, cols, vals = [], [], []
         for facet, weights, theta, phi, dofs, key in terms:
             # per point: the facet's rows (a) times the cell's columns (j)
