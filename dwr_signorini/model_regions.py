@@ -47,7 +47,14 @@ class RegionMu:
 
     def __init__(self, mu: Any, chi: fem.Function) -> None:
         self.mu = mu
-        self.chi = chi
+        # private: the checks that data agree on all ranks compare the public attributes, and
+        # a discrete function's values need its mesh
+        self._chi = chi
+
+    @property
+    def chi(self) -> fem.Function:
+        """chi_R."""
+        return self._chi
 
     def __call__(self, x: Any) -> Any:
         """mu(x) chi_R as UFL."""
