@@ -152,7 +152,7 @@ def solve_adaptive(
             Coulomb from the next level on. ``LevelRecord.rich_share`` and
             ``AdaptiveResult.model_map`` say which facets ran which law; with ``output_dir``
             the run writes ``model_map.json`` and ``model_map.png``
-            (:func:`~dwr_signorini.viz.plot_model_map`).
+            (:func:`dwr_signorini.viz.plot_model_map`).
 
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level (collective;

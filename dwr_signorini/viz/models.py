@@ -68,8 +68,11 @@ def plot_model_map(
                   [f"level {m['level']} ({m['share']:.0%})" for m in levels])
     ax.invert_yaxis()
     ax.set_xlabel("xyz"[axis] + " along the contact boundary")
-    handles = [ax.bar(0, 0, color=COLOURS[k]) for k in (0, 1)]
-    ax.legend(handles, ["frictionless", "Coulomb"], fontsize="small", loc="upper right")
+    from matplotlib.patches import Patch
+
+    handles = [Patch(color=COLOURS[k], label=name)
+               for k, name in ((0, "frictionless"), (1, "Coulomb"))]
+    ax.legend(handles=handles, fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     if title:
         ax.set_title(title)
     return save_figure(fig, path)
