@@ -26,6 +26,7 @@ from mpi4py import MPI
 import numpy as np
 from dolfinx import fem
 
+from . import compat
 from .laws import Coulomb
 
 __all__ = ["RegionMap", "RegionMu", "law_label", "new_rows", "regional"]
@@ -103,7 +104,7 @@ def _owned_facets(disc: Any) -> np.ndarray:
     n_q = disc.Q.dofmap.index_map.size_local
     num_cells = sub.topology.index_map(sub.topology.dim).size_local
     dofs = disc.Q.dofmap.list[:num_cells, 0]
-    nodes = sub.geometry.dofmap[:num_cells]
+    nodes = compat.geometry_dofmap(sub)[:num_cells]
     gdim = disc.mesh.geometry.dim
     out = np.empty((n_q, nodes.shape[1], gdim))
     owned = dofs < n_q
