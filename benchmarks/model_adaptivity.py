@@ -90,7 +90,7 @@ def alone_on(levels: list, law, goal) -> tuple[list[float], float, int]:
     Newton steps (cold starts)."""
     out, seconds, steps = [], 0.0, 0
     for problem in levels:
-        one = problem.with_mesh(problem.mesh, problem.facet_tags, problem.cell_tags, law=law)
+        one = on_law(problem, law)
         COMM.Barrier()
         tic = time.perf_counter()
         with ds.solve(one) as r, ds.estimate(r, goal) as est:
@@ -105,7 +105,8 @@ def run(scene: dict, max_levels: int, repeat: int) -> dict:
     (the least seconds of each: the first run also compiles the forms)."""
     rows = [run_once(scene, max_levels) for _ in range(repeat)]
     best = rows[-1]
-    for key in ("time", "time_simple", "time_rich", "time_rich_run"):
+    for key in ("time", "time_simple", "time_rich", "time_rich_run", "time_cold_own",
+                "time_cold_rich"):
         best[key] = min(r[key] for r in rows)
     return best
 
@@ -118,6 +119,20 @@ def first_level(scene: dict) -> tuple[float, float]:
             return value(r, scene["goal"]) - value(s, scene["goal"]), est.model_error
 
 
+def on_law(problem, law):
+    """``problem`` with ``law`` on its own mesh."""
+    return problem.with_mesh(problem.mesh, problem.facet_tags, problem.cell_tags, law=law)
+
+
+def cold_solve(disc) -> tuple[int, float]:
+    """Newton steps and seconds of a cold solve on ``disc`` (the level's own spaces, so that a
+    per-region law's chi_R fits them)."""
+    COMM.Barrier()
+    tic = time.perf_counter()
+    with ds.solve(disc) as sol:
+        return sol.newton_iterations, time.perf_counter() - tic
+
+
 def adaptive_seconds(levels: list) -> float:
     """The seconds of a run's levels without refinement."""
     return sum(r.time["total"] - r.time["refine"] for r in levels)
@@ -125,10 +140,15 @@ def adaptive_seconds(levels: list) -> float:
 
 def run_once(scene: dict, max_levels: int) -> dict:
     """One adaptive-model run of ``scene``, the models alone on its meshes, the rich run."""
-    meshes = []
+    meshes, cold = [], {"own": [0, 0.0], "rich": [0, 0.0]}
 
     def keep(record, sol, est):
         meshes.append(sol.disc.problem)
+        own = sol.disc.problem
+        for key, problem in (("own", own), ("rich", on_law(own, rich.law))):
+            steps, seconds = cold_solve(sol.disc.for_problem(problem))
+            cold[key][0] += steps
+            cold[key][1] += seconds
 
     simple, rich = scene["models"][0], scene["models"][-1]
     options = {"tol": scene["tol"], "max_levels": max_levels, "verbose": False}
@@ -150,6 +170,8 @@ def run_once(scene: dict, max_levels: int) -> dict:
         "newton_rich": rich_steps, "time": adaptive_seconds(levels),
         "time_simple": simple_seconds, "time_rich": rich_seconds,
         "time_rich_run": adaptive_seconds(rich_run), "levels_rich_run": len(rich_run),
+        "newton_cold_own": cold["own"][0], "newton_cold_rich": cold["rich"][0],
+        "time_cold_own": cold["own"][1], "time_cold_rich": cold["rich"][1],
     }
 
 
@@ -158,14 +180,16 @@ def print_table(rows: list[dict]) -> None:
     print(f"{'problem':34s} {'tol':>8s} {'true':>10s} {'estimate':>10s} {'ieff':>5s} "
           f"{'coulomb share per level':28s} {'J_best':>11s} {'J rich,same':>11s} "
           f"{'conv':>5s} {'t run':>6s} {'simple':>6s} {'rich':>6s} {'rich run':>8s} "
-          f"{'newton':>6s} {'rich':>4s}")
+          f"{'newton':>6s} {'rich':>4s} {'cold: own':>9s} {'rich':>4s} {'t own':>6s} "
+          f"{'t rich':>6s}")
     for r in rows:
         shares = ",".join(f"{s:.2f}" for s in r["rich_share"])
         print(f"{r['problem']:34s} {r['tol']:8.1e} {r['true']:10.3e} {r['estimate']:10.3e} "
               f"{r['true'] / r['estimate']:5.3f} {shares:28s} {r['J_best']:11.5e} "
               f"{r['J_rich']:11.5e} {r['converged']!s:>5s} {r['time']:6.2f} "
               f"{r['time_simple']:6.2f} {r['time_rich']:6.2f} {r['time_rich_run']:8.2f} "
-              f"{r['newton']:6d} {r['newton_rich']:4d}")
+              f"{r['newton']:6d} {r['newton_rich']:4d} {r['newton_cold_own']:9d} "
+              f"{r['newton_cold_rich']:4d} {r['time_cold_own']:6.2f} {r['time_cold_rich']:6.2f}")
 
 
 def main() -> None:
