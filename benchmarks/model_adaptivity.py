@@ -1,20 +1,25 @@
-"""Mesh and model adaptivity against the rich model on the same meshes.
+"""Mesh and model adaptivity against the rich model on the same meshes: global and per region.
 
-``solve_adaptive(simple, goal, tol=tol, models=[simple, rich])`` (frictionless, then Coulomb)
-on three scenes; then the rich model alone (cold start, solve and estimate) on each mesh the
-adaptive run made; the least seconds of ``--repeat`` runs of each. Per scene: the law each
-level ran, J_best of the run, J_h of the rich model on the run's last mesh, whether the run
-converged, and the seconds of the run's levels (solve, estimates, the model error estimate,
-re-solves after a switch; without refinement) against the rich model's solves and estimates on
-the same meshes::
+``solve_adaptive(simple, goal, tol=tol, models=[simple, rich])`` (frictionless, then Coulomb),
+with the global switch and, on the thin block, per region (``model_regions=True``); then the
+simple and the rich model alone (cold start, solve and estimate) on each mesh the run made, and
+the rich model's own adaptive run; the least seconds of ``--repeat`` runs of each. Per scene and
+run: the law each level ran (per region: the share of Gamma_C on Coulomb), the true model
+difference J(rich) - J(simple) on the first mesh with its estimate and effectivity, J_best of the
+run, J_h of the rich model on the run's last mesh, whether the run converged, and the seconds of
+the run's levels (solve, estimates, the model error estimate, re-solves after a switch; without
+refinement) against the simple and the rich model's solves and estimates on the same meshes, with
+the Newton steps of the run and of the rich model there::
 
     scripts/fenicsx python3 benchmarks/model_adaptivity.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/model_adaptivity.py
 
 The scenes: the block (0, 2) x (0, 1) of ``tests/test_model_error.py`` with its top displaced
 by (0.02, -0.01) on a rigid plane, mu = 0.5 (friction changes int u_x on the base by -0.038 of
-0.040) and mu = 0.0001 (by about 7e-6); and the 2D Hertz press of ``meshes/hertz_2d.py`` with
-mu = 0.3, whose contact force friction changes by about 1 %.
+0.040) and mu = 0.0001 (by about 7e-6); the 2D Hertz press of ``meshes/hertz_2d.py`` with
+mu = 0.3, whose contact force friction changes by about 1 %; and the thin block (0, 4) x (0, 0.5)
+of ``tests/test_model_regions.py``, mu = 0.2, goal the slide of the base under x < 0.5: friction
+changes J by -1.6e-3 of 3.8e-3, and its model indicators fall to 0.3 % towards the far end.
 """
 
 from __future__ import annotations
@@ -32,7 +37,8 @@ from dwr_signorini.io import write_json
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.problems import block, from_model, mesh_script
-from tests.test_model_error import sheared, slide
+from tests.test_model_error import sheared, slide, value
+from tests.test_model_regions import MU, near_end, thin, thin_block
 
 COMM = MPI.COMM_WORLD
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -70,50 +76,120 @@ def hertz_scene(tol_rel: float) -> dict:
             "models": models}
 
 
-def rich_on(levels: list, rich_law, goal) -> tuple[list[float], float]:
-    """J_h of the rich law on each mesh of ``levels`` and the seconds of its solves+estimates."""
-    out, seconds = [], 0.0
+def thin_scene(tol: float, regions: bool) -> dict:
+    """The thin block with models [frictionless, Coulomb(0.2)], globally or per region."""
+    msh, tags = thin_block()
+    how = "per region" if regions else "global"
+    return {"name": f"thin block, mu = {MU:g}, {how}", "goal": near_end, "tol": tol,
+            "models": [thin(msh, tags, None), thin(msh, tags, ds.Coulomb(MU))],
+            "regions": regions}
+
+
+def alone_on(levels: list, law, goal) -> tuple[list[float], float, int]:
+    """J_h of ``law`` on each mesh of ``levels``, the seconds of its solves+estimates and its
+    Newton steps (cold starts)."""
+    out, seconds, steps = [], 0.0, 0
     for problem in levels:
-        rich = problem.with_mesh(problem.mesh, problem.facet_tags, problem.cell_tags,
-                                 law=rich_law)
+        one = on_law(problem, law)
         COMM.Barrier()
         tic = time.perf_counter()
-        with ds.solve(rich) as r, ds.estimate(r, goal) as est:
+        with ds.solve(one) as r, ds.estimate(r, goal) as est:
             out.append(est.J_h)
+            steps += r.newton_iterations
         seconds += time.perf_counter() - tic
-    return out, seconds
+    return out, seconds, steps
 
 
 def run(scene: dict, max_levels: int, repeat: int) -> dict:
-    """The adaptive-model run of ``scene`` and the rich model on its meshes, ``repeat`` times
+    """The adaptive-model run of ``scene`` and the models alone on its meshes, ``repeat`` times
     (the least seconds of each: the first run also compiles the forms)."""
     rows = [run_once(scene, max_levels) for _ in range(repeat)]
     best = rows[-1]
-    best["time"] = min(r["time"] for r in rows)
-    best["time_rich"] = min(r["time_rich"] for r in rows)
+    for key in ("time", "time_simple", "time_rich", "time_rich_run", "time_cold_own",
+                "time_cold_rich"):
+        best[key] = min(r[key] for r in rows)
     return best
 
 
+def first_level(scene: dict) -> tuple[float, float]:
+    """The true model difference J(rich) - J(simple) on the first mesh and its estimate."""
+    simple, rich = scene["models"][0], scene["models"][-1]
+    with ds.solve(simple) as s, ds.solve(rich) as r:
+        with ds.estimate(s, scene["goal"], model_error=rich) as est:
+            return value(r, scene["goal"]) - value(s, scene["goal"]), est.model_error
+
+
+def on_law(problem, law):
+    """``problem`` with ``law`` on its own mesh."""
+    return problem.with_mesh(problem.mesh, problem.facet_tags, problem.cell_tags, law=law)
+
+
+def cold_solve(disc) -> tuple[int, float]:
+    """Newton steps and seconds of a cold solve on ``disc`` (the level's own spaces, so that a
+    per-region law's chi_R fits them)."""
+    COMM.Barrier()
+    tic = time.perf_counter()
+    with ds.solve(disc) as sol:
+        return sol.newton_iterations, time.perf_counter() - tic
+
+
+def adaptive_seconds(levels: list) -> float:
+    """The seconds of a run's levels without refinement."""
+    return sum(r.time["total"] - r.time["refine"] for r in levels)
+
+
 def run_once(scene: dict, max_levels: int) -> dict:
-    """One adaptive-model run of ``scene`` and the rich model on its meshes."""
-    meshes = []
+    """One adaptive-model run of ``scene``, the models alone on its meshes, the rich run."""
+    meshes, cold = [], {"own": [0, 0.0], "rich": [0, 0.0]}
 
     def keep(record, sol, est):
         meshes.append(sol.disc.problem)
+        own = sol.disc.problem
+        for key, problem in (("own", own), ("rich", on_law(own, rich.law))):
+            steps, seconds = cold_solve(sol.disc.for_problem(problem))
+            cold[key][0] += steps
+            cold[key][1] += seconds
 
     simple, rich = scene["models"][0], scene["models"][-1]
-    with ds.solve_adaptive(simple, scene["goal"], tol=scene["tol"], max_levels=max_levels,
-                           models=scene["models"], callback=keep, verbose=False) as res:
+    options = {"tol": scene["tol"], "max_levels": max_levels, "verbose": False}
+    with ds.solve_adaptive(simple, scene["goal"], models=scene["models"], callback=keep,
+                           model_regions=scene.get("regions", False), **options) as res:
         levels, converged = res.levels, res.converged
-    seconds = sum(r.time["total"] - r.time["refine"] for r in levels)
-    rich_J, rich_seconds = rich_on(meshes, rich.law, scene["goal"])
+    with ds.solve_adaptive(rich, scene["goal"], **options) as res:
+        rich_run = res.levels
+    rich_J, rich_seconds, rich_steps = alone_on(meshes, rich.law, scene["goal"])
+    _, simple_seconds, _ = alone_on(meshes, simple.law, scene["goal"])
+    true, est = first_level(scene)
     return {
-        "problem": scene["name"], "tol": scene["tol"],
-        "models": [r.model for r in levels], "cells": [r.num_cells for r in levels],
+        "problem": scene["name"], "tol": scene["tol"], "true": true, "estimate": est,
+        "models": [r.model for r in levels], "rich_share": [r.rich_share for r in levels],
+        "cells": [r.num_cells for r in levels],
         "J_best": levels[-1].J_best, "J_h": levels[-1].J_h, "J_rich": rich_J[-1],
-        "model_error": levels[-1].model_error, "converged": converged,
-        "time": seconds, "time_rich": rich_seconds,
+        "J_rich_run": rich_run[-1].J_best, "model_error": levels[-1].model_error,
+        "converged": converged, "newton": sum(r.newton_iterations for r in levels),
+        "newton_rich": rich_steps, "time": adaptive_seconds(levels),
+        "time_simple": simple_seconds, "time_rich": rich_seconds,
+        "time_rich_run": adaptive_seconds(rich_run), "levels_rich_run": len(rich_run),
+        "newton_cold_own": cold["own"][0], "newton_cold_rich": cold["rich"][0],
+        "time_cold_own": cold["own"][1], "time_cold_rich": cold["rich"][1],
     }
+
+
+def print_table(rows: list[dict]) -> None:
+    """The table (rank 0)."""
+    print(f"{'problem':34s} {'tol':>8s} {'true':>10s} {'estimate':>10s} {'ieff':>5s} "
+          f"{'coulomb share per level':28s} {'J_best':>11s} {'J rich,same':>11s} "
+          f"{'conv':>5s} {'t run':>6s} {'simple':>6s} {'rich':>6s} {'rich run':>8s} "
+          f"{'newton':>6s} {'rich':>4s} {'cold: own':>9s} {'rich':>4s} {'t own':>6s} "
+          f"{'t rich':>6s}")
+    for r in rows:
+        shares = ",".join(f"{s:.2f}" for s in r["rich_share"])
+        print(f"{r['problem']:34s} {r['tol']:8.1e} {r['true']:10.3e} {r['estimate']:10.3e} "
+              f"{r['true'] / r['estimate']:5.3f} {shares:28s} {r['J_best']:11.5e} "
+              f"{r['J_rich']:11.5e} {r['converged']!s:>5s} {r['time']:6.2f} "
+              f"{r['time_simple']:6.2f} {r['time_rich']:6.2f} {r['time_rich_run']:8.2f} "
+              f"{r['newton']:6d} {r['newton_rich']:4d} {r['newton_cold_own']:9d} "
+              f"{r['newton_cold_rich']:4d} {r['time_cold_own']:6.2f} {r['time_cold_rich']:6.2f}")
 
 
 def main() -> None:
@@ -122,17 +198,11 @@ def main() -> None:
     parser.add_argument("--max-levels", type=int, default=8)
     parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
-    scenes = [block_scene(0.5, 2e-4), block_scene(0.0001, 2e-5), hertz_scene(0.05)]
+    scenes = [block_scene(0.5, 2e-4), block_scene(0.0001, 2e-5), hertz_scene(0.05),
+              thin_scene(2e-5, False), thin_scene(2e-5, True)]
     rows = [run(scene, args.max_levels, args.repeat) for scene in scenes]
     if COMM.rank == 0:
-        print(f"{'problem':28s} {'tol':>9s} {'models per level':34s} {'J_best':>12s} "
-              f"{'J_h':>12s} {'J rich, same mesh':>17s} {'conv':>5s} {'time':>7s} "
-              f"{'rich':>7s}")
-        for r in rows:
-            models = ",".join(m[:4] for m in r["models"])
-            print(f"{r['problem']:28s} {r['tol']:9.2e} {models:34s} {r['J_best']:12.6e} "
-                  f"{r['J_h']:12.6e} {r['J_rich']:17.6e} {r['converged']!s:>5s} "
-                  f"{r['time']:7.2f} {r['time_rich']:7.2f}")
+        print_table(rows)
         RESULTS.mkdir(exist_ok=True)
         write_json(RESULTS / f"model_adaptivity_np{COMM.size}.json", {"rows": rows})
 

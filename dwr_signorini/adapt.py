@@ -24,7 +24,7 @@ from .driver import LevelSettings, check_simplex
 from .estimator import Estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
-from .model_choice import ModelChoice, check_models, explain
+from .model_choice import ModelChoice, check_models, check_regions, explain, write_model_map
 from .model_error import check_richer
 from .newton import Solution
 from .problem import SignoriniProblem
@@ -62,16 +62,21 @@ def _check_refinement(problem: SignoriniProblem, refinement: str, rule: Any, exa
 
 
 def _model_choice(
-    problem: SignoriniProblem, model_error: Any, models: Any, tol: Any, share: Any
+    problem: SignoriniProblem, model_error: Any, models: Any, tol: Any, share: Any,
+    regions: Any = False, marking: MarkingRule | None = None,
 ) -> ModelChoice | None:
     """Check ``model_error`` or ``models`` of :func:`solve_adaptive`; the run's model choice."""
     if model_error is not None:
         check_richer(problem, model_error)
     if models is None:
+        if regions is not False:
+            raise ValueError("model_regions needs models=[frictionless, Coulomb(mu)]")
         return None
     if model_error is not None:
         raise ValueError("give models or model_error, not both")
-    return ModelChoice(check_models(problem, models, tol, share), tol, share)
+    models = check_models(problem, models, tol, share)
+    return ModelChoice(models, tol, share, regions=check_regions(models, regions),
+                       marking=marking)
 
 
 def solve_adaptive(
@@ -97,6 +102,7 @@ def solve_adaptive(
     model_error: SignoriniProblem | None = None,
     models: list[SignoriniProblem] | None = None,
     model_share: float = 0.5,
+    model_regions: bool = False,
 ) -> AdaptiveResult:
     """Goal-oriented adaptive (or uniform) refinement for Signorini's problem.
 
@@ -140,6 +146,13 @@ def solve_adaptive(
             interval of J plus the bound of the model error is at most ``tol`` (eq. (M3)).
             ``LevelRecord.model`` names the law that ran. Not with ``model_error``.
         model_share: s of (M2), in (0, 1): the share of ``tol`` a left-out law may change J by.
+        model_regions: With ``models=[frictionless, Coulomb(mu)]``: choose the law per macro
+            contact facet (eqs. (M4), (M5)): the first level runs frictionless; where (M2)
+            fails, the facets with the largest model indicators (by the run's marking rule) run
+            Coulomb from the next level on. ``LevelRecord.rich_share`` and
+            ``AdaptiveResult.model_map`` say which facets ran which law; with ``output_dir``
+            the run writes ``model_map.json`` and ``model_map.png``
+            (:func:`dwr_signorini.viz.plot_model_map`).
 
     Returns:
         The :class:`AdaptiveResult` with one :class:`LevelRecord` per level (collective;
@@ -164,6 +177,7 @@ def solve_adaptive(
             "callback": callback is None, "petsc_options": petsc_options, "method": method,
             "ncp_scale": ncp_scale, "refinement_rule": refinement_rule, "growth": growth,
             "models": None if models is None else len(models), "model_share": model_share,
+            "model_regions": model_regions,
         },
     )
     marking = (  # a uniform run records what it was given
@@ -178,13 +192,16 @@ def solve_adaptive(
         solver, estimate_options, marking, refinement, refinement_rule, exact, model_error
     )
     _check_refinement(problem, refinement, refinement_rule, exact)
-    choice = _model_choice(problem, model_error, models, tol, model_share)
+    choice = _model_choice(
+        problem, model_error, models, tol, model_share, model_regions, marking
+    )
     meta = {"refinement": refinement, "fraction": marking.fraction, "strategy": marking.strategy,
             "max_growth": marking.max_growth, "estimator": estimator, "weights": weights,
             "method": method, "ncp_scale": solver.ncp_scale, "refinement_rule": refinement_rule,
             "growth": marking.growth, "exact": exact, "num_processes": problem.mesh.comm.size,
             "models": None if models is None else [m.law.name for m in models],
-            "model_share": None if models is None else model_share}
+            "model_share": None if models is None else model_share,
+            "model_regions": model_regions}
     reporter = Reporter(problem.mesh.comm, refinement, meta, output_dir, callback, verbose)
     return _levels(problem, goal, settings, stop, reporter, choice)
 
@@ -232,7 +249,7 @@ def _levels(
                     sol, est, t_solve, disc = choice.solve_level(
                         settings, disc, guess, goal, reporter.say, level
                     )
-                    current = disc.problem
+                    current = choice.base(disc.problem)
                     result.converged = choice.converged(est)
                 sol.owns_disc = True  # the level's master traces go with its solution
                 result.stopped_by = "tol" if result.converged else "max_levels"
@@ -247,12 +264,17 @@ def _levels(
                 times = {"setup": t_setup, "solve": t_solve, "refine": time.perf_counter() - tic}
                 record = settings.record(level, disc, sol, est, marked, times)
                 record.time["total"] = time.perf_counter() - t_start
+                if choice is not None:
+                    choice.annotate(record)
                 result.levels.append(record)
                 reporter.report(level, record, sol, est)
                 result.solution, result.estimate, result.problem = sol, est, current
                 if done:
                     break
                 previous, previous_rec, current = sol, est.reconstructor, next_problem
+            if choice is not None and choice.regions:
+                result.model_map = choice.maps
+                write_model_map(reporter, choice.maps)
             last = result.levels[-1]
             reporter.say(stop.explain(len(result.levels), last.J_high - last.J_low,
                                       result.stopped_by, result.next_cells)

@@ -48,6 +48,7 @@ __all__ = [
     "patch_indicators",
     "refine_level",
     "search_fraction",
+    "threshold",
 ]
 
 STRATEGIES = ("fixed_fraction", "doerfler")
@@ -160,8 +161,18 @@ def patch_indicators(disc: Discretization, indicators: npt.NDArray[np.floating])
     return np.bincount(disc.parent_cell, weights=indicators[:n], minlength=num_macro)[:num_macro]
 
 
-def _global_threshold(comm: MPI.Comm, values: np.ndarray, strategy: str, fraction: float) -> float:
-    """The smallest |eta_K| that is marked, identical on every rank."""
+def threshold(comm: MPI.Comm, values: np.ndarray, strategy: str, fraction: float) -> float:
+    """The smallest |eta_K| that is marked, identical on every rank.
+
+    Args:
+        comm: The processes holding ``values``.
+        values: This rank's indicators (cells, or the model indicators of contact facets).
+        strategy: ``"fixed_fraction"`` or ``"doerfler"`` (as :func:`mark`).
+        fraction: In (0, 1].
+
+    Returns:
+        The threshold (``inf`` without values, 0 where all are zero).
+    """
     all_values = np.concatenate(comm.allgather(np.abs(values)))
     if all_values.size == 0:
         return np.inf
@@ -208,10 +219,10 @@ def mark(
         raise ValueError(f"fraction must lie in (0, 1], got {fraction!r}")
     eta_K = patch_indicators(disc, indicators)
     eta_K[np.abs(eta_K) <= floor] = 0.0
-    threshold = _global_threshold(disc.comm, eta_K, strategy, fraction)
+    least = threshold(disc.comm, eta_K, strategy, fraction)
     # Cells tied with the threshold up to round-off are all marked: symmetric problems have
     # many equal indicators, and summation order (serial or parallel) must not pick among them.
-    return np.flatnonzero(np.abs(eta_K) >= threshold * (1.0 - TIE_TOLERANCE)).astype(np.int32)
+    return np.flatnonzero(np.abs(eta_K) >= least * (1.0 - TIE_TOLERANCE)).astype(np.int32)
 
 
 def _first_fraction(growth: float, tdim: int) -> float:

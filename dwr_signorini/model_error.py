@@ -52,6 +52,7 @@ from .dual import solve_dual
 from .goal import Goal, GoalForms
 from .laws import multiplier_names
 from .linalg import system_class
+from .model_regions import MIXED, new_rows, regional
 
 __all__ = ["ModelError", "check_richer", "law_phrase", "model_error"]
 
@@ -70,6 +71,7 @@ PHRASES = {
     ("frictionless", "tresca"): "leaving out friction",
     ("frictionless", "coulomb"): "leaving out friction",
     ("tresca", "coulomb"): "Tresca in place of Coulomb",
+    (MIXED, "coulomb"): "leaving out friction",
 }
 
 
@@ -204,6 +206,13 @@ def check_richer(simple: Any, richer: Any) -> None:
                 "the same problem with another friction law"
             )
     s, r = simple.law.name, richer.law.name
+    if regional(simple.law) and r == "coulomb":
+        if not _same(simple.law.data.mu, richer.law.data):
+            raise ValueError(
+                "model_error: a per-region model must have the richer Coulomb law's mu on its "
+                f"region, got {simple.law.data.mu!r} and {richer.law.data!r}"
+            )
+        return
     if r not in RICHER.get(s, ()):
         raise ValueError(
             f"model_error: the law {richer.law!r} is not richer than the solution's "
@@ -216,18 +225,18 @@ def _owned(functions: Any, n_q: int) -> np.ndarray:
     return np.concatenate([f.x.array[:n_q] for f in functions])
 
 
-def _fill(algebra: Any, u_vec: Any, lam: np.ndarray, known: int) -> np.ndarray:
-    """The multipliers past the first ``known`` components at the fixed point of P (module doc).
+def _fill(algebra: Any, u_vec: Any, lam: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The multipliers of the rows ``rows`` (a mask) at the fixed point of P (module doc).
 
-    lam_k <- P_k(M lam + c (B u - g)) / M for the components the simpler law lacks, the others
-    kept; P_k = M lam_k - C_k from the law's NCP functions. Stops when nothing changes.
+    lam_k <- P_k(M lam + c (B u - g)) / M on the rows the simpler law lacks, the others kept;
+    P_k = M lam_k - C_k from the law's NCP functions. Stops when nothing changes.
     """
-    n_q, comm = algebra.n_q, algebra.comm
+    comm = algebra.comm
     M = algebra.M.array
     for _ in range(MAX_FILL_STEPS):
         P = M * lam - algebra.ncp_residual(u_vec, lam)
         new = lam.copy()
-        new[known * n_q :] = P[known * n_q :] / M[known * n_q :]
+        new[rows] = P[rows] / M[rows]
         change = float(np.max(np.abs(new - lam), initial=0.0))
         size = float(np.max(np.abs(new), initial=0.0))
         lam = new
@@ -299,7 +308,8 @@ def _model_error(
     u.x.array[:] = sol.u.x.array
     lam0 = np.zeros(algebra.n_lam)
     lam0[: known * n_q] = _owned(sol.multipliers, n_q)
-    lam = _fill(algebra, u.x.petsc_vec, lam0, known)
+    rows = new_rows(sol.disc.problem.law, algebra, known)
+    lam = _fill(algebra, u.x.petsc_vec, lam0, rows)
     lams = _functions(disc, algebra, lam, "lambda")
     u_max = comm.allreduce(float(np.max(np.abs(u.x.array), initial=0.0)), op=MPI.MAX)
     wanted, free, _, _, couplings = algebra.newton_sets(u.x.petsc_vec, lam, u_max)
@@ -313,7 +323,7 @@ def _model_error(
     C = algebra.ncp_residual(u.x.petsc_vec, lam)
     xi = _owned(z.multipliers, n_q)
     terms = -xi * C
-    terms[known * n_q :] -= lam[known * n_q :] * By.array[known * n_q :]
+    terms[rows] -= lam[rows] * By.array[rows]
     By.destroy()
     facet = np.sum(algebra.components_of(terms), axis=0)
     value = comm.allreduce(float(facet.sum()), op=MPI.SUM)

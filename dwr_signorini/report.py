@@ -34,6 +34,7 @@ from .estimator import Estimate
 from .io import OutputDirectory, write_csv, write_json
 from .lifetime import Releasable
 from .model_error import law_phrase
+from .model_regions import law_label
 from .newton import Solution
 from .problem import SignoriniProblem
 from .stress import stress_fields
@@ -89,6 +90,8 @@ class LevelRecord:
         model: The name of the contact law the level ran (``"frictionless"``, ``"tresca"``,
             ``"coulomb"``); with ``solve_adaptive(..., models=[...])`` the model it chose.
         richer_model: The name of the richer law of ``model_error``, else ``None``.
+        rich_share: With ``models``: the share of Gamma_C (by measure) that ran the richest
+            law (0 or 1 for a global switch; per region R's), else ``None``.
     """
 
     level: int
@@ -124,6 +127,7 @@ class LevelRecord:
     model_error_high: float | None = None
     model: str = ""
     richer_model: str | None = None
+    rich_share: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The record as a plain dict.
@@ -155,6 +159,8 @@ class AdaptiveResult(Releasable):
             ``"max_cells"``; one line on rank 0 says so (:class:`Reporter`).
         next_cells: The fine cells of the level after the last one refined (what
             ``max_cells`` was compared with).
+        model_map: With ``model_regions``: per level which macro contact facets ran Coulomb
+            (:meth:`~dwr_signorini.model_regions.RegionMap.as_dict`), else empty.
     """
 
     levels: list[LevelRecord]
@@ -166,6 +172,7 @@ class AdaptiveResult(Releasable):
     converged: bool = False
     stopped_by: str = ""
     next_cells: int = 0
+    model_map: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
     def destroy(self) -> None:
         """Release the last level's solution and estimate (collective; idempotent)."""
@@ -244,7 +251,7 @@ def level_record(
         model_error=est.model_error,
         model_error_low=model_low,
         model_error_high=model_high,
-        model=disc.problem.law.name,
+        model=law_label(disc.problem.law),
         richer_model=None if est.model is None else est.model.law.name,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
@@ -289,6 +296,8 @@ def progress_line(record: LevelRecord, label: str | None = None) -> str:
             f"model {record.model}; model error of {phrase}: {record.model_error: .3e} in "
             f"[{record.model_error_low: .3e}, {record.model_error_high: .3e}]  "
         )
+    if record.rich_share is not None:
+        contact += f"rich law on {record.rich_share:.0%} of Gamma_C  "
     fallback = ", memory" if record.weights_fallback else ""
     label = f"level {record.level:2d}" if label is None else label
     return (

@@ -4,7 +4,8 @@ Two kinds of functions:
 
 * **table plots** (:func:`plot_convergence`, :func:`plot_effectivity`, :func:`plot_interval`,
   :func:`plot_sweep`, in
-  :mod:`.tables`) take plain data: lists of row dicts as returned by
+  :mod:`.tables`; :func:`plot_model_map` in :mod:`.models`) take plain data: lists of row
+  dicts as returned by
   :meth:`~dwr_signorini.AdaptiveResult.rows` or read back from the CSV/JSON of a run with
   :func:`read_rows`. They involve no MPI; pass ``comm`` to let only its rank 0 write, or call them
   on rank 0 only;
@@ -28,6 +29,7 @@ Modules:
 * :mod:`.tables`: reading run tables, cumulative time, convergence / effectivity / sweep plots;
 * :mod:`.gather`: the collective phase, mesh and solution arrays gathered on rank 0;
 * :mod:`.meshes`: :func:`plot_mesh` (2D polygons, 3D boundary);
+* :mod:`.models`: :func:`plot_model_map`, the law of each contact facet per level;
 * :mod:`.fields2d`: the deformed 2D body with the obstacle, the contact force;
 * :mod:`.fields3d`: the deformed 3D body with the obstacle;
 * :mod:`.render3d`: the 3D backends, pyvista and the matplotlib fallback;
@@ -40,6 +42,7 @@ from .fields2d import plot_contact_force, plot_friction, plot_solution_2d
 from .fields3d import plot_solution_3d
 from .gather import MeshSnapshot, snapshot_mesh, von_mises_2d
 from .meshes import plot_mesh
+from .models import plot_model_map
 from .tables import (
     QUANTITY_LABELS,
     cumulative_time,
@@ -60,6 +63,7 @@ __all__ = [
     "plot_friction",
     "plot_interval",
     "plot_mesh",
+    "plot_model_map",
     "plot_solution_2d",
     "plot_solution_3d",
     "plot_sweep",
