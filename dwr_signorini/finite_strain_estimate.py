@@ -68,6 +68,7 @@ from .finite_strain import (
     FiniteStrainSolution,
     FiniteStrainSystem,
     cell_degree,
+    refuse,
     residual_forms,
     signed_distance,
 )
@@ -300,8 +301,6 @@ def check_options(options: EstimateOptions, model_error: Any = None) -> None:
     Raises:
         ValueError: Weights other than ``"patch"`` or ``"auto"``, or a model error.
     """
-    from .finite_strain import refuse
-
     if options.weights not in ("auto", "patch"):
         refuse(f"estimate(weights={options.weights!r})",
                "the P2 weights need the P2 primal problem, a nonlinear one at finite strain; "

@@ -59,23 +59,27 @@ def reference(coarse):
     return {name: (values[4][name], abs(values[4][name] - values[3][name])) for name in GOALS}
 
 
-def adaptive_rows(msh, facets, goal, max_levels=3, **kwargs):
-    """(num_dofs, J_h, eta, J_low, J_high) per level of an adaptive run of the pressed disc."""
-    with ds.solve_adaptive(cylinder_problem(msh, facets, PRESS), goal, max_levels=max_levels,
+def run(msh, facets, goal, press=PRESS, max_levels=3, **kwargs):
+    """The levels (LevelRecords) of solve_adaptive on the disc pressed by ``press``."""
+    with ds.solve_adaptive(cylinder_problem(msh, facets, press), goal, max_levels=max_levels,
                            verbose=False, **kwargs) as result:
         assert isinstance(result.solution, finite_strain.FiniteStrainSolution)
-        return [(r.num_dofs, r.J_h, r.eta, r.J_low, r.J_high, r.newton_iterations)
-                for r in result.levels]
+        return result.levels
+
+
+def adaptive_rows(msh, facets, goal, max_levels=3, **kwargs):
+    """(num_dofs, J_h, eta, J_low, J_high, Newton steps) per level of an adaptive run."""
+    return [(r.num_dofs, r.J_h, r.eta, r.J_low, r.J_high, r.newton_iterations)
+            for r in run(msh, facets, goal, max_levels=max_levels, **kwargs)]
 
 
 @pytest.mark.parametrize("goal", sorted(GOALS))
-def test_adaptive_intervals_contain_reference(coarse, reference, goal, tmp_path):
+def test_adaptive_intervals_contain_reference(coarse, reference, goal, mpi_tmp_path):
     """Three adaptive levels: each interval contains J from J_h on uniform level 4, the DoFs
     grow, and the table is written as for the linear problem."""
     msh, _, facets = coarse
     J_ref, error = reference[goal]
-    out = MPI.COMM_WORLD.bcast(tmp_path, root=0)
-    rows = adaptive_rows(msh, facets, GOALS[goal], output_dir=out)
+    rows = adaptive_rows(msh, facets, GOALS[goal], output_dir=mpi_tmp_path)
     print(f"\n{goal}: reference {J_ref:.8e} (|J_4 - J_3| = {error:.1e})")
     for level, (dofs, J_h, eta, low, high, newton) in enumerate(rows):
         print(f"level {level} dofs {dofs:5d} J_h {J_h:.8e} eta {eta:+.3e} newton {newton} "
@@ -85,7 +89,7 @@ def test_adaptive_intervals_contain_reference(coarse, reference, goal, tmp_path)
         assert newton >= 1
     dofs = [row[0] for row in rows]
     assert all(b > a for a, b in itertools.pairwise(dofs))
-    table = json.loads((out / "adaptive.json").read_text())
+    table = json.loads((mpi_tmp_path / "adaptive.json").read_text())
     assert [row["J_h"] for row in table["levels"]] == [row[1] for row in rows]
 
 
@@ -140,3 +144,76 @@ def test_failed_level_raises(coarse, monkeypatch):
     with pytest.raises(ConvergenceError, match="previous level's solution"):
         adaptive_rows(msh, facets, GOALS["force"], max_levels=3)
     assert len(calls) == 2
+
+
+#: The slow run: the disc of mesh size 0.2 pressed by 25 % of its radius; uniform levels 0-3
+#: (12800 cells) and adaptive ones up to 40000 cells judged, the reference from J_h alone on
+#: uniform levels 3-5 (204800 cells).
+SLOW_H, SLOW_PRESS, SLOW_UNIFORM, SLOW_CELLS = 0.2, 0.25, 4, 40000
+
+
+def _richardson(j1, j2, j3):
+    """Richardson's extrapolation of three J_h of uniform levels with their observed ratio."""
+    return j3 + (j3 - j2) / ((j2 - j1) / (j3 - j2) - 1.0)
+
+
+@pytest.fixture(scope="module")
+def slow_runs():
+    """Per goal: the reference and the levels of the uniform and the adaptive run."""
+    msh, _, facets = from_model(quarter_disc, h=SLOW_H)
+    values = uniform_values(msh, facets, SLOW_PRESS, (3, 4, 5))
+    out = {}
+    for name, goal in GOALS.items():
+        J_ref = _richardson(*(values[k][name] for k in (3, 4, 5)))
+        out[name] = (J_ref, {
+            "uniform": run(msh, facets, goal, SLOW_PRESS, SLOW_UNIFORM, refinement="uniform"),
+            "adaptive": run(msh, facets, goal, SLOW_PRESS, 20, max_cells=SLOW_CELLS),
+        })
+    return out
+
+
+def _print_table(goal, J_ref, runs):
+    """The runs' levels as Markdown rows (the guide's table), cumulative times."""
+    print(f"\n{goal}: reference {J_ref:.9e}\n| run | level | cells | J_h | interval | "
+          "error | Newton | time (s) |\n|---|---|---|---|---|---|---|---|")
+    for refinement, levels in runs.items():
+        seconds = np.cumsum([r.time["total"] for r in levels])
+        for r, t in zip(levels, seconds, strict=True):
+            print(f"| {refinement} | {r.level} | {r.num_cells} | {r.J_h:.7f} | "
+                  f"[{r.J_low:.7f}, {r.J_high:.7f}] | {abs(J_ref - r.J_h):.1e} | "
+                  f"{r.newton_iterations} | {t:.2f} |")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("goal", sorted(GOALS))
+def test_slow_intervals_contain_reference(slow_runs, goal):
+    """The disc pressed by 25 %: every level of the uniform (0-3) and the adaptive run (to
+    40000 cells) has an interval that contains J from J_h alone on uniform levels 3-5."""
+    J_ref, runs = slow_runs[goal]
+    _print_table(goal, J_ref, runs)
+    missed = [(name, r.level) for name, levels in runs.items() for r in levels
+              if not r.J_low <= J_ref <= r.J_high]
+    assert not missed
+    cells = [r.num_cells for r in runs["adaptive"]]
+    assert all(b > a for a, b in itertools.pairwise(cells))
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "measured (h = 0.2, 25 %, reference from uniform levels 3-5): uniform level 3 (12800 cells) "
+    "has error 2.2e-4 (force) and 1.9e-5 (stress) after 1.3 s and 2.0 s in all; the adaptive run "
+    "reaches them on its level 6 (25324 and 21776 cells) after 2.6 s and 4.0 s: at equal cells "
+    "its J_h is not more accurate than uniform refinement's on this smooth contact"))
+@pytest.mark.parametrize("goal", sorted(GOALS))
+def test_slow_adaptive_reaches_uniform_error_faster(slow_runs, goal):
+    """Adaptivity reaches the error of the finest uniform level in at most 1/3 of its time."""
+    J_ref, runs = slow_runs[goal]
+    finest = runs["uniform"][-1]
+    target = abs(J_ref - finest.J_h)
+    uniform_time = sum(r.time["total"] for r in runs["uniform"])
+    spent = np.cumsum([r.time["total"] for r in runs["adaptive"]])
+    reached = [t for r, t in zip(runs["adaptive"], spent, strict=True)
+               if abs(J_ref - r.J_h) <= target]
+    print(f"\n{goal}: uniform error {target:.2e} in {uniform_time:.2f} s, adaptive "
+          f"{reached[0] if reached else float('inf'):.2f} s")
+    assert reached and reached[0] <= uniform_time / 3
