@@ -197,6 +197,8 @@ class FiniteStrainSystem:
         self.ksp.getPC().setType("lu")
         self.ksp.getPC().setFactorSolverType("mumps")
         self._J: PETSc.Mat | None = None
+        #: The active set of the last converged Newton solve (owned rows, :func:`newton`).
+        self.active = np.zeros(self.n_q, dtype=bool)
 
     def destroy(self) -> None:
         """Release the PETSc objects (collective; idempotent)."""
@@ -329,7 +331,7 @@ class FiniteStrainSolution(Releasable):
     Attributes:
         u: Displacement on V_h.
         lam: Normal contact force per reference area on Lambda_H.
-        active: The active set (owned multiplier rows).
+        active: The active set the Newton method converged with (owned multiplier rows).
         newton_iterations: Newton steps of the last solve.
         history: One record per iteration (residuals, active-set size and changes).
         disc: The discretisation.
@@ -418,6 +420,7 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
                 raise ConvergenceError(
                     f"finite strain: Newton converged to a state with det F <= 0 in a cell at "
                     f"load factor {t:g} (an inverted configuration; smaller load steps)", history)
+            system.active = active
             return history
         if it == max_iterations:
             raise ConvergenceError(
@@ -505,12 +508,11 @@ def solve(disc: Any, options: Any, initial_guess: Any = None) -> FiniteStrainSol
 
 def _solution(system: FiniteStrainSystem, history: list[dict[str, Any]], t: float
               ) -> FiniteStrainSolution:
-    n_q = system.n_q
     u = fem.Function(system.disc.V, name="u")
     lam = fem.Function(system.disc.Q, name="lambda")
     u.x.array[:] = system.u.x.array
     lam.x.array[:] = system.lam.x.array
-    active = system.lam.x.array[:n_q] > 0.0
+    active = system.active.copy()  # not lam > 0: round-off of lam off the set decides nothing
     return FiniteStrainSolution(u, lam, active, len(history) - 1, history, system.disc,
                                 system, t)
 
