@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from . import finite_strain
+from . import finite_strain, finite_strain_estimate
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate
@@ -44,8 +44,6 @@ def _check_problem_and_goal(problem: Any, goal: Any, refinement: Any) -> None:
     """Check ``problem``, ``goal`` and ``refinement`` of :func:`solve_adaptive`."""
     if not isinstance(problem, SignoriniProblem):
         raise TypeError(f"problem must be a SignoriniProblem, got {type(problem).__name__}")
-    if problem.finite_strain:
-        finite_strain.refuse("solve_adaptive")
     if not callable(goal):
         raise TypeError(f"goal must be a callable goal(u, lam, m) -> ufl.Form, got {goal!r}")
     if refinement not in REFINEMENTS:
@@ -59,6 +57,25 @@ def _check_refinement(problem: SignoriniProblem, refinement: str, rule: Any, exa
     if rule not in RULES:
         raise ValueError(f"refinement_rule must be one of {RULES}, got {rule!r}")
     check_simplex(problem, refinement)
+
+
+def _check_finite_strain(
+    problem: SignoriniProblem, settings: LevelSettings, models: Any
+) -> None:
+    """Refuse, before the first solve, what a finite-strain level would refuse (ValueError).
+
+    The solver's ``petsc_options`` and ``method``
+    (:func:`~dwr_signorini.finite_strain.check_options`), weights other than the patch ones
+    and ``model_error`` (:func:`~dwr_signorini.finite_strain_estimate.check_options`), and
+    ``models`` (richer contact laws are not covered at finite strain).
+    """
+    if not problem.finite_strain:
+        return
+    finite_strain.check_options(settings.solver)
+    finite_strain_estimate.check_options(settings.estimate, settings.model_error)
+    if models is not None:
+        finite_strain.refuse("solve_adaptive(models=...)", "model adaptivity chooses among "
+                             "contact laws with friction, which finite strain does not cover")
 
 
 def _model_choice(
@@ -107,7 +124,13 @@ def solve_adaptive(
     """Goal-oriented adaptive (or uniform) refinement for Signorini's problem.
 
     Args:
-        problem: The problem on the initial macro mesh.
+        problem: The problem on the initial macro mesh. A finite-strain one (a hyperelastic
+            ``material``) is solved on every level at the full load by
+            :mod:`~dwr_signorini.finite_strain` (level 0 from zero, the next from the previous
+            level's solution) and estimated by :mod:`~dwr_signorini.finite_strain_estimate`
+            (patch weights; the interval widened by R3); ``petsc_options``, ``method``,
+            ``weights`` other than ``"patch"``/``"auto"``, ``model_error`` and ``models`` are
+            refused for it.
         goal: ``goal(u, lam, m) -> ufl.Form``, the quantity of interest J.
         refinement: ``"adaptive"`` (mark and refine, simplices only) or ``"uniform"``.
         fraction: Marking fraction in (0, 1] (of cells, or of indicator mass for Doerfler);
@@ -161,8 +184,9 @@ def solve_adaptive(
     Raises:
         TypeError, ValueError: Arguments of the wrong type or value, naming the argument
             (checked before the first solve), or an ``output_dir`` that cannot be written.
-        ConvergenceError: As :func:`~dwr_signorini.solve`, on any level; the levels before it
-            are in ``output_dir`` if given.
+        ConvergenceError: As :func:`~dwr_signorini.solve`, on any level (at finite strain
+            the message says the Newton method started from the previous level's solution);
+            the levels before it are in ``output_dir`` if given.
         RuntimeError: As :func:`~dwr_signorini.estimate`.
     """
     _check_problem_and_goal(problem, goal, refinement)
@@ -192,6 +216,7 @@ def solve_adaptive(
         solver, estimate_options, marking, refinement, refinement_rule, exact, model_error
     )
     _check_refinement(problem, refinement, refinement_rule, exact)
+    _check_finite_strain(problem, settings, models)
     choice = _model_choice(
         problem, model_error, models, tol, model_share, model_regions, marking
     )

@@ -23,8 +23,9 @@ i.e. the linearised gap closes on A and lam = 0 off it. The distances are exact 
 :class:`~dwr_signorini.obstacles.Plane`, :class:`~dwr_signorini.obstacles.Sphere` (a disc
 in 2D) and :class:`~dwr_signorini.obstacles.Cylinder`; other gaps are refused. The goal's
 error estimate (the dual problem, eta_p, eta and the interval) is in
-:mod:`~dwr_signorini.finite_strain_estimate`. Not covered yet (refused with a ValueError):
-friction, contact pairs, force control, plane stress, and the adaptive loop.
+:mod:`~dwr_signorini.finite_strain_estimate`; :func:`~dwr_signorini.solve_adaptive` refines
+with it, each level solved at the full load from the previous level's solution. Not covered
+yet (refused with a ValueError): friction, contact pairs, force control, plane stress.
 """
 
 from __future__ import annotations
@@ -196,6 +197,8 @@ class FiniteStrainSystem:
         self.ksp.getPC().setType("lu")
         self.ksp.getPC().setFactorSolverType("mumps")
         self._J: PETSc.Mat | None = None
+        #: The active set of the last converged Newton solve (owned rows, :func:`newton`).
+        self.active = np.zeros(self.n_q, dtype=bool)
 
     def destroy(self) -> None:
         """Release the PETSc objects (collective; idempotent)."""
@@ -328,12 +331,14 @@ class FiniteStrainSolution(Releasable):
     Attributes:
         u: Displacement on V_h.
         lam: Normal contact force per reference area on Lambda_H.
-        active: The active set (owned multiplier rows).
+        active: The active set the Newton method converged with (owned multiplier rows).
         newton_iterations: Newton steps of the last solve.
         history: One record per iteration (residuals, active-set size and changes).
         disc: The discretisation.
         system: The :class:`FiniteStrainSystem` (release with :meth:`destroy`).
         load_factor: The load factor t of the state.
+        owns_disc: Whether :meth:`destroy` releases the discretisation too (a level of
+            :func:`~dwr_signorini.solve_adaptive`).
     """
 
     u: fem.Function
@@ -344,6 +349,17 @@ class FiniteStrainSolution(Releasable):
     disc: Any
     system: FiniteStrainSystem = field(repr=False)
     load_factor: float = 1.0
+    owns_disc: bool = False
+
+    #: As :class:`~dwr_signorini.Solution`'s: frictionless, no obstacle under a given force,
+    #: the saddle matrix factored whole in every step.
+    method = "block"
+    obstacle_displacement = num_stick = num_slip = None
+
+    @property
+    def multipliers(self) -> tuple[fem.Function]:
+        """The contact law's multipliers: (lam,) (frictionless)."""
+        return (self.lam,)
 
     @property
     def num_active(self) -> int:
@@ -351,8 +367,10 @@ class FiniteStrainSolution(Releasable):
         return self.disc.comm.allreduce(int(self.active.sum()), op=MPI.SUM)
 
     def destroy(self) -> None:
-        """Release the Newton system (collective)."""
+        """Release the Newton system and, if owned, the discretisation (collective)."""
         self.system.destroy()
+        if self.owns_disc:
+            self.disc.destroy()
 
 
 def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: float
@@ -402,6 +420,7 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
                 raise ConvergenceError(
                     f"finite strain: Newton converged to a state with det F <= 0 in a cell at "
                     f"load factor {t:g} (an inverted configuration; smaller load steps)", history)
+            system.active = active
             return history
         if it == max_iterations:
             raise ConvergenceError(
@@ -444,15 +463,15 @@ def refuse(what: str, reason: str = "") -> None:
 
     Args:
         what: The function (or combination) refused.
-        reason: Why; default: the adaptive loop at finite strain is missing.
+        reason: Why; default: a goal along a load path is missing.
 
     Raises:
         ValueError: Always, naming ``what``.
     """
     reason = reason or (
-        "the adaptive loop (and a goal along a load path) is not implemented at finite strain; "
-        "solve with ds.solve or ds.solve_path(problem, None, load_factors=...) and estimate "
-        "a state with ds.estimate(sol, goal)"
+        "a goal along a load path is not implemented at finite strain; estimate a state of "
+        "ds.solve_path(problem, None, load_factors=...) with ds.estimate(sol, goal), or refine "
+        "for the full load with ds.solve_adaptive"
     )
     raise ValueError(
         f"{what} does not take a finite-strain problem (material=NeoHookean/"
@@ -461,13 +480,26 @@ def refuse(what: str, reason: str = "") -> None:
 
 
 def solve(disc: Any, options: Any, initial_guess: Any = None) -> FiniteStrainSolution:
-    """:func:`dwr_signorini.solve` for a finite-strain problem (the full load in one step)."""
+    """:func:`dwr_signorini.solve` for a finite-strain problem (the full load in one step).
+
+    Raises:
+        ConvergenceError: As :func:`newton`; from an ``initial_guess`` (a level of
+            :func:`~dwr_signorini.solve_adaptive` starts from the previous one's solution)
+            the message says so: no other start is tried.
+    """
     system = FiniteStrainSystem(disc, options.ncp_scale)
     try:
         if initial_guess is not None:
             system.u.x.array[:] = initial_guess[0].x.array
             system.lam.x.array[:] = initial_guess[1].x.array
         history = newton(system, 1.0, options.max_iterations, options.rtol)
+    except ConvergenceError as error:
+        system.destroy()
+        if initial_guess is None:
+            raise
+        raise ConvergenceError(
+            "from the initial guess (in solve_adaptive: the previous level's solution on this "
+            f"level's mesh): {str(error).splitlines()[0]}", error.history) from error
     except BaseException:
         system.destroy()
         raise
@@ -476,12 +508,11 @@ def solve(disc: Any, options: Any, initial_guess: Any = None) -> FiniteStrainSol
 
 def _solution(system: FiniteStrainSystem, history: list[dict[str, Any]], t: float
               ) -> FiniteStrainSolution:
-    n_q = system.n_q
     u = fem.Function(system.disc.V, name="u")
     lam = fem.Function(system.disc.Q, name="lambda")
     u.x.array[:] = system.u.x.array
     lam.x.array[:] = system.lam.x.array
-    active = system.lam.x.array[:n_q] > 0.0
+    active = system.active.copy()  # not lam > 0: round-off of lam off the set decides nothing
     return FiniteStrainSolution(u, lam, active, len(history) - 1, history, system.disc,
                                 system, t)
 

@@ -68,6 +68,7 @@ from .finite_strain import (
     FiniteStrainSolution,
     FiniteStrainSystem,
     cell_degree,
+    refuse,
     residual_forms,
     signed_distance,
 )
@@ -77,7 +78,7 @@ from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .settings import EstimateOptions
 
-__all__ = ["FiniteStrainEstimate", "estimate", "solve_dual"]
+__all__ = ["FiniteStrainEstimate", "check_options", "estimate", "solve_dual"]
 
 
 @dataclass
@@ -280,13 +281,26 @@ def _patch_weights(sol: FiniteStrainSolution, z: DualSolution, rec: Reconstructo
 
 def _check(sol: FiniteStrainSolution, options: EstimateOptions, model_error: Any) -> None:
     """Refuse what the finite-strain estimate does not take (clear ValueErrors)."""
-    from .finite_strain import refuse
-
     if getattr(sol.system, "ksp", None) is None:
         raise ValueError(
             "sol has been destroyed (its Newton system released): estimate a finite-strain "
             "solution before releasing it"
         )
+    check_options(options, model_error)
+
+
+def check_options(options: EstimateOptions, model_error: Any = None) -> None:
+    """Refuse the estimate's options that it does not take at finite strain.
+
+    Also :func:`~dwr_signorini.solve_adaptive`'s check before its first solve.
+
+    Args:
+        options: The estimate's options.
+        model_error: The richer problem of a model error, or None.
+
+    Raises:
+        ValueError: Weights other than ``"patch"`` or ``"auto"``, or a model error.
+    """
     if options.weights not in ("auto", "patch"):
         refuse(f"estimate(weights={options.weights!r})",
                "the P2 weights need the P2 primal problem, a nonlinear one at finite strain; "

@@ -405,7 +405,9 @@ class Reporter:
         """
         if self.out is not None:
             with timed("output"):  # the fields first: a level in the table has its fields
-                fields = [sol.u, est.indicators, est.dual.y, *stress_fields(sol)]
+                # no stress fields at finite strain (P(F), not Hooke's law; :func:`stress_fields`)
+                stresses = () if sol.disc.problem.finite_strain else stress_fields(sol)
+                fields = [sol.u, est.indicators, est.dual.y, *stresses]
                 self.out.write_fields(index, fields, [*sol.multipliers, *est.dual.multipliers],
                                       series=self.series)
                 self.out.append(record.as_dict(), self.meta)

@@ -190,8 +190,8 @@ def test_refusals():
             ds.contact_summary(sol)
     with pytest.raises(ValueError, match="goal"):
         ds.solve_path(problem, lambda u, lam, m: lam * m.ds_contact, load_factors=[1.0])
-    with pytest.raises(ValueError, match="finite-strain"):
-        ds.solve_adaptive(problem, lambda u, lam, m: lam * m.ds_contact)
+    with pytest.raises(ValueError, match="higher_order"):
+        ds.solve_adaptive(problem, lambda u, lam, m: lam * m.ds_contact, weights="higher_order")
     with pytest.raises(ValueError, match="method"):
         ds.solve(problem, method="schur")
 
