@@ -116,7 +116,7 @@ demo_pages = {
          "The Cauchy contact pressure along the contact per press step, and after the slide."),
         ("finite_strain_force_displacement.png",
          "The contact force against the approach with its interval (left); both goals' "
-         "intervals relative to J_h per load step (right).", "100%"),
+         "intervals relative to J_h per load step (right)."),
     ],
     "cattaneo_mindlin": [
         ("cattaneo_mindlin_traction.png",
