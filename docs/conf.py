@@ -114,7 +114,9 @@ demo_pages = {
          "The deformed meshes: first and last press step, and slid by one radius."),
         ("finite_strain_contact_pressure.png",
          "The Cauchy contact pressure along the contact per press step, and after the slide."),
-        ("finite_strain_force_displacement.png", "The contact force against the approach."),
+        ("finite_strain_force_displacement.png",
+         "The contact force against the approach with its interval (left); both goals' "
+         "intervals relative to J_h per load step (right)."),
     ],
     "cattaneo_mindlin": [
         ("cattaneo_mindlin_traction.png",

@@ -586,31 +586,60 @@ def _finite_strain_rows(out: Path) -> list[dict]:
     data = json.loads((out / "path.json").read_text())
     assert len(rows) == len(data["levels"]) == 4
     for rc, rj in zip(rows, data["levels"], strict=True):
-        for key in ("force", "width", "approach", "slide", "newton_iterations"):
+        for key in ("force", "width", "approach", "slide", "newton_iterations",
+                    *FINITE_STRAIN_INTERVALS):
             assert _close(rc[key], rj[key], 1e-15), key
     for name in ("path.xdmf", "path_contact.xdmf", "summary.json"):
         assert (out / name).stat().st_size > 0, name
     return rows
 
 
+#: The columns of the goals' error bars in the demo's table.
+FINITE_STRAIN_INTERVALS = [f"{goal}{end}" for goal in ("force", "stress")
+                           for end in ("", "_eta", "_low", "_high")]
+
+
+def _finite_strain_goals(msh):
+    """The demo's goals: the contact force and the weighted average of -P_yy near (0, 0)."""
+    import ufl
+    from dolfinx import fem
+
+    def weight(x):
+        return ufl.exp(-(x[0] ** 2 + x[1] ** 2) / 0.25**2)
+
+    total = msh.comm.allreduce(fem.assemble_scalar(fem.form(
+        weight(ufl.SpatialCoordinate(msh)) * ufl.dx(domain=msh))), op=MPI.SUM)
+    return {"force": lambda u, lam, m: lam * m.ds_contact,
+            "stress": lambda u, lam, m: -weight(m.x) / total * m.P(u)[1, 1] * m.dx}
+
+
 def test_finite_strain_serial(runs):
-    """The rows are the library's for the same path; the slide keeps the pressed state."""
+    """The rows are the library's for the same path (the contact measures and both goals'
+    estimates); the slide keeps the pressed state, its force, width and intervals."""
     out = runs("finite_strain", 1)
     rows = _finite_strain_rows(out)
     assert [r["phase"] for r in rows] == ["press", "press", "slide", "slide"]
     from dwr_signorini import cases
 
-    press, _ = cases.rubber_cylinder_problems(
-        cases.rubber_cylinder_mesh(MPI.COMM_SELF, h_contact=0.1))
+    mesh = cases.rubber_cylinder_mesh(MPI.COMM_SELF, h_contact=0.1)
+    goals = _finite_strain_goals(mesh[0])
+    press, _ = cases.rubber_cylinder_problems(mesh)
     with ds.solve_path(press, None, load_factors=[0.5, 1.0]) as path:
         for row, sol in zip(rows[:2], path.solutions, strict=True):
             c = cases.measure_contact(sol)
             assert _close(row["force"], c.force, 1e-10) and _close(row["width"], c.width, 1e-10)
             assert row["num_active"] == sol.num_active
-    for row in rows[2:]:  # frictionless: the translated state, the same force and width
-        assert _close(row["force"], rows[1]["force"], 1e-8)
-        assert _close(row["width"], rows[1]["width"], 1e-8)
-    assert "not shown here: the error estimate" in (DEMOS / "finite_strain.py").read_text().lower()
+            for name, goal in goals.items():
+                with ds.estimate(sol, goal) as est:
+                    values = (est.J_h, est.eta, *est.interval)
+                for end, value in zip(("", "_eta", "_low", "_high"), values, strict=True):
+                    assert _close(row[name + end], value, 1e-9), (name + end, row, value)
+    for row in rows[2:]:  # frictionless: the translated state, the same force, width, intervals
+        for key in ("force", "width", *FINITE_STRAIN_INTERVALS):
+            assert _close(row[key], rows[1][key], 1e-8), key
+    for row in rows:
+        for name in ("force", "stress"):
+            assert row[name + "_low"] < row[name + "_high"]
 
 
 def test_finite_strain_parallel(runs):
@@ -618,5 +647,5 @@ def test_finite_strain_parallel(runs):
     parallel = _finite_strain_rows(runs("finite_strain", 2))
     for a, b in zip(parallel, serial, strict=True):
         assert a["num_cells"] == b["num_cells"] and a["num_active"] == b["num_active"]
-        for key in ("force", "width"):
+        for key in ("force", "width", *FINITE_STRAIN_INTERVALS):
             assert _close(a[key], b[key], 1e-9), (key, a[key], b[key])
