@@ -35,27 +35,13 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from trace_cost import comm, print0, two_boxes  # the same pair
+
 import dwr_signorini as ds
 from dwr_signorini.io import write_csv
 from dwr_signorini.spaces import discretize
-from tests import pair_geometries as G
 
 RESULTS = Path(__file__).resolve().parent / "results"
-comm = MPI.COMM_WORLD
-
-
-def print0(*args: object) -> None:
-    if comm.rank == 0:
-        print(*args, flush=True)
-
-
-def problem(n: int) -> ds.SignoriniProblem:
-    """The pair of the module docstring."""
-    msh, tags = G.tet_boxes(comm, n)
-    return ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=G.TET_SLAVE,
-                                                                 master=G.TET_MASTER),
-                               E=1.0, nu=0.3, model="3d",
-                               dirichlet={G.TET_BOTTOM: 0.0, G.TET_TOP: (0.0, 0.0, -0.01)})
 
 
 def resident_mb() -> float:
@@ -86,7 +72,7 @@ def peak_mb() -> float:
 
 def measure(n: int, solve: bool) -> dict[str, object]:
     """One row of the table."""
-    disc = discretize(problem(n))
+    disc = discretize(two_boxes(n))
     before = resident_mb()
     t_trace, c_trace, trace = timed(disc.master_trace)
     t_p2, c_p2, _ = timed(lambda: disc.master_trace(disc.vector_space(2)))
