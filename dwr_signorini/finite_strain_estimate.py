@@ -109,7 +109,8 @@ class FiniteStrainEstimate(Estimate):
 def _state_of(sol: FiniteStrainSolution) -> Iterator[FiniteStrainSystem]:
     """The solution's Newton system at the solution's (u, lam, t); its own state restored after.
 
-    The states of a load path share one system (:func:`~dwr_signorini.finite_strain.solve_path`).
+    The states of a load path share one system
+    (:func:`~dwr_signorini.finite_strain_path.solve_path`).
     """
     system = sol.system
     saved = system.u.x.array.copy(), system.lam.x.array.copy(), float(system.t.value)

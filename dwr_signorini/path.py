@@ -45,7 +45,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from . import finite_strain
+from . import finite_strain_path
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
 from .estimator import Estimate, estimate
@@ -219,10 +219,10 @@ def solve_path(
         load_factors: For a finite-strain problem (``problems`` one problem with a
             hyperelastic ``material``, ``goal`` None): the increasing load factors t of its
             loads and prescribed displacements; a failed step is halved and retried
-            (:func:`dwr_signorini.finite_strain.solve_path`, which returns a
-            :class:`~dwr_signorini.finite_strain.FiniteStrainPath`). There ``callback`` is
+            (:func:`dwr_signorini.finite_strain_path.solve_path`, which returns a
+            :class:`~dwr_signorini.finite_strain_path.FiniteStrainPath`). There ``callback`` is
             called as ``callback(step, solution, None)`` per factor (a
-            :class:`~dwr_signorini.finite_strain.FiniteStrainStep`), and ``initial_guess`` may
+            :class:`~dwr_signorini.finite_strain_path.FiniteStrainStep`), and ``initial_guess`` may
             be the last solution of an earlier finite-strain path on the same mesh: the path
             starts from it, its prescribed values moving from the state's to the problem's.
 
@@ -235,7 +235,7 @@ def solve_path(
         ConvergenceError: As :func:`~dwr_signorini.solve`, on any step.
     """
     if load_factors is not None or getattr(problems, "finite_strain", False):
-        return finite_strain.path_entry(
+        return finite_strain_path.path_entry(
             problems, goal, load_factors, ncp_scale, petsc_options, method, adaptive,
             initial_guess, callback,
         )

@@ -19,7 +19,7 @@ from dolfinx import fem, mesh
 from scipy.optimize import brentq
 
 import dwr_signorini as ds
-from dwr_signorini import finite_strain as fs
+from dwr_signorini import finite_strain_path
 from dwr_signorini.semismooth import ConvergenceError
 from dwr_signorini.settings import SolverOptions
 
@@ -201,7 +201,7 @@ def test_step_cut_reported():
     problem = block_problem(MPI.COMM_WORLD, 2, 0.4, ds.NeoHookean())
     with pytest.raises(ConvergenceError):
         ds.solve(problem, max_iterations=4)
-    with fs.solve_path(problem, [1.0], SolverOptions(max_iterations=4)) as path:
+    with finite_strain_path.solve_path(problem, [1.0], SolverOptions(max_iterations=4)) as path:
         print(f"\ncuts at {path.cuts}, steps {path.steps}")
         assert path.cuts == [1.0, 0.5]
         assert path.steps == [0.25, 0.5, 0.75, 1.0]
