@@ -52,6 +52,22 @@ def print0(*args: object) -> None:
         print(*args, flush=True)
 
 
+def show(row: dict[str, object]) -> dict[str, object]:
+    """Print one row of the table on rank 0 (as it is measured); return it."""
+    print0("  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                     for k, v in row.items()))
+    return row
+
+
+def write_rows(rows: list[dict[str, object]], stem: str) -> None:
+    """Write the table to ``benchmarks/results/<stem>_np<ranks>.csv`` (rank 0)."""
+    if comm.rank == 0:
+        RESULTS.mkdir(exist_ok=True)
+        keys = list(dict.fromkeys(k for r in rows for k in r))
+        write_csv(RESULTS / f"{stem}_np{comm.size}.csv",
+                  [{k: r.get(k, "") for k in keys} for r in rows])
+
+
 def two_boxes(n: int) -> ds.SignoriniProblem:
     """The pair of the module docstring."""
     msh, tags = G.tet_boxes(comm, n)
@@ -130,15 +146,9 @@ def main() -> None:
     rows = []
     for n in args.sizes:
         slaves = 8 * (n + 1) ** 2
-        row = measure(n, args.repeat, slaves <= args.full_up_to, slaves <= args.p2_up_to)
-        rows.append(row)
-        print0("  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
-                         for k, v in row.items()))
-    if comm.rank == 0:
-        RESULTS.mkdir(exist_ok=True)
-        keys = list(dict.fromkeys(k for r in rows for k in r))
-        write_csv(RESULTS / f"trace_cost_np{comm.size}.csv",
-                  [{k: r.get(k, "") for k in keys} for r in rows])
+        rows.append(show(measure(n, args.repeat, slaves <= args.full_up_to,
+                                 slaves <= args.p2_up_to)))
+    write_rows(rows, "trace_cost")
 
 
 if __name__ == "__main__":

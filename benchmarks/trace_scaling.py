@@ -31,17 +31,13 @@ import argparse
 import os
 import resource
 import time
-from pathlib import Path
 
 from mpi4py import MPI
 
-from trace_cost import comm, print0, two_boxes  # the same pair
+from trace_cost import comm, show, two_boxes, write_rows  # the same pair
 
 import dwr_signorini as ds
-from dwr_signorini.io import write_csv
 from dwr_signorini.spaces import discretize
-
-RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def resident_mb() -> float:
@@ -106,17 +102,8 @@ def main() -> None:
     parser.add_argument("--solve-up-to", type=int, default=20_000,
                         help="solve the pair only up to this many slave facets")
     args = parser.parse_args()
-    rows = []
-    for n in args.sizes:
-        row = measure(n, 8 * (n + 1) ** 2 <= args.solve_up_to)
-        rows.append(row)
-        print0("  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
-                         for k, v in row.items()))
-    if comm.rank == 0:
-        RESULTS.mkdir(exist_ok=True)
-        keys = list(dict.fromkeys(k for r in rows for k in r))
-        write_csv(RESULTS / f"trace_scaling_np{comm.size}.csv",
-                  [{k: r.get(k, "") for k in keys} for r in rows])
+    rows = [show(measure(n, 8 * (n + 1) ** 2 <= args.solve_up_to)) for n in args.sizes]
+    write_rows(rows, "trace_scaling")
 
 
 if __name__ == "__main__":
