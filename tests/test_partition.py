@@ -35,11 +35,11 @@ def _measures(problem):
 
     out = {"cells": msh.topology.index_map(tdim).size_global, "volume": total(one * ufl.dx)}
     ds_ = ufl.Measure("ds", domain=msh, subdomain_data=problem.facet_tags)
-    for tag in np.unique(comm.allgather(np.unique(problem.facet_tags.values))[0]).tolist():
+    for tag in np.unique(np.concatenate(comm.allgather(problem.facet_tags.values))).tolist():
         out[f"facet {tag}"] = total(one * ds_(int(tag)))
     if problem.cell_tags is not None:
         dx = ufl.Measure("dx", domain=msh, subdomain_data=problem.cell_tags)
-        for tag in np.unique(problem.cell_tags.values).tolist():
+        for tag in np.unique(np.concatenate(comm.allgather(problem.cell_tags.values))).tolist():
             out[f"cell {tag}"] = total(one * dx(int(tag)))
     return out
 
