@@ -46,7 +46,6 @@ from dolfinx.mesh import CellType
 from . import compat
 from .collective import log_on_root
 from .lifetime import Releasable, destroy_attributes
-from .linalg.options import OptionsScope, mumps_ordering_options, unique_prefix
 from .obstacles import Cylinder, Obstacle, Plane, Sphere
 from .quadrature import with_quadrature_degrees
 from .semismooth import ConvergenceError
@@ -196,11 +195,13 @@ class FiniteStrainSystem:
         self.owned_bc_dofs = self.owned_bc_dofs[self.owned_bc_dofs < self.n_u]
         #: The prescribed values at t = 0 (zero, or those of a path's initial state).
         self.u_D0 = np.zeros_like(self.u_D)
-        self._scope = OptionsScope(unique_prefix(), {
-            "ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
-            **mumps_ordering_options(disc.mesh.topology.dim)})
+        # MUMPS's default ordering (METIS), not the linear path's AMF in 2D: the analysis is
+        # done once per system, and the numeric LU after METIS's ordering is the faster one
+        # (docs/benchmarks/performance.md, "Finite strain: one Newton step").
         self.ksp = PETSc.KSP().create(disc.comm)
-        self._scope.apply(self.ksp)
+        self.ksp.setType("preonly")
+        self.ksp.getPC().setType("lu")
+        self.ksp.getPC().setFactorSolverType("mumps")
         #: The assembled matrices, kept with their patterns: (form name, with bcs) -> Mat.
         self._mats: dict[tuple[str, bool], PETSc.Mat] = {}
         self._D: PETSc.Mat | None = None
@@ -211,7 +212,7 @@ class FiniteStrainSystem:
 
     def destroy(self) -> None:
         """Release the PETSc objects (collective; idempotent)."""
-        destroy_attributes(self, ("ksp", "_J", "_nest", "_D", "_scope"))
+        destroy_attributes(self, ("ksp", "_J", "_nest", "_D"))
         for mat in getattr(self, "_mats", {}).values():
             mat.destroy()
         self._mats = {}

@@ -33,7 +33,6 @@ __all__ = [
     "default_petsc_options",
     "fieldsplit_petsc_options",
     "iterative_petsc_options",
-    "mumps_ordering_options",
     "unique_prefix",
 ]
 
@@ -84,21 +83,9 @@ def default_petsc_options(tdim: int | None = None) -> dict[str, Any]:
         # ICNTL(24): count null pivots. With 2 x 2 pivots, LDL^T may not fail on a singular
         # matrix, e.g. of linearly dependent active contact constraints.
         opts["mat_mumps_icntl_24"] = 1
-        opts.update(mumps_ordering_options(tdim))
+        if tdim == 2:
+            opts["mat_mumps_icntl_7"] = 2
     return opts
-
-
-def mumps_ordering_options(tdim: int | None) -> dict[str, Any]:
-    """MUMPS's ordering for a mesh of topological dimension ``tdim`` (keys without prefix).
-
-    AMF (``mat_mumps_icntl_7=2``) on 2D meshes, MUMPS's default (METIS) otherwise; the
-    measurements are in :func:`default_petsc_options`. Shared by every solver that factors
-    with MUMPS (also :class:`~dwr_signorini.finite_strain.FiniteStrainSystem`'s LU).
-
-    Returns:
-        A new dict, empty for the default ordering.
-    """
-    return {"mat_mumps_icntl_7": 2} if tdim == 2 else {}
 
 
 def iterative_petsc_options() -> dict[str, Any]:
