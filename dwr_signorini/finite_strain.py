@@ -195,17 +195,27 @@ class FiniteStrainSystem:
         self.owned_bc_dofs = self.owned_bc_dofs[self.owned_bc_dofs < self.n_u]
         #: The prescribed values at t = 0 (zero, or those of a path's initial state).
         self.u_D0 = np.zeros_like(self.u_D)
+        # MUMPS's default ordering (METIS), not the linear path's AMF in 2D: the analysis is
+        # done once per system, and the numeric LU after METIS's ordering is the faster one
+        # (docs/benchmarks/performance.md, "Finite strain: one Newton step").
         self.ksp = PETSc.KSP().create(disc.comm)
         self.ksp.setType("preonly")
         self.ksp.getPC().setType("lu")
         self.ksp.getPC().setFactorSolverType("mumps")
+        #: The assembled matrices, kept with their patterns: (form name, with bcs) -> Mat.
+        self._mats: dict[tuple[str, bool], PETSc.Mat] = {}
+        self._D: PETSc.Mat | None = None
+        self._nest: PETSc.Mat | None = None
         self._J: PETSc.Mat | None = None
         #: The active set of the last converged Newton solve (owned rows, :func:`newton`).
         self.active = np.zeros(self.n_q, dtype=bool)
 
     def destroy(self) -> None:
         """Release the PETSc objects (collective; idempotent)."""
-        destroy_attributes(self, ("ksp", "_J"))
+        destroy_attributes(self, ("ksp", "_J", "_nest", "_D"))
+        for mat in getattr(self, "_mats", {}).values():
+            mat.destroy()
+        self._mats = {}
 
     def _owned(self, name: str) -> np.ndarray:
         """The owned entries of the assembled vector of form ``name``."""
@@ -288,41 +298,58 @@ class FiniteStrainSystem:
         """Assemble the Newton matrix of the set ``active`` at (u, lam) into the system's KSP.
 
         The saddle matrix of the module docstring, kept (``_J``) with the KSP that factors it
-        at its next solve; the dual problem solves with its transpose.
+        at its next solve; the dual problem solves with its transpose. Its blocks and the
+        saddle matrix are created in the first call and refilled in later ones, the set's
+        zeros kept as entries: the pattern stays, so MUMPS's analysis (ordering, symbolic
+        factorisation) is done once and later steps factor numerically only.
         """
-        comm = self.disc.comm
-        blocks = {k: self._matrix(k) for k in ("J", "B", "BT")}
-        scale = blocks["B"].createVecLeft()
+        J, B, BT = (self._assembled(k) for k in ("J", "B", "BT"))
+        scale = B.createVecLeft()
         scale.array_w[:] = -active.astype(float)
-        blocks["B"].diagonalScale(L=scale)
-        D = PETSc.Mat().createAIJ(((self.n_q, None), (self.n_q, None)), nnz=1, comm=comm)
+        B.diagonalScale(L=scale)
         scale.array_w[:] = np.where(active, 0.0, self.M)
-        D.setDiagonal(scale)
-        D.assemble()
-        nest = PETSc.Mat().createNest([[blocks["J"], blocks["BT"]], [blocks["B"], D]], comm=comm)
-        if self._J is not None:
-            self._J.destroy()
-        self._J = nest.convert("aij")  # in place: nest is the kept matrix
-        self.ksp.setOperators(self._J)
-        for obj in (*blocks.values(), D, scale):
-            obj.destroy()
+        D = self._diagonal(scale)
+        scale.destroy()
+        if self._nest is None:
+            self._nest = PETSc.Mat().createNest([[J, BT], [B, D]], comm=self.disc.comm)
+            self._J = PETSc.Mat()
+            self._nest.convert("aij", out=self._J)
+            self.ksp.setOperators(self._J)
+        else:
+            self._nest.assemble()
+            self._nest.convert("aij", out=self._J)  # the values into the kept pattern
         return self._J
 
-    def _matrix(self, name: str, bcs: bool = True) -> PETSc.Mat:
-        A = fem_petsc.assemble_matrix(self.forms[name], bcs=self.disc.bcs if bcs else [])
+    def _diagonal(self, values: PETSc.Vec) -> PETSc.Mat:
+        """The kept diagonal block, set to ``values`` (zeros stay entries)."""
+        if self._D is None:
+            n = self.n_q
+            self._D = PETSc.Mat().createAIJ(((n, None), (n, None)), nnz=1, comm=self.disc.comm)
+        self._D.setDiagonal(values)
+        self._D.assemble()
+        return self._D
+
+    def _assembled(self, name: str, bcs: bool = True) -> PETSc.Mat:
+        """The matrix of form ``name`` at (u, lam), assembled into its kept Mat."""
+        key = (name, bcs)
+        if key not in self._mats:
+            self._mats[key] = fem_petsc.create_matrix(self.forms[name])
+        A = self._mats[key]
+        A.zeroEntries()
+        fem_petsc.assemble_matrix(A, self.forms[name], bcs=self.disc.bcs if bcs else [])
         A.assemble()
         return A
 
     def _lifting(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """J w and B w (owned rows) of the increment ``w`` on Gamma_D."""
-        J, B = self._matrix("J", bcs=False), self._matrix("B", bcs=False)
+        J, B = self._assembled("J", bcs=False), self._assembled("B", bcs=False)
         wv = J.createVecRight()
         wv.array_w[:] = w
         Jw, Bw = J.createVecLeft(), B.createVecLeft()
         J.mult(wv, Jw)
         B.mult(wv, Bw)
         out = Jw.array_r.copy(), Bw.array_r.copy()
-        for obj in (J, B, wv, Jw, Bw):
+        for obj in (wv, Jw, Bw):
             obj.destroy()
         return out
 

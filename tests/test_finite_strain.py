@@ -11,6 +11,7 @@ hold the affine displacement exactly, so the discrete state is the exact one.
 import itertools
 
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import numpy as np
 import pytest
@@ -241,6 +242,25 @@ def contact_force_and_energy(sol, material):
     psi = material.energy(F, MU, LMBDA) * m.dx(metadata={"quadrature_degree": 2})
     energy = sol.disc.comm.allreduce(fem.assemble_scalar(fem.form(psi)), op=MPI.SUM)
     return force, energy
+
+
+@pytest.mark.mpi
+def test_newton_matrix_analysed_once():
+    """The Newton matrix keeps its pattern across steps and active sets: MUMPS analyses it once.
+
+    A load path of two steps on one system, its active set changing: one symbolic factorisation,
+    a numeric one per Newton step (the events PETSc logs on this rank).
+    """
+    PETSc.Log.begin()
+    events = [PETSc.Log.Event(name) for name in ("MatLUFactorSym", "MatLUFactorNum")]
+    before = [e.getPerfInfo()["count"] for e in events]
+    problem = block_problem(MPI.COMM_WORLD, 2, 0.2, ds.NeoHookean(), n=4)
+    with ds.solve_path(problem, None, load_factors=[0.5, 1.0]) as path:
+        history = [h for sol in path.solutions for h in sol.history]
+        steps = sum(len(sol.history) - 1 for sol in path.solutions)
+    symbolic, numeric = (e.getPerfInfo()["count"] - b for e, b in zip(events, before, strict=True))
+    assert any(h["num_changed"] > 0 for h in history)
+    assert (symbolic, numeric) == (1, steps)
 
 
 @pytest.mark.mpi
