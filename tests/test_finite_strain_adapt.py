@@ -5,7 +5,8 @@ J_h alone on finer uniform meshes (ds.solve, no estimate), and that reference is
 than half the interval is wide; one process and two give the same levels; what the estimate
 does not take is refused before the first solve; a level whose Newton method fails from the
 previous level's solution raises. Slow: the Neo-Hookean disc pressed by 25 % of its radius,
-adaptive against uniform refinement.
+adaptive against uniform refinement for the contact force, a stress average near the contact
+and the stress at the contact edge (``benchmarks/finite_strain_payoff.py`` measures why).
 """
 
 import itertools
@@ -15,6 +16,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+import ufl
 
 import dwr_signorini as ds
 from dwr_signorini import finite_strain
@@ -23,7 +25,27 @@ from dwr_signorini.refine import refine_with_tags
 from dwr_signorini.semismooth import ConvergenceError
 
 from .problems import from_model
-from .test_finite_strain_estimate import GOALS, cylinder_problem, disc_mesh, quarter_disc
+from .test_finite_strain_estimate import GOALS, NU, E, cylinder_problem, disc_mesh, quarter_disc
+
+
+def edge_stress(u, lam, m):
+    """P_yy averaged with a Gaussian weight of width 0.1 at the contact zone's edge.
+
+    The edge of the disc pressed by 25 %: the arc's point at x = 0.58 (reference configuration),
+    where the pressure falls to zero and the solution is least smooth.
+    """
+    mu, lmbda = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
+    F = ufl.variable(ufl.Identity(2) + ufl.grad(u))
+    P = ds.NeoHookean().first_piola(F, mu, lmbda)
+    x0, y0 = EDGE
+    weight = ufl.exp(-(((m.x[0] - x0) / 0.1) ** 2 + ((m.x[1] - y0) / 0.1) ** 2))
+    return weight * P[1, 1] * m.dx
+
+
+#: The contact edge of the slow run (x from its uniform levels 0-2: 0.47, 0.51, 0.56).
+EDGE = (0.58, 1.0 - float(np.sqrt(1.0 - 0.58**2)))
+#: The goals of the slow run: the estimate test's two and the stress at the contact edge.
+EDGE_GOALS = {**GOALS, "edge": edge_stress}
 
 #: The quarter disc's mesh size and how far its top is pressed (20 % of the radius).
 H, PRESS = 0.25, 0.2
@@ -34,8 +56,8 @@ def coarse():
     return from_model(quarter_disc, h=H)
 
 
-def uniform_values(msh, facets, press, levels):
-    """J_h of every goal on the uniform refinements ``levels`` of the mesh (no estimate).
+def uniform_values(msh, facets, press, levels, goals=GOALS):
+    """J_h of every goal of ``goals`` on the uniform refinements ``levels`` (no estimate).
 
     Two load steps: from zero the Newton method inverts cells of fine meshes.
     """
@@ -46,7 +68,7 @@ def uniform_values(msh, facets, press, levels):
             with ds.solve_path(problem, None, load_factors=[0.5, 1.0]) as path:
                 sol = path.solutions[-1]
                 out[level] = {name: GoalForms(goal, sol.u, sol.lam, sol.disc).value()
-                              for name, goal in GOALS.items()}
+                              for name, goal in goals.items()}
         msh, _, _, facets = refine_with_tags(problem, None)
     return out
 
@@ -155,6 +177,10 @@ def test_failed_level_raises(coarse, monkeypatch):
 #: (12800 cells) and adaptive ones up to 40000 cells judged, the reference from J_h alone on
 #: uniform levels 3-5 (204800 cells).
 SLOW_H, SLOW_PRESS, SLOW_UNIFORM, SLOW_CELLS = 0.2, 0.25, 4, 40000
+#: The adaptive runs of the slow test per goal: the defaults, and for the stress at the contact
+#: edge also the primal estimator driving (the run that pays there).
+SLOW_RUNS = {"force": {"adaptive": {}}, "stress": {"adaptive": {}},
+             "edge": {"adaptive": {}, "adaptive eta_p": {"estimator": "eta_p"}}}
 
 
 def _richardson(j1, j2, j3):
@@ -164,16 +190,21 @@ def _richardson(j1, j2, j3):
 
 @pytest.fixture(scope="module")
 def slow_runs():
-    """Per goal: the reference and the levels of the uniform and the adaptive run."""
+    """Per goal: the reference and the levels of the uniform and the adaptive runs.
+
+    Each goal's forms are compiled by an untimed level first (the runs' times exclude it).
+    """
     msh, _, facets = from_model(quarter_disc, h=SLOW_H)
-    values = uniform_values(msh, facets, SLOW_PRESS, (3, 4, 5))
+    values = uniform_values(msh, facets, SLOW_PRESS, (3, 4, 5), goals=EDGE_GOALS)
     out = {}
-    for name, goal in GOALS.items():
+    for name, goal in EDGE_GOALS.items():
         J_ref = _richardson(*(values[k][name] for k in (3, 4, 5)))
-        out[name] = (J_ref, {
-            "uniform": run(msh, facets, goal, SLOW_PRESS, SLOW_UNIFORM, refinement="uniform"),
-            "adaptive": run(msh, facets, goal, SLOW_PRESS, 20, max_cells=SLOW_CELLS),
-        })
+        for kwargs in SLOW_RUNS[name].values():
+            run(msh, facets, goal, SLOW_PRESS, 1, **kwargs)
+        runs = {"uniform": run(msh, facets, goal, SLOW_PRESS, SLOW_UNIFORM, refinement="uniform")}
+        for label, kwargs in SLOW_RUNS[name].items():
+            runs[label] = run(msh, facets, goal, SLOW_PRESS, 20, max_cells=SLOW_CELLS, **kwargs)
+        out[name] = (J_ref, runs)
     return out
 
 
@@ -190,35 +221,64 @@ def _print_table(goal, J_ref, runs):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("goal", sorted(GOALS))
+@pytest.mark.parametrize("goal", ["force", "stress", pytest.param("edge", marks=pytest.mark.xfail(
+    strict=True, reason=(
+        "measured: J = -1.0023959e-2 (uniform J_3,4,5 = -1.0059965e-2, -1.0031812e-2, "
+        "-1.0025672e-2, ratio 4.6); level 0 (200 cells, the weight's width 0.1 unresolved) has "
+        "J_low = -1.34740e-2, J_high = -1.05792e-2; the adaptive levels 6 and 7 (18696, 38980 "
+        "cells) have J_h = -1.00381e-2, -1.00361e-2 and J_high = -1.00286e-2, -1.00289e-2 "
+        "(eta_p level 6: -1.00280e-2): the adaptive J_h stay 1.2e-5 from J and their intervals "
+        "miss it by 5e-6; which of the two limits is right is not decided here")))])
 def test_slow_intervals_contain_reference(slow_runs, goal):
-    """The disc pressed by 25 %: every level of the uniform (0-3) and the adaptive run (to
+    """The disc pressed by 25 %: every level of the uniform (0-3) and the adaptive runs (to
     40000 cells) has an interval that contains J from J_h alone on uniform levels 3-5."""
     J_ref, runs = slow_runs[goal]
     _print_table(goal, J_ref, runs)
     missed = [(name, r.level) for name, levels in runs.items() for r in levels
               if not r.J_low <= J_ref <= r.J_high]
     assert not missed
-    cells = [r.num_cells for r in runs["adaptive"]]
-    assert all(b > a for a, b in itertools.pairwise(cells))
+    for name in SLOW_RUNS[goal]:
+        cells = [r.num_cells for r in runs[name]]
+        assert all(b > a for a, b in itertools.pairwise(cells))
+
+
+def _payoff(J_ref, runs, name):
+    """(uniform time, adaptive time, uniform cells, adaptive cells) to the finest uniform
+    level's error: the adaptive run ``name``'s first level at least as close to J_ref
+    (infinite time and cells if none is)."""
+    finest = runs["uniform"][-1]
+    target = abs(J_ref - finest.J_h)
+    uniform_time = sum(r.time["total"] for r in runs["uniform"])
+    spent = np.cumsum([r.time["total"] for r in runs[name]])
+    reached = [(t, r.num_cells) for r, t in zip(runs[name], spent, strict=True)
+               if abs(J_ref - r.J_h) <= target]
+    time, cells = reached[0] if reached else (np.inf, np.inf)
+    print(f"\n{name}: uniform error {target:.2e} in {uniform_time:.2f} s ({finest.num_cells} "
+          f"cells), reached after {time:.2f} s ({cells} cells)")
+    return uniform_time, time, finest.num_cells, cells
 
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason=(
-    "measured (h = 0.2, 25 %, reference from uniform levels 3-5): uniform level 3 (12800 cells) "
-    "has error 2.2e-4 (force) and 1.9e-5 (stress) after 1.0 s and 1.2 s in all; the adaptive run "
-    "reaches them on its level 6 (25324 and 21776 cells) after 2.4 s and 2.5 s: at equal cells "
-    "its J_h is not more accurate than uniform refinement's on this smooth contact"))
-@pytest.mark.parametrize("goal", sorted(GOALS))
+    "measured (h = 0.2, 25 %, reference from uniform levels 3-5, times without compilation): "
+    "uniform level 3 (12800 cells) has errors 2.2e-4 (force), 1.9e-5 (stress), 3.6e-5 (edge) "
+    "after 0.96, 1.18, 1.30 s in all; the adaptive runs reach them after 2.29 s (level 6, 25324 "
+    "cells), 2.54 s (level 6, 21776 cells) and 0.98 s (eta_p, level 4, 4688 cells): force and "
+    "stress gain nothing per cell, the edge stress 2.7x, and a level costs about 0.2-0.3 s "
+    "whatever its cells (most of it the estimate), so four uniform levels are hard to beat"))
+@pytest.mark.parametrize("goal", sorted(EDGE_GOALS))
 def test_slow_adaptive_reaches_uniform_error_faster(slow_runs, goal):
     """Adaptivity reaches the error of the finest uniform level in at most 1/3 of its time."""
     J_ref, runs = slow_runs[goal]
-    finest = runs["uniform"][-1]
-    target = abs(J_ref - finest.J_h)
-    uniform_time = sum(r.time["total"] for r in runs["uniform"])
-    spent = np.cumsum([r.time["total"] for r in runs["adaptive"]])
-    reached = [t for r, t in zip(runs["adaptive"], spent, strict=True)
-               if abs(J_ref - r.J_h) <= target]
-    print(f"\n{goal}: uniform error {target:.2e} in {uniform_time:.2f} s, adaptive "
-          f"{reached[0] if reached else float('inf'):.2f} s")
-    assert reached and reached[0] <= uniform_time / 3
+    times = [_payoff(J_ref, runs, name)[:2] for name in SLOW_RUNS[goal]]
+    assert min(t for _, t in times) <= times[0][0] / 3
+
+
+@pytest.mark.slow
+def test_slow_edge_stress_adaptive_beats_uniform(slow_runs):
+    """The stress at the contact edge: the adaptive run driven by eta_p reaches the error of
+    uniform level 3 with at most half its cells and in less time than the uniform run."""
+    J_ref, runs = slow_runs["edge"]
+    uniform_time, time, uniform_cells, cells = _payoff(J_ref, runs, "adaptive eta_p")
+    assert cells <= uniform_cells / 2
+    assert time < uniform_time
