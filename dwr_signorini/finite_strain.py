@@ -267,12 +267,33 @@ class FiniteStrainSystem:
         scale = max(np.sqrt(comm.allreduce(float(p @ p), op=MPI.SUM)) for p in parts)
         return R, self._owned("G"), max(scale, 1e-300)
 
-    def step(self, active: np.ndarray, R: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, ...]:
+    def ncp(self, G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The set test, the NCP and its size per owned row at (u, lam), G = G(u) given.
+
+        C_i = M_i lam_i - max(0, M_i lam_i - c_i G_i) (module docstring); row i is active where
+        M_i lam_i - c_i G_i exceeds the round-off of its terms.
+
+        Returns:
+            ``(active, C, size)``: the mask, C and max(|M lam|, |c G|) + the round-off.
+        """
+        comm = self.disc.comm
+        Mlam = self.M * self.lam.x.array[: self.n_q]
+        cG = self.c * G
+        u_max = comm.allreduce(float(np.max(np.abs(self.u.x.array), initial=0.0)), op=MPI.MAX)
+        noise = 1e-10 * (comm.allreduce(float(np.max(np.abs(Mlam), initial=0.0)), op=MPI.MAX)
+                         + self.c * self.M * u_max)
+        C = Mlam - np.maximum(0.0, Mlam - cG)
+        return Mlam - cG > noise, C, np.maximum(np.abs(Mlam), np.abs(cG)) + noise
+
+    def step(self, active: np.ndarray, R: np.ndarray, G: np.ndarray, assemble: bool = True
+             ) -> tuple[np.ndarray, ...]:
         """The Newton update (du, dlam) of the set ``active`` (owned rows), module docstring.
 
         The step also moves the prescribed dofs to their values (the increment w on Gamma_D,
         lifted: J w and B w enter the right-hand side), so that a load step does not distort
-        the cells at Gamma_D before the first solve.
+        the cells at Gamma_D before the first solve. ``assemble=False`` solves with the Newton
+        matrix and factors in the KSP (those of ``active`` at the current state, assembled by
+        :meth:`newton_matrix` before, e.g. for a dual solve).
         """
         comm = self.disc.comm
         w = self.increment()
@@ -284,7 +305,8 @@ class FiniteStrainSystem:
             on_bc = w != 0.0
             on_bc[self.owned_bc_dofs] = True
             rhs_u[on_bc] = w[on_bc]
-        self.newton_matrix(active)
+        if assemble:
+            self.newton_matrix(active)
         rhs = self._J.createVecLeft()
         rhs.array_w[:] = np.concatenate([rhs_u, rhs_lam])
         x = rhs.duplicate()
@@ -413,20 +435,14 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
     Raises:
         ConvergenceError: No convergence in ``max_iterations`` steps, NaN/Inf, or a set cycle.
     """
-    comm, n_q = system.disc.comm, system.n_q
+    comm = system.disc.comm
     system.set_load(t)
     history: list[dict[str, Any]] = []
     previous, seen = None, set()
     for it in range(max_iterations + 1):
         R, G, scale = system.residuals()
-        Mlam = system.M * system.lam.x.array[:n_q]
-        cG = system.c * G
-        u_max = comm.allreduce(float(np.max(np.abs(system.u.x.array), initial=0.0)), op=MPI.MAX)
-        noise = 1e-10 * (comm.allreduce(float(np.max(np.abs(Mlam), initial=0.0)), op=MPI.MAX)
-                         + system.c * system.M * u_max)
-        active = Mlam - cG > noise
-        ncp = np.abs(Mlam - np.maximum(0.0, Mlam - cG))
-        size = np.maximum(np.abs(Mlam), np.abs(cG)) + noise
+        active, ncp, size = system.ncp(G)
+        ncp = np.abs(ncp)
         record = {
             "iteration": it,
             "num_active": comm.allreduce(int(active.sum()), op=MPI.SUM),
