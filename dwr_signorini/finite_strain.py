@@ -179,9 +179,10 @@ class FiniteStrainSystem:
         self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         self.n_q = Q.dofmap.index_map.size_local
         self.M = self._owned("M")
+        E_M = self._owned("E")
         size = self.M if gdim == 2 else np.sqrt(self.M)
         if ncp_scale == "physical":
-            self.c = np.divide(self._owned("E"), self.M * size, out=np.ones_like(self.M),
+            self.c = np.divide(E_M, self.M * size, out=np.ones_like(self.M),
                                where=self.M > 0)
         else:
             self.c = np.full(self.n_q, float(ncp_scale))
@@ -430,7 +431,9 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
     """Semi-smooth Newton at load factor ``t`` from the system's current (u, lam).
 
     Converged when the active set repeats and both residuals (equilibrium relative to its
-    terms, the NCP relative to M lam and c G per row) are below ``rtol``.
+    terms, the NCP relative to M lam and c G per row) are below ``rtol``; the equilibrium one
+    also where the last update was at the round-off of (u, lam) (:func:`_at_roundoff`): a
+    stress-free state (a body moved rigidly, not touching) has terms of round-off size only.
 
     Raises:
         ConvergenceError: No convergence in ``max_iterations`` steps, NaN/Inf, or a set cycle.
@@ -438,7 +441,7 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
     comm = system.disc.comm
     system.set_load(t)
     history: list[dict[str, Any]] = []
-    previous, seen = None, set()
+    previous, seen, stagnant = None, set(), False
     for it in range(max_iterations + 1):
         R, G, scale = system.residuals()
         active, ncp, size = system.ncp(G)
@@ -461,8 +464,9 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
         if not all(np.isfinite([record["residual_equilibrium"], record["residual_ncp"]])):
             raise ConvergenceError(f"NaN or Inf at Newton step {it} (J = det F <= 0?)", history)
         settled = not comm.allreduce(bool(np.any(system.increment() != 0.0)), op=MPI.LOR)
-        if (settled and record["num_changed"] == 0 and record["residual_equilibrium"] <= rtol
-                and record["residual_ncp"] <= rtol):
+        equilibrium = record["residual_equilibrium"] <= rtol or stagnant
+        ncp_met = record["residual_ncp"] <= rtol
+        if settled and record["num_changed"] == 0 and equilibrium and ncp_met:
             if system.min_det_F() <= 0.0:  # an inverted cell: no physical state
                 raise ConvergenceError(
                     f"finite strain: Newton converged to a state with det F <= 0 in a cell at "
@@ -481,9 +485,21 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
         if not comm.allreduce(bool(np.all(np.isfinite(du)) and np.all(np.isfinite(dlam))),
                               op=MPI.LAND):
             raise ConvergenceError(f"NaN or Inf in the Newton update of step {it}", history)
+        stagnant = _at_roundoff(system, du, dlam)
         system.update(du, dlam)
         previous = active
     raise AssertionError("unreachable")
+
+
+def _at_roundoff(system: FiniteStrainSystem, du: np.ndarray, dlam: np.ndarray) -> bool:
+    """Whether the update (du, dlam) is within 1000 eps of the state (u, lam), on all ranks."""
+    tol = 1e3 * np.finfo(float).eps
+    pairs = ((du, system.u.x.array), (dlam, system.lam.x.array))
+    local = np.array([np.max(np.abs(a), initial=0.0) for pair in pairs for a in pair])
+    out = np.empty_like(local)
+    system.disc.comm.Allreduce(local, out, op=MPI.MAX)
+    d_u, u, d_lam, lam = out
+    return bool(d_u <= tol * u and d_lam <= tol * lam)
 
 
 def check_options(options: Any) -> Any:
