@@ -52,7 +52,7 @@ from .dual import solve_dual
 from .goal import Goal, GoalForms
 from .laws import multiplier_names
 from .linalg import system_class
-from .model_regions import MIXED, new_rows, regional
+from .model_regions import FINITE_STRAIN, MIXED, new_rows, regional
 
 __all__ = ["ModelError", "check_richer", "law_phrase", "model_error"]
 
@@ -65,9 +65,6 @@ DATA = (
     "facet_tags", "model", "quadrature_degree", "cell_tags", "E", "nu", "contact_tags",
     "pairs", "dirichlet_values", "body_force", "traction", "gap", "boundary_projection",
 )
-
-#: The name of the richer model when it is a finite-strain material (:attr:`ModelError.richer`).
-FINITE_STRAIN = "finite_strain"
 
 #: What leaving out the richer law means, by the (simpler, richer) laws' names.
 PHRASES = {

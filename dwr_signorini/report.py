@@ -34,7 +34,7 @@ from .estimator import Estimate
 from .io import OutputDirectory, write_csv, write_json
 from .lifetime import Releasable
 from .model_error import law_phrase
-from .model_regions import law_label
+from .model_regions import model_label
 from .newton import Solution
 from .problem import SignoriniProblem
 from .stress import stress_fields
@@ -252,7 +252,7 @@ def level_record(
         model_error=est.model_error,
         model_error_low=model_low,
         model_error_high=model_high,
-        model=law_label(disc.problem.law),
+        model=model_label(disc.problem),
         richer_model=None if est.model is None else est.model.richer,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
