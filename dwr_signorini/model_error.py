@@ -112,8 +112,8 @@ class ModelError:
             (global). 0: w^1 is the richer discrete solution where the law is piecewise linear
             on its sets (2D), and (M1) is exact for a linear goal.
         material: The richer problem's finite-strain material, or None (a richer law).
-        correction: With a richer material: the next simplified Newton step's change of J,
-            -z_r . F_r(w^1) (:mod:`~dwr_signorini.strain_model_error`), else 0.
+        correction: With a richer material: the change of J of the chord steps after the
+            Newton step (:mod:`~dwr_signorini.strain_model_error`), else 0.
     """
 
     value: float

@@ -27,16 +27,27 @@ beside the facet) and the NCP terms spread by area over the cells beside each ma
 sum to eta_M. Per macro contact facet the Gamma_C part (the contact forces' and the NCP's).
 
 **The interval.** Unlike a friction law, the material is nonlinear on its set: w^1 is not the
-finite-strain solution even where the set settles. The next simplified Newton step (the same
-factors) changes J by c_2 = -z_r . F_r(w^1) (:attr:`~dwr_signorini.model_error.ModelError.
-correction`, quadratic in the step), and the steps after it by about c_2 q / (1 - q), q the
-contraction. The interval is that of (M1) (:func:`~dwr_signorini.model_error.model_interval`,
-widened by the goal's nonlinearity |J(w^1) - J(w_s) - eta_M|) joined with itself shifted by
-2 c_2: it holds J(w_r) - J(w_s) while q <= 1/2 (an estimate, as the other intervals).
+finite-strain solution even where the set settles. With the factors of the dual solve (the
+Newton matrix at w_s, its set fixed) the chord steps w^(k+1) = w^k - N(w_s)^-1 F_r(w^k) go on
+towards it at the price of a residual and a triangular solve each (at most
+:data:`MAX_CHORD`, until J moves by less than :data:`CHORD_RTOL` of its change). The interval
+is that of (M1) for the Newton step (:func:`~dwr_signorini.model_error.model_interval`: the
+goal's nonlinearity |J(w^1) - J(w_s) - eta_M|, and hull(0, 2 eta_M) where the set changes)
+joined with the last chord iterate's change of J +- twice its last increment (a linearly
+converging sequence with contraction q <= 2/3 is within that of its limit): an estimate, as
+the other intervals. :attr:`~dwr_signorini.model_error.ModelError.correction` holds the chord
+steps' change of J after the Newton step.
+
+**Where small strain is far out of its range** its solution can invert a cell (det(I + grad
+u_s) <= 0, a strain beyond 100 % at a corner of the contact zone), where the hyperelastic law is
+undefined: the model error is then not estimated, ``value`` nan and the interval (-inf, inf),
+said in a warning; ``solve_adaptive(..., models=[...])`` switches to finite strain there.
 """
 
 from __future__ import annotations
 
+import logging
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -46,6 +57,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from .collective import log_on_root
 from .finite_strain import FiniteStrainSolution, FiniteStrainSystem, cell_degree, residual_forms
 from .finite_strain_estimate import contact_facet_indicators, solve_dual
 from .goal import Goal, GoalForms
@@ -53,25 +65,33 @@ from .model_error import ModelError, check_richer, indicator_functions, model_in
 
 __all__ = ["strain_interval", "strain_model_error"]
 
+#: Most Newton and chord steps after eta_M (module docstring).
+MAX_CHORD = 10
+#: The chord steps stop when J moves by less than this share of its change.
+CHORD_RTOL = 1e-3
+
+logger = logging.getLogger("dwr_signorini.estimator")
+
 
 def strain_interval(
-    value: float, step: float, correction: float, changed: int, roundoff: float = 0.0
+    value: float, changes: list[float], changed: int, roundoff: float = 0.0
 ) -> tuple[float, float]:
     """The interval of J(w_r) - J(w_s) for a richer material (module docstring).
 
     Args:
         value: eta_M of (M6).
-        step: J(w^1) - J(w_s).
-        correction: c_2 = -z_r . F_r(w^1).
-        changed: The rows whose set the finite-strain set test changes at w^1.
+        changes: J(w^k) - J(w_s) of the Newton step (k = 1) and the chord steps after it.
+        changed: The rows whose set the finite-strain set test changes at the last iterate.
         roundoff: The round-off of J.
 
     Returns:
-        ``(low, high)``: :func:`~dwr_signorini.model_error.model_interval` joined with itself
-        shifted by 2 c_2.
+        ``(low, high)``: :func:`~dwr_signorini.model_error.model_interval` of the Newton step
+        joined with the last chord iterate's change +- twice its last increment.
     """
-    low, high = model_interval(value, step, changed, roundoff)
-    return min(low, low + 2.0 * correction), max(high, high + 2.0 * correction)
+    low, high = model_interval(value, changes[0], changed, roundoff)
+    last = abs(changes[-1] - changes[-2]) if len(changes) > 1 else abs(changes[0] - value)
+    spread = 2.0 * last + abs(roundoff)
+    return min(low, changes[-1] - spread), max(high, changes[-1] + spread)
 
 
 def strain_model_error(
@@ -93,7 +113,8 @@ def strain_model_error(
 
     Returns:
         The :class:`~dwr_signorini.model_error.ModelError` (collective), with ``material``
-        the richer material and ``correction`` c_2.
+        the richer material and ``correction`` the chord steps' change of J after the
+        Newton step.
 
     Raises:
         TypeError, ValueError: ``richer`` is not ``sol``'s problem with a hyperelastic
@@ -140,35 +161,50 @@ def _difference_form(sol: Any, state: FiniteStrainSolution, y: fem.Function) -> 
     return small_strain - internal - contact
 
 
-def _pairing(system: FiniteStrainSystem, F: np.ndarray, z: Any) -> float:
-    """-z . F for F = (R, G, C) (owned rows): rho_r(w)(z) on the discrete space."""
-    n_u, n_q = system.n_u, system.n_q
-    local = float(F[:n_u] @ z.y.x.array[:n_u] + F[n_u + n_q:] @ z.xi.x.array[:n_q])
-    return -system.disc.comm.allreduce(local, op=MPI.SUM)
-
-
-def _newton_step(
-    system: FiniteStrainSystem, state: FiniteStrainSolution, F: np.ndarray, z: Any,
+def _chord(
+    system: FiniteStrainSystem, state: FiniteStrainSolution, F: np.ndarray,
     goal_forms: GoalForms,
-) -> tuple[float, float, int]:
-    """J(w^1) - J(w_s), c_2 = -z . F_r(w^1) and the rows whose set changes at w^1.
+) -> tuple[list[float], int]:
+    """J(w^k) - J(w_s) of the Newton step w^1 and the chord steps after it; the set changes.
 
-    w^1 is the finite-strain Newton iterate from w_s, solved with the factors of the dual
-    solve (the same matrix); the state's functions are restored after.
+    Every step solves with the factors of the dual solve (the finite-strain Newton matrix at
+    w_s, its set fixed): w^(k+1) = w^k - N(w_s)^-1 F_r(w^k), at most :data:`MAX_CHORD` steps,
+    until J moves by less than :data:`CHORD_RTOL` of its change. The state's functions are
+    restored after.
+
+    Returns:
+        The changes of J and the rows whose set the set test changes at the last iterate.
     """
     n_u, n_q = system.n_u, system.n_q
     J_s = goal_forms.value()
-    du, dlam = system.step(state.active, F[:n_u], F[n_u: n_u + n_q], assemble=False)
-    system.update(du, dlam)
-    R1, G1, _ = system.residuals()
-    active1, C1, _ = system.ncp(G1)
-    correction = _pairing(system, np.concatenate([R1, G1, C1]), z)
     saved = state.u.x.array.copy(), state.lam.x.array.copy()
-    state.u.x.array[:], state.lam.x.array[:] = system.u.x.array, system.lam.x.array
-    J_1 = goal_forms.value()
+    R, G, changes = F[:n_u], F[n_u: n_u + n_q], []
+    for _ in range(MAX_CHORD):
+        du, dlam = system.step(state.active, R, G, assemble=False)
+        system.update(du, dlam)
+        state.u.x.array[:], state.lam.x.array[:] = system.u.x.array, system.lam.x.array
+        changes.append(goal_forms.value() - J_s)
+        R, G, _ = system.residuals()
+        if len(changes) > 1 and abs(changes[-1] - changes[-2]) <= CHORD_RTOL * abs(changes[-1]):
+            break
+    active, _, _ = system.ncp(G)
     state.u.x.array[:], state.lam.x.array[:] = saved
-    changed = system.disc.comm.allreduce(int((active1 != state.active).sum()), op=MPI.SUM)
-    return J_1 - J_s, correction, changed
+    changed = system.disc.comm.allreduce(int((active != state.active).sum()), op=MPI.SUM)
+    return changes, changed
+
+
+def _inverted(disc: Any, localize: Callable) -> ModelError:
+    """The model error where the small-strain solution inverts a cell: undefined (module doc)."""
+    log_on_root(disc.comm, logger, logging.WARNING,
+                "model error of small strain: the small-strain solution inverts a cell "
+                "(det(I + grad u) <= 0), where the hyperelastic law is undefined; the model "
+                "error is not estimated (nan, interval (-inf, inf))")
+    n_q = disc.Q.dofmap.index_map.size_local
+    zero = np.zeros(n_q)
+    cells, facets = indicator_functions(disc, zero, np.ones(n_q), localize)
+    return ModelError(value=math.nan, interval=(-math.inf, math.inf), indicators=cells,
+                      facet_indicators=facets, law=disc.problem.law,
+                      material=disc.problem.material_law, correction=math.nan)
 
 
 def _strain_model_error(
@@ -177,6 +213,8 @@ def _strain_model_error(
     """:func:`strain_model_error` on the finite-strain Newton system ``system``."""
     disc = system.disc
     state, F = _state(sol, system)
+    if system.min_det_F() <= 0.0:
+        return _inverted(disc, localize)
     goal_forms = GoalForms(goal, state.u, state.lam, disc)
     z = solve_dual(state, goal_forms)
     n_u, n_q = system.n_u, system.n_q
@@ -189,15 +227,15 @@ def _strain_model_error(
     facets.x.scatter_forward()
     n_local = cells.function_space.dofmap.index_map.size_local
     value = disc.comm.allreduce(float(cells.x.array[:n_local].sum()), op=MPI.SUM)
-    step, correction, changed = _newton_step(system, state, F, z, goal_forms)
+    changes, changed = _chord(system, state, F, goal_forms)
     return ModelError(
         value=value,
-        interval=strain_interval(value, step, correction, changed, roundoff),
+        interval=strain_interval(value, changes, changed, roundoff),
         indicators=cells,
         facet_indicators=facets,
         law=disc.problem.law,
-        newton_step=step,
+        newton_step=changes[0],
         num_changed=changed,
         material=disc.problem.material_law,
-        correction=correction,
+        correction=changes[-1] - changes[0],
     )

@@ -7,8 +7,12 @@ degree one in E (units); the indicators sum to the estimate; one process and two
 the same truths.
 """
 
+from mpi4py import MPI
+
 import numpy as np
 import pytest
+import ufl
+from dolfinx import fem
 
 import dwr_signorini as ds
 from dwr_signorini.goal import GoalForms
@@ -54,6 +58,16 @@ def _model_error(msh, facets, press, goal, E_scale=1.0):
     with ds.solve(simple, rtol=1e-13) as sol, ds.estimate(sol, goal, model_error=rich) as est:
         true = _finite_strain_value(rich, goal) - est.J_h
         return est.model, true
+
+
+def _cell_means(expr, msh):
+    """The means of ``expr`` over the owned cells."""
+    DG0 = fem.functionspace(msh, ("DG", 0))
+    q = ufl.TestFunction(DG0)
+    values = fem.assemble_vector(fem.form(expr * q * ufl.dx(domain=msh)))
+    areas = fem.assemble_vector(fem.form(q * ufl.dx(domain=msh)))
+    n = DG0.dofmap.index_map.size_local
+    return values.array[:n] / areas.array[:n]
 
 
 def _scaled(problem, E_scale):
@@ -175,3 +189,32 @@ def test_models_small_then_finite_strain(tol):
     else:
         assert models == {"frictionless"} and rows[-1].richer_model == "finite_strain"
         assert rows[-1].model_error_low <= alone - rows[-1].J_h <= rows[-1].model_error_high
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "h 0.0625, press 0.15, stress goal: Ieff 0.944, interval [4.447e-3, 4.648e-3], true "
+    "4.774e-3. The Neo-Hookean path ends with 7 active facets, the small-strain solution has 8; "
+    "the chord steps on the small-strain set converge to a state that keeps the 8th facet "
+    "active with its NCP met (set test unchanged): two discrete states at the edge of contact, "
+    "3 % apart in this J."))
+def test_edge_facet_of_the_contact_zone():
+    """The finest mesh of the benchmark at 15 %: the interval holds the path's difference."""
+    msh, _, facets = from_model(quarter_disc, h=0.0625)
+    me, true = _model_error(msh, facets, 0.15, stress_average)
+    low, high = me.interval
+    assert low <= true <= high
+
+
+@pytest.mark.mpi
+def test_an_inverted_small_strain_state_is_not_estimated():
+    """At 20 % on h 0.0625 the small-strain solution inverts a cell at the edge of contact,
+    where the Neo-Hookean law is undefined: the model error is nan with the interval
+    (-inf, inf), so a run with models=[small, Neo-Hookean] switches there."""
+    msh, _, facets = from_model(quarter_disc, h=0.0625)
+    simple = cylinder_problem(msh, facets, 0.2, material=ds.LinearElastic())
+    rich = cylinder_problem(msh, facets, 0.2)
+    with ds.solve(simple) as sol, ds.estimate(sol, contact_force, model_error=rich) as est:
+        det = _cell_means(ufl.det(ufl.Identity(2) + ufl.grad(sol.u)), sol.disc.mesh)
+        assert msh.comm.allreduce(float(det.min(initial=np.inf)), op=MPI.MIN) <= 0.0
+        assert np.isnan(est.model_error)
+        assert est.model_error_interval == (-np.inf, np.inf)
