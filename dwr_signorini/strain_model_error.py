@@ -29,14 +29,18 @@ sum to eta_M. Per macro contact facet the Gamma_C part (the contact forces' and 
 **The interval.** Unlike a friction law, the material is nonlinear on its set: w^1 is not the
 finite-strain solution even where the set settles. With the factors of the dual solve (the
 Newton matrix at w_s, its set fixed) the chord steps w^(k+1) = w^k - N(w_s)^-1 F_r(w^k) go on
-towards it at the price of a residual and a triangular solve each (at most
-:data:`MAX_CHORD`, until J moves by less than :data:`CHORD_RTOL` of its change). The interval
-is that of (M1) for the Newton step (:func:`~dwr_signorini.model_error.model_interval`: the
-goal's nonlinearity |J(w^1) - J(w_s) - eta_M|, and hull(0, 2 eta_M) where the set changes)
-joined with the last chord iterate's change of J +- twice its last increment (a linearly
-converging sequence with contraction q <= 2/3 is within that of its limit): an estimate, as
-the other intervals. :attr:`~dwr_signorini.model_error.ModelError.correction` holds the chord
-steps' change of J after the Newton step.
+towards it at the price of a residual and a triangular solve each, while each step at least
+halves the equilibrium residual (at most :data:`MAX_CHORD`, converged below
+:data:`CHORD_RTOL`). Where they converge and the set test keeps the set, the last iterate is the
+finite-strain discrete solution on w_s's set, and the interval is that of (M1) for the Newton
+step (:func:`~dwr_signorini.model_error.model_interval`: eta_M +- the goal's nonlinearity
+|J(w^1) - J(w_s) - eta_M|) joined with the chord's change of J +- twice its last increment.
+Where they do not (a small-strain state far from the finite-strain one: near-inverted cells
+make the tangent at w_s a poor one) or the set changes, the Newton step is a linearisation of
+unknown quality and the interval is (M1)'s for changed sets, hull(0, 2 eta_M) +- the goal's
+nonlinearity, joined with the chord's change as above: an estimate, as the other intervals.
+:attr:`~dwr_signorini.model_error.ModelError.correction` holds the chord steps' change of J
+after the Newton step.
 
 **Where small strain is far out of its range** its solution can invert a cell (det(I + grad
 u_s) <= 0, a strain beyond 100 % at a corner of the contact zone), where the hyperelastic law is
@@ -67,14 +71,14 @@ __all__ = ["strain_interval", "strain_model_error"]
 
 #: Most Newton and chord steps after eta_M (module docstring).
 MAX_CHORD = 10
-#: The chord steps stop when J moves by less than this share of its change.
-CHORD_RTOL = 1e-3
+#: The chord steps have converged where the equilibrium residual relative to its terms is below.
+CHORD_RTOL = 1e-8
 
 logger = logging.getLogger("dwr_signorini.estimator")
 
 
 def strain_interval(
-    value: float, changes: list[float], changed: int, roundoff: float = 0.0
+    value: float, changes: list[float], changed: int, converged: bool, roundoff: float = 0.0
 ) -> tuple[float, float]:
     """The interval of J(w_r) - J(w_s) for a richer material (module docstring).
 
@@ -82,13 +86,16 @@ def strain_interval(
         value: eta_M of (M6).
         changes: J(w^k) - J(w_s) of the Newton step (k = 1) and the chord steps after it.
         changed: The rows whose set the finite-strain set test changes at the last iterate.
+        converged: Whether the chord steps converged.
         roundoff: The round-off of J.
 
     Returns:
         ``(low, high)``: :func:`~dwr_signorini.model_error.model_interval` of the Newton step
-        joined with the last chord iterate's change +- twice its last increment.
+        (as where the sets change unless the chord steps converged on an unchanged set),
+        joined with the last chord iterate's change of J +- twice its last increment.
     """
-    low, high = model_interval(value, changes[0], changed, roundoff)
+    settled = 0 if converged and changed == 0 else max(changed, 1)
+    low, high = model_interval(value, changes[0], settled, roundoff)
     last = abs(changes[-1] - changes[-2]) if len(changes) > 1 else abs(changes[0] - value)
     spread = 2.0 * last + abs(roundoff)
     return min(low, changes[-1] - spread), max(high, changes[-1] + spread)
@@ -164,33 +171,40 @@ def _difference_form(sol: Any, state: FiniteStrainSolution, y: fem.Function) -> 
 def _chord(
     system: FiniteStrainSystem, state: FiniteStrainSolution, F: np.ndarray,
     goal_forms: GoalForms,
-) -> tuple[list[float], int]:
-    """J(w^k) - J(w_s) of the Newton step w^1 and the chord steps after it; the set changes.
+) -> tuple[list[float], int, bool]:
+    """J(w^k) - J(w_s) of the Newton step w^1 and the chord steps after it (module docstring).
 
     Every step solves with the factors of the dual solve (the finite-strain Newton matrix at
-    w_s, its set fixed): w^(k+1) = w^k - N(w_s)^-1 F_r(w^k), at most :data:`MAX_CHORD` steps,
-    until J moves by less than :data:`CHORD_RTOL` of its change. The state's functions are
+    w_s, its set fixed): w^(k+1) = w^k - N(w_s)^-1 F_r(w^k), at most :data:`MAX_CHORD` steps;
+    converged where the equilibrium residual (relative to its terms) is below
+    :data:`CHORD_RTOL`, given up where a step does not halve it. The state's functions are
     restored after.
 
     Returns:
-        The changes of J and the rows whose set the set test changes at the last iterate.
+        The changes of J, the rows whose set the set test changes at the last iterate and
+        whether the chord steps converged.
     """
     n_u, n_q = system.n_u, system.n_q
+    comm = system.disc.comm
     J_s = goal_forms.value()
     saved = state.u.x.array.copy(), state.lam.x.array.copy()
     R, G, changes = F[:n_u], F[n_u: n_u + n_q], []
+    previous, converged = np.inf, False
     for _ in range(MAX_CHORD):
         du, dlam = system.step(state.active, R, G, assemble=False)
         system.update(du, dlam)
         state.u.x.array[:], state.lam.x.array[:] = system.u.x.array, system.lam.x.array
         changes.append(goal_forms.value() - J_s)
-        R, G, _ = system.residuals()
-        if len(changes) > 1 and abs(changes[-1] - changes[-2]) <= CHORD_RTOL * abs(changes[-1]):
+        R, G, scale = system.residuals()
+        residual = np.sqrt(comm.allreduce(float(R @ R), op=MPI.SUM)) / scale
+        converged = residual <= CHORD_RTOL
+        if converged or residual > 0.5 * previous:
             break
+        previous = residual
     active, _, _ = system.ncp(G)
     state.u.x.array[:], state.lam.x.array[:] = saved
-    changed = system.disc.comm.allreduce(int((active != state.active).sum()), op=MPI.SUM)
-    return changes, changed
+    changed = comm.allreduce(int((active != state.active).sum()), op=MPI.SUM)
+    return changes, changed, converged
 
 
 def _inverted(disc: Any, localize: Callable) -> ModelError:
@@ -227,10 +241,10 @@ def _strain_model_error(
     facets.x.scatter_forward()
     n_local = cells.function_space.dofmap.index_map.size_local
     value = disc.comm.allreduce(float(cells.x.array[:n_local].sum()), op=MPI.SUM)
-    changes, changed = _chord(system, state, F, goal_forms)
+    changes, changed, converged = _chord(system, state, F, goal_forms)
     return ModelError(
         value=value,
-        interval=strain_interval(value, changes, changed, roundoff),
+        interval=strain_interval(value, changes, changed, converged, roundoff),
         indicators=cells,
         facet_indicators=facets,
         law=disc.problem.law,

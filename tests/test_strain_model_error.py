@@ -191,18 +191,20 @@ def test_models_small_then_finite_strain(tol):
         assert rows[-1].model_error_low <= alone - rows[-1].J_h <= rows[-1].model_error_high
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "h 0.0625, press 0.15, stress goal: Ieff 0.944, interval [4.447e-3, 4.648e-3], true "
-    "4.774e-3. The Neo-Hookean path ends with 7 active facets, the small-strain solution has 8; "
-    "the chord steps on the small-strain set converge to a state that keeps the 8th facet "
-    "active with its NCP met (set test unchanged): two discrete states at the edge of contact, "
-    "3 % apart in this J."))
-def test_edge_facet_of_the_contact_zone():
-    """The finest mesh of the benchmark at 15 %: the interval holds the path's difference."""
+@pytest.mark.mpi
+@pytest.mark.parametrize("goal", sorted(GOALS))
+def test_a_poor_tangent_widens_the_interval(goal):
+    """At 15 % on h 0.0625 cells near the edge of contact are almost inverted by small strain;
+    the chord steps on the Newton factors at w_s do not converge (the residual stays at 0.7 of
+    its terms), so the interval is hull(0, 2 eta_M): it holds the truth (measured Ieff 0.996
+    force, 0.944 stress; with the chord's own J, which had stagnated, the stress interval
+    [4.447e-3, 4.648e-3] missed the true 4.774e-3)."""
     msh, _, facets = from_model(quarter_disc, h=0.0625)
-    me, true = _model_error(msh, facets, 0.15, stress_average)
+    me, true = _model_error(msh, facets, 0.15, GOALS[goal])
     low, high = me.interval
+    assert 0.5 <= me.value / true <= 2.0
     assert low <= true <= high
+    assert low <= min(0.0, 2.0 * me.value) and max(0.0, 2.0 * me.value) <= high
 
 
 @pytest.mark.mpi
