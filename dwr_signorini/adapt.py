@@ -26,6 +26,7 @@ from .goal import Goal
 from .marking import MarkingRule, marking_defaults
 from .model_choice import ModelChoice, check_models, check_regions, explain, write_model_map
 from .model_error import check_richer
+from .model_regions import model_label
 from .newton import Solution
 from .problem import SignoriniProblem
 from .refine import RULES, fine_cells
@@ -67,15 +68,17 @@ def _check_finite_strain(
     The solver's ``petsc_options`` and ``method``
     (:func:`~dwr_signorini.finite_strain.check_options`), weights other than the patch ones
     and ``model_error`` (:func:`~dwr_signorini.finite_strain_estimate.check_options`), and
-    ``models`` (richer contact laws are not covered at finite strain).
+    ``models`` richer than a finite-strain problem (none is: friction is not covered at finite
+    strain); the solver's and the estimate's options also where a richer model of ``models``
+    is a finite-strain one (small strain first, ``models=[linear, hyperelastic]``).
     """
-    if not problem.finite_strain:
-        return
-    finite_strain.check_options(settings.solver)
-    finite_strain_estimate.check_options(settings.estimate, settings.model_error)
-    if models is not None:
-        finite_strain.refuse("solve_adaptive(models=...)", "model adaptivity chooses among "
-                             "contact laws with friction, which finite strain does not cover")
+    if problem.finite_strain and models is not None:
+        finite_strain.refuse("solve_adaptive(models=...)", "no model is richer than a "
+                             "finite-strain one here (friction is not covered at finite strain)")
+    if problem.finite_strain or any(m.finite_strain for m in models or ()):
+        finite_strain.check_options(settings.solver)
+        finite_strain_estimate.check_options(
+            settings.estimate, settings.model_error if problem.finite_strain else None)
 
 
 def _model_choice(
@@ -224,7 +227,7 @@ def solve_adaptive(
             "max_growth": marking.max_growth, "estimator": estimator, "weights": weights,
             "method": method, "ncp_scale": solver.ncp_scale, "refinement_rule": refinement_rule,
             "growth": marking.growth, "exact": exact, "num_processes": problem.mesh.comm.size,
-            "models": None if models is None else [m.law.name for m in models],
+            "models": None if models is None else [model_label(m) for m in models],
             "model_share": None if models is None else model_share,
             "model_regions": model_regions}
     reporter = Reporter(problem.mesh.comm, refinement, meta, output_dir, callback, verbose)

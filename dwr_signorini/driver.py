@@ -79,14 +79,15 @@ class LevelSettings:
             problem: The level's problem.
 
         Returns:
-            :attr:`model_error` itself on its own mesh, else the same data with its law on
-            ``problem``'s (refined) mesh.
+            :attr:`model_error` itself on its own mesh, else the same data with its law and
+            material on ``problem``'s (refined) mesh.
         """
         rich = self.model_error
         if rich is None or rich.mesh is problem.mesh:
             return rich
         return problem.with_mesh(
-            problem.mesh, problem.facet_tags, problem.cell_tags, law=rich.law
+            problem.mesh, problem.facet_tags, problem.cell_tags, law=rich.law,
+            material=rich.material_law,
         )
 
     def solve_and_estimate(

@@ -465,8 +465,10 @@ def estimate(
         options: ``estimator``, ``weights``, ``petsc_options`` and ``quadrature_degree`` as
             one :class:`~dwr_signorini.settings.EstimateOptions`, instead of the keywords.
         model_error: ``None``, or the same problem with a richer contact law (frictionless <
-            Tresca < Coulomb): ``Estimate.model`` then holds the estimate of J(richer) -
-            J(simpler) at ``sol`` (:mod:`~dwr_signorini.model_error`, theory eq. (M1)).
+            Tresca < Coulomb, :mod:`~dwr_signorini.model_error`, theory eq. (M1)) or with a
+            hyperelastic material (``material=ds.NeoHookean()``, ...; small strain in place of
+            finite strain, :mod:`~dwr_signorini.strain_model_error`, eq. (M6)):
+            ``Estimate.model`` then holds the estimate of J(richer) - J(simpler) at ``sol``.
 
     Returns:
         The :class:`Estimate` (collective; release it with ``destroy()`` or ``with``);
@@ -530,7 +532,10 @@ def _model_error(
     DG0 = est.indicators.function_space
     degree = options.degree(disc.problem)
     tic = time.perf_counter()
-    out = model_error_estimate(
+    from .strain_model_error import strain_model_error  # it builds on the finite-strain estimate
+
+    of_material = strain_model_error if richer.finite_strain else model_error_estimate
+    out = of_material(
         sol, goal, richer,
         lambda form: _assemble_indicators(disc, [form], DG0, degree)[0],
         est.roundoff,

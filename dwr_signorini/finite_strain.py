@@ -179,9 +179,10 @@ class FiniteStrainSystem:
         self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         self.n_q = Q.dofmap.index_map.size_local
         self.M = self._owned("M")
+        E_M = self._owned("E")
         size = self.M if gdim == 2 else np.sqrt(self.M)
         if ncp_scale == "physical":
-            self.c = np.divide(self._owned("E"), self.M * size, out=np.ones_like(self.M),
+            self.c = np.divide(E_M, self.M * size, out=np.ones_like(self.M),
                                where=self.M > 0)
         else:
             self.c = np.full(self.n_q, float(ncp_scale))
@@ -267,12 +268,33 @@ class FiniteStrainSystem:
         scale = max(np.sqrt(comm.allreduce(float(p @ p), op=MPI.SUM)) for p in parts)
         return R, self._owned("G"), max(scale, 1e-300)
 
-    def step(self, active: np.ndarray, R: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, ...]:
+    def ncp(self, G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The set test, the NCP and its size per owned row at (u, lam), G = G(u) given.
+
+        C_i = M_i lam_i - max(0, M_i lam_i - c_i G_i) (module docstring); row i is active where
+        M_i lam_i - c_i G_i exceeds the round-off of its terms.
+
+        Returns:
+            ``(active, C, size)``: the mask, C and max(|M lam|, |c G|) + the round-off.
+        """
+        comm = self.disc.comm
+        Mlam = self.M * self.lam.x.array[: self.n_q]
+        cG = self.c * G
+        u_max = comm.allreduce(float(np.max(np.abs(self.u.x.array), initial=0.0)), op=MPI.MAX)
+        noise = 1e-10 * (comm.allreduce(float(np.max(np.abs(Mlam), initial=0.0)), op=MPI.MAX)
+                         + self.c * self.M * u_max)
+        C = Mlam - np.maximum(0.0, Mlam - cG)
+        return Mlam - cG > noise, C, np.maximum(np.abs(Mlam), np.abs(cG)) + noise
+
+    def step(self, active: np.ndarray, R: np.ndarray, G: np.ndarray, assemble: bool = True
+             ) -> tuple[np.ndarray, ...]:
         """The Newton update (du, dlam) of the set ``active`` (owned rows), module docstring.
 
         The step also moves the prescribed dofs to their values (the increment w on Gamma_D,
         lifted: J w and B w enter the right-hand side), so that a load step does not distort
-        the cells at Gamma_D before the first solve.
+        the cells at Gamma_D before the first solve. ``assemble=False`` solves with the Newton
+        matrix and factors in the KSP (those of ``active`` at the current state, assembled by
+        :meth:`newton_matrix` before, e.g. for a dual solve).
         """
         comm = self.disc.comm
         w = self.increment()
@@ -284,7 +306,8 @@ class FiniteStrainSystem:
             on_bc = w != 0.0
             on_bc[self.owned_bc_dofs] = True
             rhs_u[on_bc] = w[on_bc]
-        self.newton_matrix(active)
+        if assemble:
+            self.newton_matrix(active)
         rhs = self._J.createVecLeft()
         rhs.array_w[:] = np.concatenate([rhs_u, rhs_lam])
         x = rhs.duplicate()
@@ -408,25 +431,21 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
     """Semi-smooth Newton at load factor ``t`` from the system's current (u, lam).
 
     Converged when the active set repeats and both residuals (equilibrium relative to its
-    terms, the NCP relative to M lam and c G per row) are below ``rtol``.
+    terms, the NCP relative to M lam and c G per row) are below ``rtol``; the equilibrium one
+    also where the last update was at the round-off of (u, lam) (:func:`_at_roundoff`): a
+    stress-free state (a body moved rigidly, not touching) has terms of round-off size only.
 
     Raises:
         ConvergenceError: No convergence in ``max_iterations`` steps, NaN/Inf, or a set cycle.
     """
-    comm, n_q = system.disc.comm, system.n_q
+    comm = system.disc.comm
     system.set_load(t)
     history: list[dict[str, Any]] = []
-    previous, seen = None, set()
+    previous, seen, stagnant = None, set(), False
     for it in range(max_iterations + 1):
         R, G, scale = system.residuals()
-        Mlam = system.M * system.lam.x.array[:n_q]
-        cG = system.c * G
-        u_max = comm.allreduce(float(np.max(np.abs(system.u.x.array), initial=0.0)), op=MPI.MAX)
-        noise = 1e-10 * (comm.allreduce(float(np.max(np.abs(Mlam), initial=0.0)), op=MPI.MAX)
-                         + system.c * system.M * u_max)
-        active = Mlam - cG > noise
-        ncp = np.abs(Mlam - np.maximum(0.0, Mlam - cG))
-        size = np.maximum(np.abs(Mlam), np.abs(cG)) + noise
+        active, ncp, size = system.ncp(G)
+        ncp = np.abs(ncp)
         record = {
             "iteration": it,
             "num_active": comm.allreduce(int(active.sum()), op=MPI.SUM),
@@ -445,8 +464,9 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
         if not all(np.isfinite([record["residual_equilibrium"], record["residual_ncp"]])):
             raise ConvergenceError(f"NaN or Inf at Newton step {it} (J = det F <= 0?)", history)
         settled = not comm.allreduce(bool(np.any(system.increment() != 0.0)), op=MPI.LOR)
-        if (settled and record["num_changed"] == 0 and record["residual_equilibrium"] <= rtol
-                and record["residual_ncp"] <= rtol):
+        equilibrium = record["residual_equilibrium"] <= rtol or stagnant
+        ncp_met = record["residual_ncp"] <= rtol
+        if settled and record["num_changed"] == 0 and equilibrium and ncp_met:
             if system.min_det_F() <= 0.0:  # an inverted cell: no physical state
                 raise ConvergenceError(
                     f"finite strain: Newton converged to a state with det F <= 0 in a cell at "
@@ -465,9 +485,21 @@ def newton(system: FiniteStrainSystem, t: float, max_iterations: int, rtol: floa
         if not comm.allreduce(bool(np.all(np.isfinite(du)) and np.all(np.isfinite(dlam))),
                               op=MPI.LAND):
             raise ConvergenceError(f"NaN or Inf in the Newton update of step {it}", history)
+        stagnant = _at_roundoff(system, du, dlam)
         system.update(du, dlam)
         previous = active
     raise AssertionError("unreachable")
+
+
+def _at_roundoff(system: FiniteStrainSystem, du: np.ndarray, dlam: np.ndarray) -> bool:
+    """Whether the update (du, dlam) is within 1000 eps of the state (u, lam), on all ranks."""
+    tol = 1e3 * np.finfo(float).eps
+    pairs = ((du, system.u.x.array), (dlam, system.lam.x.array))
+    local = np.array([np.max(np.abs(a), initial=0.0) for pair in pairs for a in pair])
+    out = np.empty_like(local)
+    system.disc.comm.Allreduce(local, out, op=MPI.MAX)
+    d_u, u, d_lam, lam = out
+    return bool(d_u <= tol * u and d_lam <= tol * lam)
 
 
 def check_options(options: Any) -> Any:

@@ -78,7 +78,9 @@ from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .settings import EstimateOptions
 
-__all__ = ["FiniteStrainEstimate", "check_options", "estimate", "solve_dual"]
+__all__ = [
+    "FiniteStrainEstimate", "check_options", "contact_facet_indicators", "estimate", "solve_dual",
+]
 
 
 @dataclass
@@ -307,8 +309,9 @@ def check_options(options: EstimateOptions, model_error: Any = None) -> None:
                "the P2 weights need the P2 primal problem, a nonlinear one at finite strain; "
                "weights='patch' (or 'auto', which takes it) is offered")
     if model_error is not None:
-        refuse("estimate(model_error=...)", "the model error between finite-strain laws is "
-               "not implemented")
+        refuse("estimate(model_error=...)", "the model error of small strain is estimated at "
+               "the small-strain solution (ds.estimate(sol, goal, model_error=problem with a "
+               "hyperelastic material), sol of the linear problem)")
 
 
 def estimate(sol: FiniteStrainSolution, goal: Goal, options: EstimateOptions,
@@ -390,12 +393,21 @@ def _estimate(sol: FiniteStrainSolution, goal_forms: GoalForms, z: DualSolution,
         reconstructor=rec,
         resolved=contact_set_resolved(value, total["remainder"], total["contact"], q),
         roundoff=q, nonlinear_remainder=total["third"],
-        contact_indicators=_contact_indicators(disc, estimate_form, degree),
+        contact_indicators=contact_facet_indicators(disc, estimate_form, degree),
     )
 
 
-def _contact_indicators(disc: Any, form: ufl.Form, degree: int | None) -> fem.Function:
-    """The Gamma_C integrals of the estimate's form, per macro contact facet (DG0 on Sigma_H)."""
+def contact_facet_indicators(disc: Any, form: ufl.Form, degree: int | None) -> fem.Function:
+    """The Gamma_C integrals of ``form`` per macro contact facet (a function on Lambda_H).
+
+    Args:
+        disc: The discretisation.
+        form: A scalar form.
+        degree: The quadrature degree of its non-polynomial integrals (None: UFL's).
+
+    Returns:
+        One value per macro contact facet (zero where ``form`` has no Gamma_C integral).
+    """
     out = fem.Function(disc.Q, name="contact indicators")
     part = _contact_part(form, disc.problem.contact_tags)
     if part is None:

@@ -52,7 +52,7 @@ from .io import write_json
 from .laws import Coulomb
 from .marking import TIE_TOLERANCE, MarkingRule, threshold
 from .model_error import check_richer, law_phrase
-from .model_regions import RegionMap, RegionMu, flag_function, num_rich
+from .model_regions import RegionMap, RegionMu, flag_function, model_label, num_rich
 from .newton import Solution
 from .problem import SignoriniProblem
 from .spaces import Discretization
@@ -197,18 +197,19 @@ class ModelChoice:
         return 0.5 * (J_high - J_low) + model_bound(est) <= self.tol
 
     def on_model(self, problem: SignoriniProblem) -> SignoriniProblem:
-        """``problem`` (a level's) with the law of the model in force.
+        """``problem`` (a level's) with the law and material of the model in force.
 
         Args:
             problem: A level's problem.
 
         Returns:
-            ``problem`` itself if it has that law, else its data with that law.
+            ``problem`` itself if it has them, else its data with them.
         """
-        law = self.models[self.index].law
-        if problem.law is law:
+        model = self.models[self.index]
+        if problem.law is model.law and problem.material_law == model.material_law:
             return problem
-        return problem.with_mesh(problem.mesh, problem.facet_tags, problem.cell_tags, law=law)
+        return problem.with_mesh(problem.mesh, problem.facet_tags, problem.cell_tags,
+                                 law=model.law, material=model.material_law)
 
     def solve_level(
         self,
@@ -328,11 +329,11 @@ class ModelChoice:
 
     def _switch_line(self, level: int, est: Estimate, then: str | None = None) -> str:
         """The line that says why a level runs a richer model: again (``then`` None) or next."""
-        rich = self.models[self.index + 1].law.name
+        rich = model_label(self.models[self.index + 1])
         low, high = est.model_error_interval
         return (
             f"level {level:2d}  J in [{est.interval[0]: .6e}, {est.interval[1]: .6e}]; model "
-            f"error of {law_phrase(self.models[self.index].law.name, rich)}: "
+            f"error of {law_phrase(model_label(self.models[self.index]), rich)}: "
             f"{est.model_error: .3e} in [{low: .3e}, {high: .3e}], above {self.share:g} tol = "
             f"{self.share * self.tol:.3e}: "
             + (f"solved again with {rich}" if then is None else f"next level {then}")
@@ -357,7 +358,7 @@ def explain(choice: ModelChoice | None, est: Estimate) -> str:
     """
     if choice is None:
         return ""
-    name = choice.models[choice.index].law.name
+    name = model_label(choice.models[choice.index])
     if choice.regions:
         name = f"coulomb on {choice.maps[-1]['share']:.0%} of Gamma_C"
     return f"; model {name}, |model error| <= {model_bound(est):.3e}"

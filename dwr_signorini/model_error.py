@@ -52,7 +52,7 @@ from .dual import solve_dual
 from .goal import Goal, GoalForms
 from .laws import multiplier_names
 from .linalg import system_class
-from .model_regions import MIXED, new_rows, regional
+from .model_regions import FINITE_STRAIN, MIXED, new_rows, regional
 
 __all__ = ["ModelError", "check_richer", "law_phrase", "model_error"]
 
@@ -71,6 +71,7 @@ PHRASES = {
     ("frictionless", "tresca"): "leaving out friction",
     ("frictionless", "coulomb"): "leaving out friction",
     ("tresca", "coulomb"): "Tresca in place of Coulomb",
+    ("frictionless", FINITE_STRAIN): "small strain in place of finite strain",
     (MIXED, "coulomb"): "leaving out friction",
 }
 
@@ -103,13 +104,16 @@ class ModelError:
         indicators: DG0 function on T_h of signed cell indicators; they sum to ``value``.
         facet_indicators: Function on Lambda_H (one value per macro contact facet); they sum
             to ``value``.
-        law: The richer law.
+        law: The richer law (the solution's own for a richer material).
         newton_step: J(w^1) - J(w_s^*), w^1 the richer law's Newton iterate from w_s^*;
             equal to ``value`` for a goal linear in w (module docstring).
         num_slip: The slipping facets of the richer law's sets at w_s^* (global).
         num_changed: The multiplier rows whose set the richer law's set test changes at w^1
             (global). 0: w^1 is the richer discrete solution where the law is piecewise linear
             on its sets (2D), and (M1) is exact for a linear goal.
+        material: The richer problem's finite-strain material, or None (a richer law).
+        correction: With a richer material: the change of J of the chord steps after the
+            Newton step (:mod:`~dwr_signorini.strain_model_error`), else 0.
     """
 
     value: float
@@ -120,6 +124,13 @@ class ModelError:
     newton_step: float = math.nan
     num_slip: int = 0
     num_changed: int = -1
+    material: Any = None
+    correction: float = 0.0
+
+    @property
+    def richer(self) -> str:
+        """The richer model's name: the law's (``"coulomb"``, ...), or ``"finite_strain"``."""
+        return self.law.name if self.material is None else FINITE_STRAIN
 
 
 def model_interval(
@@ -181,7 +192,10 @@ def _same(a: Any, b: Any, depth: int = 0) -> bool:
 
 
 def check_richer(simple: Any, richer: Any) -> None:
-    """Check that ``richer`` is ``simple`` with a richer contact law (ValueError, TypeError).
+    """Check that ``richer`` is ``simple`` with a richer law (ValueError, TypeError).
+
+    A richer contact law (frictionless < Tresca < Coulomb) at the same material, or a
+    hyperelastic material (:mod:`~dwr_signorini.strain_model_error`) at the same contact law.
 
     Args:
         simple: The problem of the solution.
@@ -203,8 +217,11 @@ def check_richer(simple: Any, richer: Any) -> None:
         if not _same(getattr(simple, name), getattr(richer, name)):
             raise ValueError(
                 f"model_error: the richer problem has other data ({name!r} differs); it must be "
-                "the same problem with another friction law"
+                "the same problem with another friction law or material"
             )
+    if simple.finite_strain or richer.finite_strain:
+        _check_richer_material(simple, richer)
+        return
     s, r = simple.law.name, richer.law.name
     if regional(simple.law) and r == "coulomb":
         if not _same(simple.law.data.mu, richer.law.data):
@@ -217,6 +234,22 @@ def check_richer(simple: Any, richer: Any) -> None:
         raise ValueError(
             f"model_error: the law {richer.law!r} is not richer than the solution's "
             f"{simple.law!r}; richer laws: frictionless < Tresca < Coulomb"
+        )
+
+
+def _check_richer_material(simple: Any, richer: Any) -> None:
+    """The material case of :func:`check_richer`: small strain against a hyperelastic law."""
+    if simple.finite_strain:
+        raise ValueError(
+            "model_error: the solution's material is already a finite-strain law "
+            f"({simple.material_law!r}); the model error of small strain is estimated at a "
+            "small-strain solution, with the richer problem's material hyperelastic"
+        )
+    if not _same(simple.law, richer.law):
+        raise ValueError(
+            f"model_error: the richer problem changes the material ({richer.material_law!r}) "
+            f"and the contact law ({simple.law!r} -> {richer.law!r}); estimate one model "
+            "error at a time"
         )
 
 
@@ -327,16 +360,7 @@ def _model_error(
     By.destroy()
     facet = np.sum(algebra.components_of(terms), axis=0)
     value = comm.allreduce(float(facet.sum()), op=MPI.SUM)
-    facet_f = fem.Function(disc.Q, name="model_facet_indicators")
-    facet_f.x.array[:n_q] = facet
-    facet_f.x.scatter_forward()
-    density = fem.Function(disc.Q)
-    density.x.array[:n_q] = facet / algebra.M.array[:n_q]
-    density.x.scatter_forward()
-    cells = fem.Function(fem.functionspace(disc.mesh, ("DG", 0)), name="model_indicators")
-    n_local = cells.function_space.dofmap.index_map.size_local
-    cells.x.array[:n_local] = localize(density * disc.m.ds_contact)[:n_local]
-    cells.x.scatter_forward()
+    cells, facet_f = indicator_functions(disc, facet, algebra.M.array[:n_q], localize)
     step, changed = _step(system, goal, goal_forms, disc, algebra, (wanted, free, couplings))
     return ModelError(
         value=value,
@@ -348,6 +372,42 @@ def _model_error(
         num_slip=_num_slip(couplings, wanted, free, algebra, comm),
         num_changed=changed,
     )
+
+
+def indicator_functions(
+    disc: Any,
+    facet: np.ndarray,
+    M: np.ndarray,
+    localize: Callable[[ufl.Form], np.ndarray],
+    cell_terms: np.ndarray | None = None,
+) -> tuple[fem.Function, fem.Function]:
+    """The model indicators per cell and per macro contact facet from the facets' summands.
+
+    Args:
+        disc: The discretisation.
+        facet: The summands per macro contact facet (owned rows).
+        M: The facets' measures (owned rows).
+        localize: Cell indicators (on T_h, local array) of a scalar form.
+        cell_terms: Further terms per cell (local array on T_h), or None.
+
+    Returns:
+        ``(cells, facets)``: DG0 on T_h, ``facet`` spread by area over the cells beside each
+        macro facet plus ``cell_terms``; and ``facet`` as a function on Lambda_H.
+    """
+    n_q = len(facet)
+    facet_f = fem.Function(disc.Q, name="model_facet_indicators")
+    facet_f.x.array[:n_q] = facet
+    facet_f.x.scatter_forward()
+    density = fem.Function(disc.Q)
+    density.x.array[:n_q] = np.divide(facet, M, out=np.zeros(n_q), where=M > 0)
+    density.x.scatter_forward()
+    cells = fem.Function(fem.functionspace(disc.mesh, ("DG", 0)), name="model_indicators")
+    n_local = cells.function_space.dofmap.index_map.size_local
+    cells.x.array[:n_local] = localize(density * disc.m.ds_contact)[:n_local]
+    if cell_terms is not None:
+        cells.x.array[:n_local] += cell_terms[:n_local]
+    cells.x.scatter_forward()
+    return cells, facet_f
 
 
 def _step(

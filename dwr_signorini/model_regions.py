@@ -29,10 +29,14 @@ from dolfinx import fem
 from . import compat
 from .laws import Coulomb
 
-__all__ = ["RegionMap", "RegionMu", "law_label", "new_rows", "regional"]
+__all__ = ["RegionMap", "RegionMu", "law_label", "model_label", "new_rows", "regional"]
 
 #: The name of a per-region model in records and lines.
 MIXED = "frictionless/coulomb"
+
+#: The name of the model of a finite-strain (hyperelastic) problem in records: it is
+#: frictionless, so its material names it.
+FINITE_STRAIN = "finite_strain"
 
 #: New facets whose midpoints are matched to old facets at once (memory of the distances).
 CHUNK = 256
@@ -74,6 +78,11 @@ def regional(law: Any) -> bool:
 def law_label(law: Any) -> str:
     """The model's name in records: the law's name, ``"frictionless/coulomb"`` per region."""
     return MIXED if regional(law) else law.name
+
+
+def model_label(problem: Any) -> str:
+    """The model's name in records: ``"finite_strain"`` (hyperelastic), else :func:`law_label`."""
+    return FINITE_STRAIN if problem.finite_strain else law_label(problem.law)
 
 
 def new_rows(law: Any, algebra: Any, known: int) -> np.ndarray:

@@ -345,6 +345,7 @@ class SignoriniProblem:
         facet_tags: dmesh.MeshTags,
         cell_tags: dmesh.MeshTags | None = None,
         law: Any = None,
+        material: Any = None,
     ) -> SignoriniProblem:
         """The same problem on another (refined) macro mesh.
 
@@ -355,6 +356,8 @@ class SignoriniProblem:
                 discretisation's T_h are ``disc.cell_tags``).
             law: Another contact law for the new problem (``None``: this problem's), e.g. the
                 richer law of a model error estimate.
+            material: Another material law (``None``: this problem's), e.g. the hyperelastic
+                law of a model error estimate.
 
         Returns:
             A new :class:`SignoriniProblem` with this problem's data on ``mesh``.
@@ -377,7 +380,7 @@ class SignoriniProblem:
             boundary_projection=self.boundary_projection or None,
             friction=self.law if law is None else law,
             quadrature_degree=self.quadrature_degree,
-            material=self.material_law,
+            material=self.material_law if material is None else material,
         )
 
 

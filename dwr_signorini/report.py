@@ -34,7 +34,7 @@ from .estimator import Estimate
 from .io import OutputDirectory, write_csv, write_json
 from .lifetime import Releasable
 from .model_error import law_phrase
-from .model_regions import law_label
+from .model_regions import model_label
 from .newton import Solution
 from .problem import SignoriniProblem
 from .stress import stress_fields
@@ -89,7 +89,8 @@ class LevelRecord:
         model_error_high: Its upper end, else ``None``.
         model: The name of the contact law the level ran (``"frictionless"``, ``"tresca"``,
             ``"coulomb"``); with ``solve_adaptive(..., models=[...])`` the model it chose.
-        richer_model: The name of the richer law of ``model_error``, else ``None``.
+        richer_model: The name of the richer law of ``model_error`` (``"finite_strain"`` for a
+            hyperelastic material), else ``None``.
         rich_share: With ``models``: the share of Gamma_C (by measure) that ran the richest
             law (0 or 1 for a global switch; per region R's), else ``None``.
     """
@@ -251,8 +252,8 @@ def level_record(
         model_error=est.model_error,
         model_error_low=model_low,
         model_error_high=model_high,
-        model=law_label(disc.problem.law),
-        richer_model=None if est.model is None else est.model.law.name,
+        model=model_label(disc.problem),
+        richer_model=None if est.model is None else est.model.richer,
         newton_iterations=sol.newton_iterations,
         num_marked=disc.comm.allreduce(len(marked), op=MPI.SUM),
         time={
