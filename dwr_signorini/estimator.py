@@ -532,10 +532,7 @@ def _model_error(
     DG0 = est.indicators.function_space
     degree = options.degree(disc.problem)
     tic = time.perf_counter()
-    from .strain_model_error import strain_model_error  # it builds on the finite-strain estimate
-
-    of_material = strain_model_error if richer.finite_strain else model_error_estimate
-    out = of_material(
+    out = model_error_estimate(
         sol, goal, richer,
         lambda form: _assemble_indicators(disc, [form], DG0, degree)[0],
         est.roundoff,

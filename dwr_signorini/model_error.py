@@ -300,10 +300,13 @@ def model_error(
 ) -> ModelError:
     """eta_M of (M1) for the solution ``sol`` of the simpler law and the problem ``richer``.
 
+    Or of (M6) where ``richer`` has a hyperelastic material
+    (:func:`~dwr_signorini.strain_model_error.strain_model_error`).
+
     Args:
         sol: The :class:`~dwr_signorini.Solution` of the simpler law.
         goal: The goal, as for :func:`~dwr_signorini.estimate`.
-        richer: The same problem with a richer law (:func:`check_richer`).
+        richer: The same problem with a richer law or material (:func:`check_richer`).
         localize: Cell indicators (on T_h, local array) of a scalar form.
         roundoff: The round-off of J (widens the interval).
 
@@ -321,6 +324,10 @@ def model_error(
             "model error of a single solve"
         )
     disc = sol.disc.for_problem(richer)
+    if richer.finite_strain:
+        from .strain_model_error import strain_model_error  # it builds on this module
+
+        return strain_model_error(sol, goal, disc, localize, roundoff)
     symmetric = richer.law.symmetric(disc.mesh.topology.dim)
     system = system_class("block", symmetric)(
         disc, None, prefix=sol.system.prefix + "model_", ncp_scale=sol.ncp_scale

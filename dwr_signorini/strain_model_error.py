@@ -65,7 +65,7 @@ from .collective import log_on_root
 from .finite_strain import FiniteStrainSolution, FiniteStrainSystem, cell_degree, residual_forms
 from .finite_strain_estimate import contact_facet_indicators, solve_dual
 from .goal import Goal, GoalForms
-from .model_error import ModelError, check_richer, indicator_functions, model_interval
+from .model_error import ModelError, indicator_functions, model_interval
 
 __all__ = ["strain_interval", "strain_model_error"]
 
@@ -104,17 +104,18 @@ def strain_interval(
 def strain_model_error(
     sol: Any,
     goal: Goal,
-    richer: Any,
+    disc: Any,
     localize: Callable[[ufl.Form], np.ndarray],
     roundoff: float = 0.0,
 ) -> ModelError:
-    """eta_M of (M6) for a small-strain solution and the problem with a hyperelastic material.
+    """eta_M of (M6) at a small-strain solution, for a problem with a hyperelastic material.
+
+    Called by :func:`~dwr_signorini.model_error.model_error`, which checks the input.
 
     Args:
         sol: The :class:`~dwr_signorini.Solution` of the small-strain problem.
         goal: The goal, as for :func:`~dwr_signorini.estimate`.
-        richer: The same problem with a finite-strain material
-            (:func:`~dwr_signorini.model_error.check_richer`).
+        disc: ``sol``'s discretisation with the richer problem (``for_problem``).
         localize: Cell indicators (on T_h, local array) of a scalar form.
         roundoff: The round-off of J (widens the interval).
 
@@ -122,18 +123,7 @@ def strain_model_error(
         The :class:`~dwr_signorini.model_error.ModelError` (collective), with ``material``
         the richer material and ``correction`` the chord steps' change of J after the
         Newton step.
-
-    Raises:
-        TypeError, ValueError: ``richer`` is not ``sol``'s problem with a hyperelastic
-            material, or ``sol`` is a load step of a path.
     """
-    check_richer(sol.disc.problem, richer)
-    if sol.disc.u_old is not None:
-        raise ValueError(
-            "model_error: sol is a load step of solve_path (frictional history); estimate the "
-            "model error of a single solve"
-        )
-    disc = sol.disc.for_problem(richer)
     system = FiniteStrainSystem(disc, sol.ncp_scale)
     try:
         return _strain_model_error(sol, goal, system, localize, roundoff)
