@@ -220,3 +220,23 @@ def test_an_inverted_small_strain_state_is_not_estimated():
         assert msh.comm.allreduce(float(det.min(initial=np.inf)), op=MPI.MIN) <= 0.0
         assert np.isnan(est.model_error)
         assert est.model_error_interval == (-np.inf, np.inf)
+
+
+@pytest.mark.mpi
+def test_a_body_moved_without_touching_has_no_model_error(disc_mesh):
+    """The disc moved down by 0.002 (h 0.25: no macro facet's integrated gap closes) is a rigid
+    translation under both models, stress-free: the Neo-Hookean Newton method converges to it
+    (its terms are round-off only) and the model error is zero."""
+    msh, facets = disc_mesh
+    rich = cylinder_problem(msh, facets, 0.002)
+    with ds.solve(rich) as sol:
+        assert sol.num_active == 0
+        n = sol.disc.V.dofmap.index_map.size_local * 2
+        u = sol.u.x.array[:n].reshape(-1, 2)
+        np.testing.assert_allclose(u, np.tile([0.0, -0.002], (len(u), 1)), atol=1e-14)
+    simple = cylinder_problem(msh, facets, 0.002, material=ds.LinearElastic())
+    with ds.solve(simple) as sol, ds.estimate(sol, contact_force, model_error=rich) as est:
+        assert est.J_h == 0.0
+        assert abs(est.model_error) <= 1e-14
+        low, high = est.model_error_interval
+        assert low <= 0.0 <= high
