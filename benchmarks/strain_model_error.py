@@ -12,7 +12,12 @@ ratio)::
     scripts/fenicsx python3 benchmarks/strain_model_error.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/strain_model_error.py
 
-Writes ``benchmarks/results/strain_model_error_np<N>.csv``.
+Writes ``benchmarks/results/strain_model_error_np<N>.csv``. With ``--adaptive`` it runs
+``solve_adaptive(small, force, tol=tol, models=[small, neo_hookean])`` against the Neo-Hookean
+run alone to the same tolerance (relative to the force, ``--tol``) and writes
+``strain_model_choice_np<N>.csv``::
+
+    scripts/fenicsx python3 benchmarks/strain_model_error.py --adaptive --h 0.25 --press 0.02 0.1
 """
 
 from __future__ import annotations
@@ -84,11 +89,45 @@ def row(h: float, press: float, goal_name: str, meshes: dict) -> dict:
     }
 
 
+def adaptive_row(press: float, tol_rel: float, h: float, max_levels: int) -> dict:
+    """``models=[small, Neo-Hookean]`` against the Neo-Hookean run alone, goal the force.
+
+    The tolerance is relative to the small-strain force on the first mesh; both runs stop by
+    their intervals (the model run: half its width plus the model error's bound).
+    """
+    msh, _, facets = from_model(quarter_disc, h=h)
+    small = cylinder_problem(msh, facets, press, material=ds.LinearElastic())
+    neo = cylinder_problem(msh, facets, press)
+    with ds.solve(small) as sol:
+        tol = tol_rel * GoalForms(contact_force, sol.u, sol.lam, sol.disc).value()
+    out = {"press": press, "tol": tol}
+    for name, problem, models in (("models", small, [small, neo]), ("neo alone", neo, None)):
+        tic = time.perf_counter()
+        with ds.solve_adaptive(problem, contact_force, tol=tol, max_levels=max_levels,
+                               models=models, verbose=False) as res:
+            rows = res.levels
+            out[f"t {name}"] = time.perf_counter() - tic
+            out[f"{name}: levels"] = ",".join(r.model[:3] for r in rows)
+            out[f"{name}: J_best"] = rows[-1].J_best
+            out[f"{name}: converged"] = res.converged
+    out["|J_best models - J_best neo|"] = abs(out["models: J_best"] - out["neo alone: J_best"])
+    out["t ratio"] = out["t models"] / out["t neo alone"]
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--h", type=float, nargs="+", default=[0.25, 0.125])
     parser.add_argument("--press", type=float, nargs="+", default=[0.05, 0.1, 0.2, 0.3])
+    parser.add_argument("--adaptive", action="store_true",
+                        help="the model choice's runs against the Neo-Hookean runs instead")
+    parser.add_argument("--tol", type=float, nargs="+", default=[1e-2, 1e-3])
     args = parser.parse_args()
+    if args.adaptive:
+        adaptive_row(args.press[0], args.tol[0], args.h[0], 2)  # compile the forms
+        rows = [show(adaptive_row(p, t, args.h[0], 6)) for p in args.press for t in args.tol]
+        write_rows(rows, "strain_model_choice")
+        return
     meshes = {}
     for h in args.h:
         msh, _, facets = from_model(quarter_disc, h=h)
