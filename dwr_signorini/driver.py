@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from dolfinx import mesh as dmesh
 
+from .estimate_parts import keep_estimate_parts
 from .estimator import Estimate, estimate
 from .goal import Goal
 from .marking import MarkingRule, refine_level
@@ -90,7 +91,8 @@ class LevelSettings:
         )
 
     def solve_and_estimate(
-        self, disc: Discretization, guess: tuple[Any, ...] | None, goal: Goal
+        self, disc: Discretization, guess: tuple[Any, ...] | None, goal: Goal,
+        keep_parts: bool = False,
     ) -> tuple[Solution, Estimate, float]:
         """Solve the level from ``guess`` and estimate ``goal`` (collective).
 
@@ -98,6 +100,8 @@ class LevelSettings:
             disc: The level's discretisation.
             guess: The initial iterate, or None.
             goal: The quantity of interest.
+            keep_parts: Keep the estimate's goal-independent parts with the solution, for
+                estimates of other goals at it (:mod:`~dwr_signorini.estimate_parts`).
 
         Returns:
             The solution, its estimate and the seconds of the solve. On a failure of the
@@ -107,6 +111,8 @@ class LevelSettings:
         sol = solve(disc, initial_guess=guess, options=self.solver)
         t_solve = time.perf_counter() - tic
         try:
+            if keep_parts:
+                keep_estimate_parts(sol)
             est = estimate(
                 sol, goal, options=self.estimate, model_error=self.richer(disc.problem)
             )

@@ -48,6 +48,7 @@ from dolfinx import fem
 from . import finite_strain_path
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
+from .estimate_parts import release_estimate_parts
 from .estimator import Estimate, estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
@@ -344,6 +345,7 @@ def _steps(
         disc.destroy()
     if result.solution is not None:  # and the last mesh's with the last solution
         result.solution.owns_disc = True
+        release_estimate_parts(result.solution, result.estimate)
     return result
 
 
@@ -412,7 +414,7 @@ def _step(
         guess = state.first_guess if previous is None else _warm_start(previous, disc)
     state.retire()
     t_setup = time.perf_counter() - t_start
-    sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal)
+    sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal, keep_parts=state.keep)
     state.solution, state.estimate = sol, est
     tic = time.perf_counter()
     history = history_estimates(state.kept, sol, est, settings.estimate) if sweep else []

@@ -1,0 +1,234 @@
+"""What estimates of different goals at one solution share: the parts that do not depend on J.
+
+An estimate of J at w_h (:func:`~dwr_signorini.estimate`) weights the residuals at w_h with the
+dual solution z_h of J and with the reconstruction of w_h (eq. (13), (15)). Only z_h and what is
+made from it depend on J; these do not:
+
+* the patch reconstructor (:class:`~dwr_signorini.reconstruction.Reconstructor`) and the DG0
+  space of the indicators;
+* the P2 system of the final active set with its factorisation (``weights="higher_order"``,
+  :class:`FactoredP2`) or its two-level set-up (``weights="hierarchical"``,
+  :class:`~dwr_signorini.hierarchical.HierarchicalP2`): only the right-hand side of the P2 dual
+  changes with J;
+* the P2 primal solution w^(2) and the primal weights A w_h - w_h, lambda^+ of each kind of
+  weights;
+* whether ``weights="auto"``'s P2 weights fit in memory.
+
+A load path's history (:func:`~dwr_signorini.path.history_estimates`) estimates, at every
+kept step, another goal at the solution that the step's own estimate judged: the path gives
+each kept :class:`~dwr_signorini.Solution` an :class:`EstimateParts`
+(:attr:`~dwr_signorini.Solution.estimate_parts`) before its own estimate, and every later
+estimate at that solution reuses them. The solution owns them and releases them in its
+``destroy()``; an estimate of a solution without them makes its own and releases them at its
+end (its reconstructor goes to the :class:`~dwr_signorini.Estimate`, as before). The reuse
+changes no number: the same factors, the same solutions, the same weights.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from dolfinx import fem
+
+from .dual import DualSolution, solve_dual
+from .force import ForceControl
+from .goal import GoalForms
+from .hierarchical import HierarchicalP2
+from .lifetime import Releasable
+from .newton import Solution
+from .reconstruction import Reconstructor
+from .timing import timed
+from .weights import memory_fallback
+
+__all__ = ["EstimateParts", "FactoredP2", "keep_estimate_parts", "release_estimate_parts"]
+
+#: The P2 primal weights of one kind: (u^+, A u_h - u_h or None without eta, lambda^+).
+PrimalWeights = tuple[Any, Any, tuple]
+
+
+class FactoredP2(Releasable):
+    """The P2 system of the final active set factored once, its primal solved (higher_order).
+
+    The system solved in P2 on T_h with Lambda_H and the final active set, the same kind of
+    linear solver as the primal problem's (block or Schur complement) with the options prefix
+    ``<primal prefix>p2_``; where an obstacle is under a given force, the bordered system at
+    w_h's delta (:mod:`~dwr_signorini.force`). Its solution is the P2 primal w^(2); each goal's
+    P2 dual is one transposed solve with its factors (:meth:`dual`).
+
+    Args:
+        sol: The solved discrete problem.
+        rec: Its reconstructor (the P2 space ``rec.V2h``).
+        petsc_options: The linear solver options of the P2 system.
+    """
+
+    def __init__(self, sol: Solution, rec: Reconstructor, petsc_options: Any) -> None:
+        self.force: ForceControl | None = None
+        with timed("higher-order solve"):
+            self.system = type(sol.system)(
+                sol.disc, petsc_options, V=rec.V2h, prefix=sol.system.prefix + "p2_",
+                ncp_scale=sol.ncp_scale,
+            )
+        try:
+            with timed("higher-order solve"):
+                self._solve(sol)
+        except BaseException:
+            self.destroy()
+            raise
+        system = self.system
+        u2 = fem.Function(rec.V2h, name="u2")
+        u_arr, lam_arr = system.split(system.x)
+        u2.x.array[: system.n_u] = u_arr
+        u2.x.scatter_forward()
+        self.primal = (u2, sol.multiplier_functions(lam_arr, "lambda2"))
+
+    def _solve(self, sol: Solution) -> None:
+        """The P2 Newton step of w_h's final sets (bordered where the obstacle is forced)."""
+        couplings = sol.system.couplings
+
+        def solve(act: np.ndarray, free: np.ndarray) -> None:
+            self.system.solve_active(act, free, couplings)
+
+        if sol.obstacle_displacement is None:
+            solve(sol.system.active, sol.system.free)
+        else:
+            self.force = self.system.force_control = ForceControl(self.system, move=False)
+            self.force.step(solve, sol.system.active, sol.system.free)
+
+    def dual(self, goal: GoalForms) -> DualSolution:
+        """The P2 dual of ``goal``: one transposed solve with the P2 factors."""
+        with timed("higher-order solve"):
+            return solve_dual(self.system, goal)
+
+    def destroy(self) -> None:
+        """Release the P2 system and its force control (collective; idempotent)."""
+        if self.force is not None:
+            self.force.destroy()
+            self.force = None
+        if self.system is not None:
+            self.system.destroy()
+            self.system = None
+
+
+def _options_key(petsc_options: Any) -> str:
+    """A key of the P2 solver's options (a dict, or None)."""
+    return repr(None if petsc_options is None else sorted(petsc_options.items()))
+
+
+class EstimateParts(Releasable):
+    """The goal-independent parts of the estimates at one solution (module docstring).
+
+    Args:
+        sol: The solution; the parts hold no reference from it back to themselves.
+
+    Attributes:
+        rec: The reconstructor, or None once handed to an estimate.
+        DG0: The DG0 space on T_h of the indicators.
+    """
+
+    def __init__(self, sol: Solution) -> None:
+        self.sol = sol
+        with timed("reconstruct"):
+            self.rec: Reconstructor | None = Reconstructor(sol.disc)
+        self.DG0 = fem.functionspace(sol.disc.mesh, ("DG", 0))
+        self._solvers: dict[tuple[str, str], Releasable] = {}
+        self._primal: dict[tuple[str, bool], PrimalWeights] = {}
+        self._fallback: dict[str, str | None] = {}
+
+    def fallback(self, kind: str) -> str | None:
+        """Why ``"auto"`` keeps the patch weights instead of P2 weights ``kind``, or None."""
+        if kind not in self._fallback:
+            self._fallback[kind] = memory_fallback(self.sol, self.rec, kind)
+        return self._fallback[kind]
+
+    def p2_solutions(
+        self, kind: str, goal: GoalForms, z: DualSolution, primal: bool, petsc_options: Any
+    ) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
+        """The P2 dual of ``goal`` and, if ``primal``, the P2 primal, with the kept P2 solver.
+
+        Args:
+            kind: ``"higher_order"`` (factored) or ``"hierarchical"`` (two-level).
+            goal: The goal's derivatives at w_h.
+            z: z_h, the start of the two-level dual.
+            primal: Whether the P2 primal w^(2) is wanted (for eta).
+            petsc_options: The factored P2 system's options (a solver per options).
+
+        Returns:
+            z^(2) and w^(2) (or None).
+        """
+        key = (kind, _options_key(petsc_options) if kind == "higher_order" else "")
+        solver = self._solvers.get(key)
+        if kind == "hierarchical":
+            if solver is None:
+                solver = self._solvers[key] = HierarchicalP2(self.sol, self.rec.V2h)
+            return solver.solutions(goal, z, primal)
+        if solver is None:
+            solver = self._solvers[key] = FactoredP2(self.sol, self.rec, petsc_options)
+        return solver.dual(goal), solver.primal if primal else None
+
+    def primal_weights(
+        self, kind: str, want_eta: bool, w2: tuple[fem.Function, tuple] | None
+    ) -> PrimalWeights:
+        """u^+, A u_h - u_h (for eta) and lambda^+ of the weights ``kind``, made once.
+
+        Args:
+            kind: The weights; ``"patch"`` reconstructs w_h patch-wise (``w2`` None).
+            want_eta: Whether A u_h - u_h is wanted (the P2 ones are made for eta only).
+            w2: The P2 primal of ``kind``, or None for the patch weights.
+        """
+        key = (kind, want_eta)
+        if key not in self._primal:
+            self._primal[key] = self._make_primal(want_eta, w2)
+        return self._primal[key]
+
+    def _make_primal(self, want_eta: bool, w2: tuple | None) -> PrimalWeights:
+        rec, sol = self.rec, self.sol
+        with timed("reconstruct"):
+            if w2 is None:  # the patch reconstruction of w_h
+                w_u = rec.patch_weight(sol.u)
+                return sol.u + w_u, w_u, self.linear(sol.multipliers)
+            u_plus = w2[0]
+            w_u = rec.weight(u_plus, sol.u) if want_eta else None
+            return u_plus, w_u, self.linear(w2[1])
+
+    def linear(self, functions: tuple[fem.Function, ...]) -> tuple:
+        """The linear reconstructions i_2H^(1) of multipliers, one per component."""
+        return tuple(self.rec.patch_linear_multiplier(f) for f in functions)
+
+    def hand_over(self) -> Reconstructor | None:
+        """The reconstructor, which its caller now owns (these parts no longer release it)."""
+        rec, self.rec = self.rec, None
+        return rec
+
+    def destroy(self) -> None:
+        """Release the P2 solvers and the reconstructor (collective; idempotent)."""
+        for solver in self._solvers.values():
+            solver.destroy()
+        self._solvers.clear()
+        self._primal.clear()
+        if self.rec is not None:
+            self.rec.destroy()
+            self.rec = None
+
+
+def keep_estimate_parts(sol: Solution) -> None:
+    """Give ``sol`` the parts its estimates share (kept until it is released)."""
+    if sol.estimate_parts is None:
+        sol.estimate_parts = EstimateParts(sol)
+
+
+def release_estimate_parts(sol: Solution, est: Any = None) -> None:
+    """Release ``sol``'s shared parts now, ``est`` taking over the reconstructor it uses.
+
+    Args:
+        sol: The solution.
+        est: An :class:`~dwr_signorini.Estimate` of ``sol`` that outlives the parts, or None.
+    """
+    parts = sol.estimate_parts
+    if parts is None:
+        return
+    if est is not None and est.reconstructor is parts.rec and parts.rec is not None:
+        est.owns_reconstructor = True
+        parts.hand_over()
+    parts.destroy()
+    sol.estimate_parts = None
