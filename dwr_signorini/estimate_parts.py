@@ -12,7 +12,10 @@ made from it depend on J; these do not:
   changes with J;
 * the P2 primal solution w^(2) and the primal weights A w_h - w_h, lambda^+ of each kind of
   weights;
-* whether ``weights="auto"``'s P2 weights fit in memory.
+* whether ``weights="auto"``'s P2 weights fit in memory;
+* the compiled forms of the indicators (:class:`ResidualForms`): rho(w_h)(.), C(w_h)(.),
+  R_A and rho* without its J' term are compiled once with slot functions for z_h and its
+  weights, into which each goal's values are copied before the assembly.
 
 A load path's history (:func:`~dwr_signorini.path.history_estimates`) estimates, at every
 kept step, another goal at the solution that the step's own estimate judged: the path gives
@@ -28,20 +31,105 @@ from __future__ import annotations
 
 from typing import Any
 
+from petsc4py import PETSc
+
 import numpy as np
+import ufl
 from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 
 from .dual import DualSolution, solve_dual
 from .force import ForceControl
-from .goal import GoalForms
+from .goal import GoalForms, localize
 from .hierarchical import HierarchicalP2
 from .lifetime import Releasable
 from .newton import Solution
+from .pairs import images_of
+from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
+from .residuals import active_set_remainder, contact_term, dual_residual, primal_residual
 from .timing import timed
 from .weights import memory_fallback
 
-__all__ = ["EstimateParts", "FactoredP2", "keep_estimate_parts", "release_estimate_parts"]
+__all__ = [
+    "EstimateParts",
+    "FactoredP2",
+    "IndicatorForm",
+    "MasterShare",
+    "ResidualForms",
+    "keep_estimate_parts",
+    "ncp_scale_function",
+    "release_estimate_parts",
+]
+
+
+def ncp_scale_function(sol: Solution) -> fem.Function:
+    """The c of the NCP function the solution was computed with, as a function on Lambda_H."""
+    # c is the same for every component of the law: the normal rows' values
+    return sol.multiplier_function(sol.system.algebra.components_of(sol.system.c_n)[0], "c")
+
+
+class IndicatorForm:
+    """The cell indicators of a scalar form: its integrands times a DG0 test function (Section 4).
+
+    Compiled once; :meth:`assemble` assembles it with the current values of its functions.
+
+    Args:
+        disc: The discretisation.
+        form: The scalar form.
+        DG0: A space on T_h (cell indicators) or on the fine slave facets (facet indicators).
+        degree: The quadrature degree of non-polynomial integrands.
+    """
+
+    def __init__(self, disc: Any, form: ufl.Form, DG0: fem.FunctionSpace,
+                 degree: int | None) -> None:
+        q = ufl.TestFunction(DG0)
+        self.compiled = disc.form(localize(with_quadrature_degrees(form, degree), q))
+
+    def assemble(self) -> np.ndarray:
+        """The indicators (local array, ghosts included, their contributions summed)."""
+        vec = fem_petsc.assemble_vector(self.compiled)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = vec.array.copy()
+        vec.destroy()
+        return out
+
+
+class MasterShare:
+    """The trace part of a form moved from the slave to the master cells (:mod:`.pairs`).
+
+    The part of ``form`` linear in the master trace P v of the displacement weight v (every
+    image of v in the form, :func:`~dwr_signorini.pairs.images_of`), which the localisation put
+    on the slave cells, is localised per fine slave facet and goes from the cell beside each
+    facet to the master cells its points project into: the array of a call is added to the
+    indicators and sums to zero (zero without contact pairs). Compiled once.
+
+    Args:
+        disc: The discretisation.
+        form: The weighted form.
+        weight: The displacement weight v (a function, or a sum of functions).
+        DG0: The space of the cell indicators.
+        degree: The quadrature degree of non-polynomial integrands.
+    """
+
+    def __init__(self, disc: Any, form: ufl.Form, weight: Any, DG0: fem.FunctionSpace,
+                 degree: int | None) -> None:
+        self.DG0, self.part, self.geometry = DG0, None, None
+        if disc.slave_mesh is None:
+            return
+        functions = weight.ufl_operands if isinstance(weight, ufl.algebra.Sum) else (weight,)
+        images = [g for v in functions for g in images_of(form, v)]
+        if images:
+            part = sum(ufl.derivative(form, g, g) for g in images)  # the form is linear in P v
+            self.geometry = disc.master_trace().geometry
+            self.part = IndicatorForm(disc, part, self.geometry.Fs, degree)
+
+    def __call__(self) -> np.ndarray:
+        """The shares with the current values of the form's functions."""
+        imap = self.DG0.dofmap.index_map
+        if self.part is None:
+            return np.zeros(imap.size_local + imap.num_ghosts)
+        return self.geometry.share(self.part.assemble(), self.DG0)
 
 #: The P2 primal weights of one kind: (u^+, A u_h - u_h or None without eta, lambda^+).
 PrimalWeights = tuple[Any, Any, tuple]
@@ -115,6 +203,73 @@ def _options_key(petsc_options: Any) -> str:
     return repr(None if petsc_options is None else sorted(petsc_options.items()))
 
 
+class ResidualForms:
+    """The indicators' forms of one kind of weights, compiled once with slots for z_h's values.
+
+    rho(w_h)(w_y, xi^+ - xi), C(w_h)(xi), R_A(w_h, w^+, xi^+) and, for eta,
+    rho*(w_h, z_h)(A w_h - w_h, lambda^+ - lambda) without its J' term (eq. (13), (15),
+    :mod:`~dwr_signorini.residuals`): w^+ and A w_h - w_h are the kind's (fixed), z_h = (y, xi,
+    zeta), the dual weight w_y and xi^+ are slot functions on their spaces, into which
+    :meth:`indicators` copies each goal's values. The J' term is the goal's own
+    (:func:`~dwr_signorini.estimator.estimate` adds it).
+
+    Args:
+        sol: The solution.
+        parts: Its parts (the reconstructor's spaces, c, the DG0 space).
+        primal: The kind's (u^+, A u_h - u_h or None, lambda^+).
+        want_eta: Whether rho* is wanted.
+        degree: The quadrature degree of non-polynomial integrands.
+    """
+
+    def __init__(self, sol: Solution, parts: EstimateParts, primal: PrimalWeights,
+                 want_eta: bool, degree: int | None) -> None:
+        disc, rec, DG0 = sol.disc, parts.rec, parts.DG0
+        u_plus, w_u, lam_plus = primal
+        n = len(sol.multipliers)
+        self.y = fem.Function(disc.V, name="y")
+        self.xi = tuple(fem.Function(disc.Q, name=f"xi_{k}") for k in range(n))
+        self.w_y = fem.Function(rec.V2h, name="w_y")
+        self.xi_plus = tuple(fem.Function(rec.P1h, name=f"xi_plus_{k}") for k in range(n))
+        self.zeta = (None if sol.obstacle_displacement is None
+                     else fem.Constant(disc.mesh, PETSc.ScalarType(0.0)))
+        c = parts.c
+        w_xi = tuple(p - f for p, f in zip(self.xi_plus, self.xi, strict=True))
+        forms = [
+            primal_residual(sol, self.w_y, w_xi, c),
+            contact_term(sol, self.xi, c),
+            active_set_remainder(sol, u_plus, lam_plus, self.xi_plus, c),
+        ]
+        if want_eta:
+            z = DualSolution(self.y, *self.xi, zeta=self.zeta)
+            w_lam = tuple(p - f for p, f in zip(lam_plus, sol.multipliers, strict=True))
+            forms.append(dual_residual(sol, None, z, w_u, w_lam, c))
+        self.forms = [IndicatorForm(disc, f, DG0, degree) for f in forms]
+        #: The master-trace images P y, P w_y in the forms (contact pairs): functions of the
+        #: values the slots had when the forms were built, made again from the new ones.
+        self.images = [(g, slot) for slot in (self.y, self.w_y) for f in forms
+                       for g in images_of(f, slot)]
+        self.disc = disc
+        weighted = [(0, self.w_y), (3, w_u)] if want_eta else [(0, self.w_y)]
+        self.shares = [(k, MasterShare(disc, forms[k], w, DG0, degree)) for k, w in weighted]
+
+    def indicators(self, z: DualSolution, w_y: fem.Function,
+                   xi_plus: tuple[fem.Function, ...]) -> list[np.ndarray]:
+        """The indicators of rho, C, R_A (and rho* without J') with a goal's z_h and weights."""
+        pairs = [(self.y, z.y), (self.w_y, w_y),
+                 *zip(self.xi, z.multipliers, strict=True),
+                 *zip(self.xi_plus, xi_plus, strict=True)]
+        for slot, f in pairs:
+            slot.x.array[:] = f.x.array
+        for image, slot in self.images:
+            image.x.array[:] = self.disc.trace_image(slot).x.array
+        if self.zeta is not None:
+            self.zeta.value = 0.0 if z.zeta is None else z.zeta
+        out = [form.assemble() for form in self.forms]
+        for k, share in self.shares:
+            out[k] += share()
+        return out
+
+
 class EstimateParts(Releasable):
     """The goal-independent parts of the estimates at one solution (module docstring).
 
@@ -131,6 +286,8 @@ class EstimateParts(Releasable):
         with timed("reconstruct"):
             self.rec: Reconstructor | None = Reconstructor(sol.disc)
         self.DG0 = fem.functionspace(sol.disc.mesh, ("DG", 0))
+        self.c = ncp_scale_function(sol)
+        self._forms: dict[tuple[str, bool, int | None], ResidualForms] = {}
         self._solvers: dict[tuple[str, str], Releasable] = {}
         self._primal: dict[tuple[str, bool], PrimalWeights] = {}
         self._fallback: dict[str, str | None] = {}
@@ -191,6 +348,16 @@ class EstimateParts(Releasable):
             w_u = rec.weight(u_plus, sol.u) if want_eta else None
             return u_plus, w_u, self.linear(w2[1])
 
+    def residual_forms(self, kind: str, want_eta: bool, degree: int | None) -> ResidualForms:
+        """The compiled indicator forms of the weights ``kind`` (made once; after its primal)."""
+        key = (kind, want_eta, degree)
+        if key not in self._forms:
+            with timed("indicators"):
+                self._forms[key] = ResidualForms(
+                    self.sol, self, self._primal[(kind, want_eta)], want_eta, degree
+                )
+        return self._forms[key]
+
     def linear(self, functions: tuple[fem.Function, ...]) -> tuple:
         """The linear reconstructions i_2H^(1) of multipliers, one per component."""
         return tuple(self.rec.patch_linear_multiplier(f) for f in functions)
@@ -206,6 +373,7 @@ class EstimateParts(Releasable):
             solver.destroy()
         self._solvers.clear()
         self._primal.clear()
+        self._forms.clear()
         if self.rec is not None:
             self.rec.destroy()
             self.rec = None

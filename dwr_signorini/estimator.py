@@ -19,27 +19,29 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 import ufl
 from dolfinx import fem
-from dolfinx.fem import petsc as fem_petsc
 
 from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
-from .estimate_parts import EstimateParts, FactoredP2
+from .estimate_parts import (
+    EstimateParts,
+    FactoredP2,
+    IndicatorForm,
+    MasterShare,
+)
+from .estimate_parts import ncp_scale_function as ncp_scale_function  # re-exported
 from .finite_strain import FiniteStrainSolution
-from .goal import Goal, GoalForms, localize
+from .goal import Goal, GoalForms
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
 from .lifetime import Releasable
 from .model_error import ModelError, check_richer
 from .model_error import model_error as model_error_estimate
 from .newton import Solution
-from .pairs import images_of
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
-from .residuals import active_set_remainder, contact_term, dual_residual, primal_residual
 from .settings import EstimateOptions
 from .timing import timed
 from .weights import nearly_incompressible, p2_kind, second_weights
@@ -171,57 +173,19 @@ class Estimate(Releasable):
         return best_estimate(self.J_h, self.value, self.resolved)
 
 
-def ncp_scale_function(sol: Solution) -> fem.Function:
-    """The c of the NCP function the solution was computed with, as a function on Lambda_H."""
-    # c is the same for every component of the law: the normal rows' values
-    return sol.multiplier_function(sol.system.algebra.components_of(sol.system.c_n)[0], "c")
-
-
 def _assemble_indicators(
     disc: Any, forms: list[ufl.Form], DG0: fem.FunctionSpace, degree: int | None
 ) -> list[np.ndarray]:
     """Cell indicators of each scalar form: its integrands times a DG0 test function (Section 4).
 
-    ``DG0`` is a space on T_h (cell indicators) or on the fine slave facets (facet indicators).
+    ``DG0`` is a space on T_h (cell indicators) or on the fine slave facets (facet indicators)
+    (:class:`~dwr_signorini.estimate_parts.IndicatorForm`).
 
     One assembly per form: a fused one would pack the coefficients of all forms for every cell
     at once, a larger array than any single form's, for no gain in time.
     """
     with timed("indicators"):
-        q = ufl.TestFunction(DG0)
-        out = []
-        for form in forms:
-            vec = fem_petsc.assemble_vector(
-                disc.form(localize(with_quadrature_degrees(form, degree), q))
-            )
-            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            out.append(vec.array.copy())
-            vec.destroy()
-    return out
-
-
-def _master_share(
-    disc: Any, form: ufl.Form, weight: Any, DG0: fem.FunctionSpace, degree: int | None
-) -> np.ndarray:
-    """The trace part of ``form`` moved from the slave to the master cells (:mod:`.pairs`).
-
-    The part of ``form`` linear in the master trace P v of the displacement weight v (every
-    image of v in the form, :func:`~dwr_signorini.pairs.images_of`), which the localisation put
-    on the slave cells, is localised per fine slave facet and goes from the cell beside each
-    facet to the master cells its points project into: the returned array is added to the
-    indicators and sums to zero (zero without contact pairs).
-    """
-    out = np.zeros(DG0.dofmap.index_map.size_local + DG0.dofmap.index_map.num_ghosts)
-    if disc.slave_mesh is None:
-        return out
-    functions = weight.ufl_operands if isinstance(weight, ufl.algebra.Sum) else (weight,)
-    images = [g for v in functions for g in images_of(form, v)]
-    if not images:
-        return out
-    part = sum(ufl.derivative(form, g, g) for g in images)  # the form is linear in P v
-    geometry = disc.master_trace().geometry
-    (per_facet,) = _assemble_indicators(disc, [part], geometry.Fs, degree)
-    return geometry.share(per_facet, DG0)
+        return [IndicatorForm(disc, form, DG0, degree).assemble() for form in forms]
 
 
 def _higher_order_solutions(
@@ -326,21 +290,18 @@ def _terms(
     """rho(w_h)(A z_h - z_h), rho*(w_h, z_h)(A w_h - w_h), C(w_h)(xi_H) and R_A, eq. (13), (15)."""
     sol, z, want_eta = inp.sol, inp.z, inp.want_eta
     disc = sol.disc
-    w_y, xi_plus, u_plus, w_u, lam_plus = _weights(inp, weights)
-    w_xi = tuple(p - f for p, f in zip(xi_plus, z.multipliers, strict=True))
-    c = ncp_scale_function(sol)
-    forms = [
-        primal_residual(sol, w_y, w_xi, c),
-        contact_term(sol, z.multipliers, c),
-        active_set_remainder(sol, u_plus, lam_plus, xi_plus, c),
-    ]
-    if want_eta:
+    w_y, xi_plus, _, w_u, lam_plus = _weights(inp, weights)
+    compiled = inp.parts.residual_forms(weights, want_eta, quadrature_degree)
+    with timed("indicators"):
+        indicators = compiled.indicators(z, w_y, xi_plus)
+    if want_eta:  # the goal's own term of rho*: J'(w_h)(A w_h - w_h, lambda^+ - lambda)
         w_lam = tuple(p - f for p, f in zip(lam_plus, sol.multipliers, strict=True))
-        forms.append(dual_residual(sol, inp.goal_forms, z, w_u, w_lam, c))
-    indicators = _assemble_indicators(disc, forms, DG0, quadrature_degree)
-    weighted = [(0, w_y), (3, w_u)] if want_eta else [(0, w_y)]
-    for k, weight in weighted:  # the master traces' terms to the master cells
-        indicators[k] += _master_share(disc, forms[k], weight, DG0, quadrature_degree)
+        dJ = inp.goal_forms.directional(w_u, *w_lam)
+        if dJ is not None:
+            (goal_part,) = _assemble_indicators(disc, [dJ], DG0, quadrature_degree)
+            with timed("indicators"):
+                goal_part += MasterShare(disc, dJ, w_u, DG0, quadrature_degree)()
+            indicators[3] += goal_part
     ind_rho, ind_c, ind_a, *rest = indicators
     ind_star = rest[0] if want_eta else None
 
