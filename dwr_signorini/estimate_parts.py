@@ -274,7 +274,8 @@ class EstimateParts(Releasable):
     """The goal-independent parts of the estimates at one solution (module docstring).
 
     Args:
-        sol: The solution; the parts hold no reference from it back to themselves.
+        sol: The solution that owns them (:attr:`~dwr_signorini.Solution.estimate_parts`); the
+            parts hold no reference back to it, each method is given it.
 
     Attributes:
         rec: The reconstructor, or None once handed to an estimate.
@@ -282,7 +283,6 @@ class EstimateParts(Releasable):
     """
 
     def __init__(self, sol: Solution) -> None:
-        self.sol = sol
         with timed("reconstruct"):
             self.rec: Reconstructor | None = Reconstructor(sol.disc)
         self.DG0 = fem.functionspace(sol.disc.mesh, ("DG", 0))
@@ -292,18 +292,20 @@ class EstimateParts(Releasable):
         self._primal: dict[tuple[str, bool], PrimalWeights] = {}
         self._fallback: dict[str, str | None] = {}
 
-    def fallback(self, kind: str) -> str | None:
+    def fallback(self, sol: Solution, kind: str) -> str | None:
         """Why ``"auto"`` keeps the patch weights instead of P2 weights ``kind``, or None."""
         if kind not in self._fallback:
-            self._fallback[kind] = memory_fallback(self.sol, self.rec, kind)
+            self._fallback[kind] = memory_fallback(sol, self.rec, kind)
         return self._fallback[kind]
 
     def p2_solutions(
-        self, kind: str, goal: GoalForms, z: DualSolution, primal: bool, petsc_options: Any
+        self, sol: Solution, kind: str, goal: GoalForms, z: DualSolution, primal: bool,
+        petsc_options: Any,
     ) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
         """The P2 dual of ``goal`` and, if ``primal``, the P2 primal, with the kept P2 solver.
 
         Args:
+            sol: The solution.
             kind: ``"higher_order"`` (factored) or ``"hierarchical"`` (two-level).
             goal: The goal's derivatives at w_h.
             z: z_h, the start of the two-level dual.
@@ -317,29 +319,30 @@ class EstimateParts(Releasable):
         solver = self._solvers.get(key)
         if kind == "hierarchical":
             if solver is None:
-                solver = self._solvers[key] = HierarchicalP2(self.sol, self.rec.V2h)
-            return solver.solutions(goal, z, primal)
+                solver = self._solvers[key] = HierarchicalP2(sol, self.rec.V2h)
+            return solver.solutions(sol, goal, z, primal)
         if solver is None:
-            solver = self._solvers[key] = FactoredP2(self.sol, self.rec, petsc_options)
+            solver = self._solvers[key] = FactoredP2(sol, self.rec, petsc_options)
         return solver.dual(goal), solver.primal if primal else None
 
     def primal_weights(
-        self, kind: str, want_eta: bool, w2: tuple[fem.Function, tuple] | None
+        self, sol: Solution, kind: str, want_eta: bool, w2: tuple[fem.Function, tuple] | None
     ) -> PrimalWeights:
         """u^+, A u_h - u_h (for eta) and lambda^+ of the weights ``kind``, made once.
 
         Args:
+            sol: The solution.
             kind: The weights; ``"patch"`` reconstructs w_h patch-wise (``w2`` None).
             want_eta: Whether A u_h - u_h is wanted (the P2 ones are made for eta only).
             w2: The P2 primal of ``kind``, or None for the patch weights.
         """
         key = (kind, want_eta)
         if key not in self._primal:
-            self._primal[key] = self._make_primal(want_eta, w2)
+            self._primal[key] = self._make_primal(sol, want_eta, w2)
         return self._primal[key]
 
-    def _make_primal(self, want_eta: bool, w2: tuple | None) -> PrimalWeights:
-        rec, sol = self.rec, self.sol
+    def _make_primal(self, sol: Solution, want_eta: bool, w2: tuple | None) -> PrimalWeights:
+        rec = self.rec
         with timed("reconstruct"):
             if w2 is None:  # the patch reconstruction of w_h
                 w_u = rec.patch_weight(sol.u)
@@ -348,13 +351,15 @@ class EstimateParts(Releasable):
             w_u = rec.weight(u_plus, sol.u) if want_eta else None
             return u_plus, w_u, self.linear(w2[1])
 
-    def residual_forms(self, kind: str, want_eta: bool, degree: int | None) -> ResidualForms:
+    def residual_forms(
+        self, sol: Solution, kind: str, want_eta: bool, degree: int | None
+    ) -> ResidualForms:
         """The compiled indicator forms of the weights ``kind`` (made once; after its primal)."""
         key = (kind, want_eta, degree)
         if key not in self._forms:
             with timed("indicators"):
                 self._forms[key] = ResidualForms(
-                    self.sol, self, self._primal[(kind, want_eta)], want_eta, degree
+                    sol, self, self._primal[(kind, want_eta)], want_eta, degree
                 )
         return self._forms[key]
 

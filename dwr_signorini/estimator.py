@@ -251,11 +251,13 @@ def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
                 "slipping facets: use "
                 "weights='higher_order' (the P2 system factored by LU) or 'patch'"
             )
-        z2, w2 = inp.parts.p2_solutions(weights, inp.goal_forms, z, want_eta, inp.petsc_options)
+        z2, w2 = inp.parts.p2_solutions(
+            sol, weights, inp.goal_forms, z, want_eta, inp.petsc_options
+        )
     with timed("reconstruct"):
         w_y = rec.patch_weight(z.y) if weights == "patch" else rec.weight(z2.y, z.y)
         xi_plus = inp.parts.linear(z2.multipliers)
-    u_plus, w_u, lam_plus = inp.parts.primal_weights(weights, want_eta, w2)
+    u_plus, w_u, lam_plus = inp.parts.primal_weights(sol, weights, want_eta, w2)
     return w_y, xi_plus, u_plus, w_u, lam_plus
 
 
@@ -291,7 +293,7 @@ def _terms(
     sol, z, want_eta = inp.sol, inp.z, inp.want_eta
     disc = sol.disc
     w_y, xi_plus, _, w_u, lam_plus = _weights(inp, weights)
-    compiled = inp.parts.residual_forms(weights, want_eta, quadrature_degree)
+    compiled = inp.parts.residual_forms(sol, weights, want_eta, quadrature_degree)
     with timed("indicators"):
         indicators = compiled.indicators(z, w_y, xi_plus)
     if want_eta:  # the goal's own term of rho*: J'(w_h)(A w_h - w_h, lambda^+ - lambda)
@@ -339,14 +341,14 @@ def _auto_terms(
     if weights == "auto":
         first = p2 if nearly_incompressible(inp.sol.disc.problem) else "patch"
         if first != "patch":
-            fallback = inp.parts.fallback(p2)
+            fallback = inp.parts.fallback(inp.sol, p2)
             first = "patch" if fallback else first
     terms = _terms(inp, first, quadrature_degree, DG0)
     value = terms.value(estimator)
     resolved = contact_set_resolved(value, terms.remainder, terms.contact, roundoff)
     second = second_weights(terms, estimator, resolved, J_h, roundoff, p2)
     if weights == "auto" and first == "patch" and fallback is None and second is not None:
-        fallback = inp.parts.fallback(second)
+        fallback = inp.parts.fallback(inp.sol, second)
         if fallback is None:
             terms = _terms(inp, second, quadrature_degree, DG0)
     return terms, resolved, fallback

@@ -438,16 +438,17 @@ class HierarchicalP2(Releasable):
         self.rtol = HIERARCHICAL_RTOL if rtol is None else rtol
         if not self.rtol > 0:
             raise ValueError(f"rtol must be positive, got {rtol}")
-        self.sol = sol
         self.primal: tuple[fem.Function, tuple[fem.Function, ...]] | None = None
         with timed("higher-order solve"):
             self.p2: _P2System | None = _P2System(sol, V2)
 
     def solutions(
-        self, goal: GoalForms, z: DualSolution, primal: bool
+        self, sol: Solution, goal: GoalForms, z: DualSolution, primal: bool
     ) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
-        """The P2 dual of ``goal`` from z_h, and the P2 primal (solved once) if ``primal``."""
-        sol = self.sol
+        """The P2 dual of ``goal`` from z_h, and the P2 primal (solved once) if ``primal``.
+
+        ``sol`` is the solution the solver was set up for (it holds no reference to it).
+        """
         # The coarse step is a preconditioner of a flexible GMRES to rtol: an iterative P1
         # solver (method="krylov") solves it to its loose tolerance; direct solvers are exact.
         loose = sol.system.set_loose(True)
@@ -491,4 +492,4 @@ def hierarchical_solutions(
         z^(2) = (y, xi) with y in V2, and w^(2) = (u, multipliers) or ``None``.
     """
     with HierarchicalP2(sol, V2, rtol) as solver:
-        return solver.solutions(goal, z, primal)
+        return solver.solutions(sol, goal, z, primal)

@@ -23,6 +23,15 @@ path after its last solve: n - 1 estimates for n steps, one per step in total; t
 those of the chain of the last step, as computed step by step. ``history="every"`` (or True)
 runs the chain after every step: k estimates at step k, n (n - 1) / 2 along the path.
 
+A history estimate is one of another goal at the solution that the step's own estimate judged:
+each kept step keeps what its own estimate made that does not depend on the goal
+(:mod:`~dwr_signorini.estimate_parts`: the reconstructor, the P2 system of the weights with
+its factors or two-level set-up, the primal weights, the compiled forms of the indicators),
+so a history estimate costs the goal's own work: J and its derivatives, the P1 and P2
+transposed solves, the weights of the dual and one assembly of the indicators. Each kept step
+holds its P2 factors (``weights="higher_order"``, and ``"auto"`` where it takes them) until the
+path ends, beside its Newton factors.
+
 **Adaptivity along the path** (``adaptive=True``): after each step the macro mesh is refined
 for that step's goal (the marking of :func:`~dwr_signorini.solve_adaptive`), and the next step
 lives on the refined mesh. The history is carried by interpolation: u^old, piecewise linear on
@@ -511,7 +520,9 @@ def history_estimates(
     From the last step back to the first: the history goal of the later step
     (:func:`history_goal`) is estimated at the earlier one (its own residuals, weighted by the
     dual solution of that goal), and that estimate's dual gives the next goal back. Costs one
-    estimate per earlier step (with the earlier step's factorisation).
+    estimate per earlier step (with the earlier step's factorisation), each reusing the parts
+    of the step's own estimate that the path kept with its solution
+    (:mod:`~dwr_signorini.estimate_parts`).
     """
     if not isinstance(options, EstimateOptions):
         options = EstimateOptions(**options)
