@@ -98,18 +98,18 @@ class IndicatorForm:
 class MasterShare:
     """The trace part of a form moved from the slave to the master cells (:mod:`.pairs`).
 
-    The part of ``form`` linear in the master trace P v of the displacement weight v (every
-    image of v in the form, :func:`~dwr_signorini.pairs.images_of`), which the localisation put
-    on the slave cells, is localised per fine slave facet and goes from the cell beside each
-    facet to the master cells its points project into: the array of a call is added to the
-    indicators and sums to zero (zero without contact pairs). Compiled once.
-
     Args:
         disc: The discretisation.
         form: The weighted form.
         weight: The displacement weight v (a function, or a sum of functions).
         DG0: The space of the cell indicators.
         degree: The quadrature degree of non-polynomial integrands.
+
+    The part of ``form`` linear in the master trace P v of the displacement weight v (every
+    image of v in the form, :func:`~dwr_signorini.pairs.images_of`), which the localisation put
+    on the slave cells, is localised per fine slave facet and goes from the cell beside each
+    facet to the master cells its points project into: the array of a call is added to the
+    indicators and sums to zero (zero without contact pairs). Compiled once.
     """
 
     def __init__(self, disc: Any, form: ufl.Form, weight: Any, DG0: fem.FunctionSpace,
@@ -138,16 +138,19 @@ PrimalWeights = tuple[Any, Any, tuple]
 class FactoredP2(Releasable):
     """The P2 system of the final active set factored once, its primal solved (higher_order).
 
-    The system solved in P2 on T_h with Lambda_H and the final active set, the same kind of
-    linear solver as the primal problem's (block or Schur complement) with the options prefix
-    ``<primal prefix>p2_``; where an obstacle is under a given force, the bordered system at
-    w_h's delta (:mod:`~dwr_signorini.force`). Its solution is the P2 primal w^(2); each goal's
-    P2 dual is one transposed solve with its factors (:meth:`dual`).
-
     Args:
         sol: The solved discrete problem.
         rec: Its reconstructor (the P2 space ``rec.V2h``).
         petsc_options: The linear solver options of the P2 system.
+
+    Raises:
+        numpy.linalg.LinAlgError, LinearSolveError: As the P2 Newton step's solve.
+
+    The system in P2 on T_h with Lambda_H and the final active set, the same kind of linear
+    solver as the primal problem's (block or Schur complement) with the options prefix
+    ``<primal prefix>p2_``; where an obstacle is under a given force, the bordered system at
+    w_h's delta (:mod:`~dwr_signorini.force`). Its solution is the P2 primal w^(2); each goal's
+    P2 dual is one transposed solve with its factors (:meth:`dual`).
     """
 
     def __init__(self, sol: Solution, rec: Reconstructor, petsc_options: Any) -> None:
@@ -206,19 +209,19 @@ def _options_key(petsc_options: Any) -> str:
 class ResidualForms:
     """The indicators' forms of one kind of weights, compiled once with slots for z_h's values.
 
-    rho(w_h)(w_y, xi^+ - xi), C(w_h)(xi), R_A(w_h, w^+, xi^+) and, for eta,
-    rho*(w_h, z_h)(A w_h - w_h, lambda^+ - lambda) without its J' term (eq. (13), (15),
-    :mod:`~dwr_signorini.residuals`): w^+ and A w_h - w_h are the kind's (fixed), z_h = (y, xi,
-    zeta), the dual weight w_y and xi^+ are slot functions on their spaces, into which
-    :meth:`indicators` copies each goal's values. The J' term is the goal's own
-    (:func:`~dwr_signorini.estimator.estimate` adds it).
-
     Args:
         sol: The solution.
         parts: Its parts (the reconstructor's spaces, c, the DG0 space).
         primal: The kind's (u^+, A u_h - u_h or None, lambda^+).
         want_eta: Whether rho* is wanted.
         degree: The quadrature degree of non-polynomial integrands.
+
+    rho(w_h)(w_y, xi^+ - xi), C(w_h)(xi), R_A(w_h, w^+, xi^+) and, for eta,
+    rho*(w_h, z_h)(A w_h - w_h, lambda^+ - lambda) without its J' term (eq. (13), (15),
+    :mod:`~dwr_signorini.residuals`): w^+ and A w_h - w_h are the kind's (fixed), z_h = (y, xi,
+    zeta), the dual weight w_y and xi^+ are slot functions on their spaces, into which
+    :meth:`indicators` copies each goal's values. The J' term is the goal's own
+    (:func:`~dwr_signorini.estimator.estimate` adds it).
     """
 
     def __init__(self, sol: Solution, parts: EstimateParts, primal: PrimalWeights,
