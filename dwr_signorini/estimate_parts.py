@@ -9,7 +9,8 @@ made from it depend on J; these do not:
 * the P2 system of the final active set with its factorisation (``weights="higher_order"``,
   :class:`FactoredP2`) or its two-level set-up (``weights="hierarchical"``,
   :class:`~dwr_signorini.hierarchical.HierarchicalP2`): only the right-hand side of the P2 dual
-  changes with J;
+  changes with J. Kept only within a memory budget (:class:`SolverBudget`): a P2 solver
+  that is not kept is made for each estimate and released after it, as without the parts;
 * the P2 primal solution w^(2) and the primal weights A w_h - w_h, lambda^+ of each kind of
   weights;
 * whether ``weights="auto"``'s P2 weights fit in memory;
@@ -43,13 +44,14 @@ from .force import ForceControl
 from .goal import GoalForms, localize
 from .hierarchical import HierarchicalP2
 from .lifetime import Releasable
+from .linalg import memory
 from .newton import Solution
 from .pairs import images_of
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .residuals import active_set_remainder, contact_term, dual_residual, primal_residual
 from .timing import timed
-from .weights import memory_fallback
+from .weights import memory_fallback, p2_weights_memory
 
 __all__ = [
     "EstimateParts",
@@ -57,6 +59,7 @@ __all__ = [
     "IndicatorForm",
     "MasterShare",
     "ResidualForms",
+    "SolverBudget",
     "keep_estimate_parts",
     "ncp_scale_function",
     "release_estimate_parts",
@@ -273,19 +276,57 @@ class ResidualForms:
         return out
 
 
+class SolverBudget:
+    """The memory that the P2 solvers kept by the parts of several solutions may take.
+
+    A load path's kept steps hold their P2 solvers until the path ends; each is kept only where
+    the predicted memory of the P2 weights (:func:`~dwr_signorini.weights.p2_weights_memory`) of
+    those already kept, this one and one more (the next step's own estimate) fits in the share
+    :data:`~dwr_signorini.linalg.memory.FACTOR_FRACTION` of the available memory
+    (:func:`~dwr_signorini.linalg.memory.available_memory`), the rule by which
+    ``weights="auto"`` takes P2 weights. Where the available memory is measured it already
+    holds the kept solvers, which so count twice: the rule keeps fewer than would fit.
+
+    Attributes:
+        kept: The predicted bytes of the solvers kept now.
+    """
+
+    def __init__(self) -> None:
+        self.kept = 0
+
+    def admit(self, V2: fem.FunctionSpace, kind: str) -> int | None:
+        """The predicted bytes of a P2 solver ``kind`` on V2 if it may be kept, else None.
+
+        Collective (the prediction and the available memory are the same on every rank).
+        """
+        need = p2_weights_memory(V2, kind)
+        available = memory.available_memory(V2.mesh.comm)
+        if self.kept + 2 * need > memory.FACTOR_FRACTION * available:
+            return None
+        self.kept += need
+        return need
+
+    def release(self, nbytes: int) -> None:
+        """Return the bytes of released solvers."""
+        self.kept -= nbytes
+
+
 class EstimateParts(Releasable):
     """The goal-independent parts of the estimates at one solution (module docstring).
 
     Args:
         sol: The solution that owns them (:attr:`~dwr_signorini.Solution.estimate_parts`); the
             parts hold no reference back to it, each method is given it.
+        budget: Where the P2 solvers may be kept for later estimates (:class:`SolverBudget`),
+            or None: each is released after its estimate.
 
     Attributes:
         rec: The reconstructor, or None once handed to an estimate.
         DG0: The DG0 space on T_h of the indicators.
     """
 
-    def __init__(self, sol: Solution) -> None:
+    def __init__(self, sol: Solution, budget: SolverBudget | None = None) -> None:
+        self.budget, self._kept_bytes = budget, 0
         with timed("reconstruct"):
             self.rec: Reconstructor | None = Reconstructor(sol.disc)
         self.DG0 = fem.functionspace(sol.disc.mesh, ("DG", 0))
@@ -320,13 +361,26 @@ class EstimateParts(Releasable):
         """
         key = (kind, _options_key(petsc_options) if kind == "higher_order" else "")
         solver = self._solvers.get(key)
-        if kind == "hierarchical":
-            if solver is None:
-                solver = self._solvers[key] = HierarchicalP2(sol, self.rec.V2h)
-            return solver.solutions(sol, goal, z, primal)
-        if solver is None:
-            solver = self._solvers[key] = FactoredP2(sol, self.rec, petsc_options)
-        return solver.dual(goal), solver.primal if primal else None
+        kept = solver is not None
+        if not kept:
+            solver = (HierarchicalP2(sol, self.rec.V2h) if kind == "hierarchical"
+                      else FactoredP2(sol, self.rec, petsc_options))
+        try:
+            if kind == "hierarchical":
+                return solver.solutions(sol, goal, z, primal)
+            return solver.dual(goal), solver.primal if primal else None
+        finally:
+            if not kept:
+                self._keep_or_release(key, solver)
+
+    def _keep_or_release(self, key: tuple[str, str], solver: Releasable) -> None:
+        """Keep a new P2 solver for later estimates where the budget admits it, else release it."""
+        need = None if self.budget is None else self.budget.admit(self.rec.V2h, key[0])
+        if need is None:
+            solver.destroy()
+        else:
+            self._solvers[key] = solver
+            self._kept_bytes += need
 
     def primal_weights(
         self, sol: Solution, kind: str, want_eta: bool, w2: tuple[fem.Function, tuple] | None
@@ -380,6 +434,9 @@ class EstimateParts(Releasable):
         for solver in self._solvers.values():
             solver.destroy()
         self._solvers.clear()
+        if self.budget is not None:
+            self.budget.release(self._kept_bytes)
+        self._kept_bytes = 0
         self._primal.clear()
         self._forms.clear()
         if self.rec is not None:
@@ -387,10 +444,16 @@ class EstimateParts(Releasable):
             self.rec = None
 
 
-def keep_estimate_parts(sol: Solution) -> None:
-    """Give ``sol`` the parts its estimates share (kept until it is released)."""
+def keep_estimate_parts(sol: Solution, budget: SolverBudget | None = None) -> None:
+    """Give ``sol`` the parts its estimates share (kept until it is released).
+
+    Args:
+        sol: The solution.
+        budget: The memory its P2 solvers may take, shared with other kept solutions; None:
+            they are released after each estimate (the rest is kept).
+    """
     if sol.estimate_parts is None:
-        sol.estimate_parts = EstimateParts(sol)
+        sol.estimate_parts = EstimateParts(sol, budget)
 
 
 def release_estimate_parts(sol: Solution, est: Any = None) -> None:

@@ -30,7 +30,9 @@ its factors or two-level set-up, the primal weights, the compiled forms of the i
 so a history estimate costs the goal's own work: J and its derivatives, the P1 and P2
 transposed solves, the weights of the dual and one assembly of the indicators. Each kept step
 holds its P2 factors (``weights="higher_order"``, and ``"auto"`` where it takes them) until the
-path ends, beside its Newton factors.
+path ends, beside its Newton factors, where the memory allows
+(:class:`~dwr_signorini.estimate_parts.SolverBudget`); where it does not, its history estimate
+factors the P2 system again.
 
 **Adaptivity along the path** (``adaptive=True``): after each step the macro mesh is refined
 for that step's goal (the marking of :func:`~dwr_signorini.solve_adaptive`), and the next step
@@ -57,7 +59,7 @@ from dolfinx import fem
 from . import finite_strain_path
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
-from .estimate_parts import release_estimate_parts
+from .estimate_parts import SolverBudget, release_estimate_parts
 from .estimator import Estimate, estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
@@ -373,6 +375,8 @@ class _PathState:
     #: The discretisations made (one per mesh; their master traces are released at the end).
     discs: list[Discretization] = field(default_factory=list, repr=False)
     keep: bool = False
+    #: The memory the kept steps' P2 solvers may take (:mod:`~dwr_signorini.estimate_parts`).
+    budget: SolverBudget = field(default_factory=SolverBudget, repr=False)
     current: SignoriniProblem | None = None
     level: int = 0
     macro_parent: Any = None
@@ -423,7 +427,9 @@ def _step(
         guess = state.first_guess if previous is None else _warm_start(previous, disc)
     state.retire()
     t_setup = time.perf_counter() - t_start
-    sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal, keep_parts=state.keep)
+    sol, est, t_solve = settings.solve_and_estimate(
+        disc, guess, goal, keep_parts=state.budget if state.keep else None
+    )
     state.solution, state.estimate = sol, est
     tic = time.perf_counter()
     history = history_estimates(state.kept, sol, est, settings.estimate) if sweep else []

@@ -12,7 +12,7 @@ Truths, serially and on 2 ranks:
   solution equals, to 1e-10, a fresh estimate of the same goal at the same solution (its own
   reconstruction, P2 solves and compiled forms): J_h, eta_p, eta, the contact term, R_A and
   every cell indicator, with the patch, factored P2 and hierarchical P2 weights; the second goal
-  makes no P2 solver and compiles no residual form of its own.
+  makes no P2 solver (kept within the memory budget) and compiles no residual form of its own.
 """
 
 from mpi4py import MPI
@@ -142,14 +142,16 @@ def test_second_goal_with_kept_parts_is_a_fresh_estimate(monkeypatch, case, weig
         solvers = {kind: counting(monkeypatch, getattr(estimate_parts, kind))
                    for kind in ("FactoredP2", "HierarchicalP2")}
         forms = counting(monkeypatch, estimate_parts.ResidualForms)
-        estimate_parts.keep_estimate_parts(sol)
+        budget = estimate_parts.SolverBudget()
+        estimate_parts.keep_estimate_parts(sol, budget)
         kept = []
         for goal in goals:
             with ds.estimate(sol, goal, weights=weights) as est:
                 kept.append(summary(est))
         assert sol.estimate_parts is not None
+        assert (budget.kept > 0) == (weights != "patch")  # the P2 solver kept
         estimate_parts.release_estimate_parts(sol)
-        assert sol.estimate_parts is None
+        assert sol.estimate_parts is None and budget.kept == 0
     assert len(forms) == 1
     assert sum(len(m) for m in solvers.values()) == (0 if weights == "patch" else 1)
     for (totals, cells), (ref_totals, ref_cells) in zip(kept, fresh, strict=True):

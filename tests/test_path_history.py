@@ -22,6 +22,7 @@ import dwr_signorini as ds
 from dwr_signorini import estimate_parts
 from dwr_signorini import examples as ex
 from dwr_signorini import path as path_module
+from dwr_signorini.linalg import memory
 from dwr_signorini.path import history_goal
 
 COMM = MPI.COMM_WORLD
@@ -126,13 +127,15 @@ def test_history_modes_are_checked():
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("budget", [None, 1], ids=["memory", "no-memory"])
 @pytest.mark.parametrize(("law", "weights", "solver"), [
     (None, "higher_order", "FactoredP2"),
     (ds.Tresca(0.1), "hierarchical", "HierarchicalP2"),
 ])
-def test_history_reuses_each_steps_p2_solver(monkeypatch, law, weights, solver):
+def test_history_reuses_each_steps_p2_solver(monkeypatch, law, weights, solver, budget):
     """With P2 weights the history's estimates reuse each step's P2 solver: one per step in
-    total (n, against 2 n - 1 for fresh estimates), and terms equal to the fresh chain's."""
+    total (n, against 2 n - 1 for fresh estimates), and terms equal to the fresh chain's; with
+    a memory budget of 1 byte no solver is kept (2 n - 1 made), the terms the same."""
     problems, goal = sheared_path(law=law), ex.goal_friction_force()
     n = len(problems)
     made = []
@@ -146,11 +149,12 @@ def test_history_reuses_each_steps_p2_solver(monkeypatch, law, weights, solver):
     own, terms = reference_chain(problems, goal, weights)
     assert len(terms) == n - 1 and all(t[0] != 0.0 for t in terms)
     monkeypatch.setattr(cls, "__init__", counting)
+    monkeypatch.setattr(memory, "MEMORY_BUDGET", budget)
     with ds.solve_path(problems, goal, weights=weights, verbose=False) as res:
         last = res.steps[-1]
         assert res.solution.estimate_parts is None  # released with the path's end
         assert res.estimate.reconstructor.V2h is not None  # the last estimate keeps its own
-    assert len(made) == n
+    assert len(made) == (n if budget is None else 2 * n - 1)
     assert last.eta_history == pytest.approx(sum(t[0] for t in terms), rel=1e-10, abs=1e-16)
     assert last.J_low == pytest.approx(own[0] + sum(t[1] for t in terms), rel=1e-10, abs=1e-16)
     assert last.J_high == pytest.approx(own[1] + sum(t[2] for t in terms), rel=1e-10,
