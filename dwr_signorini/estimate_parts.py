@@ -279,6 +279,9 @@ class ResidualForms:
 class SolverBudget:
     """The memory that the P2 solvers kept by the parts of several solutions may take.
 
+    Attributes:
+        kept: The predicted bytes of the solvers kept now.
+
     A load path's kept steps hold their P2 solvers until the path ends; each is kept only where
     the predicted memory of the P2 weights (:func:`~dwr_signorini.weights.p2_weights_memory`) of
     those already kept, this one and one more (the next step's own estimate) fits in the share
@@ -286,9 +289,6 @@ class SolverBudget:
     (:func:`~dwr_signorini.linalg.memory.available_memory`), the rule by which
     ``weights="auto"`` takes P2 weights. Where the available memory is measured it already
     holds the kept solvers, which so count twice: the rule keeps fewer than would fit.
-
-    Attributes:
-        kept: The predicted bytes of the solvers kept now.
     """
 
     def __init__(self) -> None:
