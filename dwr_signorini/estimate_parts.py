@@ -25,7 +25,8 @@ each kept :class:`~dwr_signorini.Solution` an :class:`EstimateParts`
 estimate at that solution reuses them. The solution owns them and releases them in its
 ``destroy()``; an estimate of a solution without them makes its own and releases them at its
 end (its reconstructor goes to the :class:`~dwr_signorini.Estimate`, as before). The reuse
-changes no number: the same factors, the same solutions, the same weights.
+changes no number beyond round-off: the same factors, solutions and weights (the J' term of
+rho* is assembled apart from the rest, ``tests/test_estimate_parts.py``).
 """
 
 from __future__ import annotations
