@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from dolfinx import mesh as dmesh
 
+from .estimate_parts import SolverBudget, keep_estimate_parts
 from .estimator import Estimate, estimate
 from .goal import Goal
 from .marking import MarkingRule, refine_level
@@ -91,7 +92,8 @@ class LevelSettings:
         )
 
     def solve_and_estimate(
-        self, disc: Discretization, guess: tuple[Any, ...] | None, goal: Goal
+        self, disc: Discretization, guess: tuple[Any, ...] | None, goal: Goal,
+        keep_parts: SolverBudget | None = None,
     ) -> tuple[Solution, Estimate, float]:
         """Solve the level from ``guess`` and estimate ``goal`` (collective).
 
@@ -99,6 +101,9 @@ class LevelSettings:
             disc: The level's discretisation.
             guess: The initial iterate, or None.
             goal: The quantity of interest.
+            keep_parts: Keep the estimate's goal-independent parts with the solution, for
+                estimates of other goals at it (:mod:`~dwr_signorini.estimate_parts`), its P2
+                solvers within this budget; None: not kept.
 
         Returns:
             The solution, its estimate and the seconds of the solve. On a failure of the
@@ -108,6 +113,8 @@ class LevelSettings:
         sol = solve(disc, initial_guess=guess, options=self.solver)
         t_solve = time.perf_counter() - tic
         try:
+            if keep_parts is not None:
+                keep_estimate_parts(sol, keep_parts)
             est = estimate(
                 sol, goal, options=self.estimate, model_error=self.richer(disc.problem)
             )

@@ -19,36 +19,32 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 import ufl
 from dolfinx import fem
-from dolfinx.fem import petsc as fem_petsc
 
 from .agreement import check_options_on_ranks
 from .dual import DualSolution, solve_dual
+from .estimate_parts import (
+    EstimateParts,
+    FactoredP2,
+    IndicatorForm,
+    MasterShare,
+)
+from .estimate_parts import ncp_scale_function as ncp_scale_function  # re-exported
 from .finite_strain import FiniteStrainSolution
-from .force import ForceControl
-from .goal import Goal, GoalForms, localize
-from .hierarchical import hierarchical_solutions
+from .goal import Goal, GoalForms
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
 from .lifetime import Releasable
 from .model_error import ModelError, check_richer
 from .model_error import model_error as model_error_estimate
 from .newton import Solution
-from .pairs import images_of
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
-from .residuals import active_set_remainder, contact_term, dual_residual, primal_residual
 from .settings import EstimateOptions
 from .timing import timed
-from .weights import (
-    memory_fallback,
-    nearly_incompressible,
-    p2_kind,
-    second_weights,
-)
+from .weights import nearly_incompressible, p2_kind, second_weights
 
 __all__ = ["Estimate", "estimate", "goal_magnitude"]
 
@@ -130,6 +126,9 @@ class Estimate(Releasable):
     roundoff: float = 0.0
     weights_fallback: str | None = None
     model: ModelError | None = field(default=None, repr=False)
+    #: Whether :meth:`destroy` releases the reconstructor: not where it belongs to the parts
+    #: that the solution's estimates share (:mod:`~dwr_signorini.estimate_parts`).
+    owns_reconstructor: bool = field(default=True, repr=False)
 
     @property
     def model_error(self) -> float | None:
@@ -143,7 +142,7 @@ class Estimate(Releasable):
 
     def destroy(self) -> None:
         """Release the PETSc objects of the reconstruction (collective; idempotent)."""
-        if self.reconstructor is not None:
+        if self.reconstructor is not None and self.owns_reconstructor:
             self.reconstructor.destroy()
 
     @property
@@ -174,110 +173,51 @@ class Estimate(Releasable):
         return best_estimate(self.J_h, self.value, self.resolved)
 
 
-def ncp_scale_function(sol: Solution) -> fem.Function:
-    """The c of the NCP function the solution was computed with, as a function on Lambda_H."""
-    # c is the same for every component of the law: the normal rows' values
-    return sol.multiplier_function(sol.system.algebra.components_of(sol.system.c_n)[0], "c")
-
-
 def _assemble_indicators(
     disc: Any, forms: list[ufl.Form], DG0: fem.FunctionSpace, degree: int | None
 ) -> list[np.ndarray]:
     """Cell indicators of each scalar form: its integrands times a DG0 test function (Section 4).
 
-    ``DG0`` is a space on T_h (cell indicators) or on the fine slave facets (facet indicators).
+    ``DG0`` is a space on T_h (cell indicators) or on the fine slave facets (facet indicators)
+    (:class:`~dwr_signorini.estimate_parts.IndicatorForm`).
 
     One assembly per form: a fused one would pack the coefficients of all forms for every cell
     at once, a larger array than any single form's, for no gain in time.
     """
     with timed("indicators"):
-        q = ufl.TestFunction(DG0)
-        out = []
-        for form in forms:
-            vec = fem_petsc.assemble_vector(
-                disc.form(localize(with_quadrature_degrees(form, degree), q))
-            )
-            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            out.append(vec.array.copy())
-            vec.destroy()
-    return out
-
-
-def _master_share(
-    disc: Any, form: ufl.Form, weight: Any, DG0: fem.FunctionSpace, degree: int | None
-) -> np.ndarray:
-    """The trace part of ``form`` moved from the slave to the master cells (:mod:`.pairs`).
-
-    The part of ``form`` linear in the master trace P v of the displacement weight v (every
-    image of v in the form, :func:`~dwr_signorini.pairs.images_of`), which the localisation put
-    on the slave cells, is localised per fine slave facet and goes from the cell beside each
-    facet to the master cells its points project into: the returned array is added to the
-    indicators and sums to zero (zero without contact pairs).
-    """
-    out = np.zeros(DG0.dofmap.index_map.size_local + DG0.dofmap.index_map.num_ghosts)
-    if disc.slave_mesh is None:
-        return out
-    functions = weight.ufl_operands if isinstance(weight, ufl.algebra.Sum) else (weight,)
-    images = [g for v in functions for g in images_of(form, v)]
-    if not images:
-        return out
-    part = sum(ufl.derivative(form, g, g) for g in images)  # the form is linear in P v
-    geometry = disc.master_trace().geometry
-    (per_facet,) = _assemble_indicators(disc, [part], geometry.Fs, degree)
-    return geometry.share(per_facet, DG0)
+        return [IndicatorForm(disc, form, DG0, degree).assemble() for form in forms]
 
 
 def _higher_order_solutions(
     sol: Solution, goal: GoalForms, rec: Reconstructor, primal: bool, petsc_options: Any
 ) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
-    """Dual (and primal) solved in P2 on T_h with Lambda_H and the final active set."""
-    # The same kind of linear solver as the primal problem's (block or Schur complement), with
-    # the options prefix <primal prefix>p2_.
-    with timed("higher-order solve"):
-        system2 = type(sol.system)(
-            sol.disc,
-            petsc_options,
-            V=rec.V2h,
-            prefix=sol.system.prefix + "p2_",
-            ncp_scale=sol.ncp_scale,
-        )
-    force = None
-    try:
-        with timed("higher-order solve"):
-            active, couplings = sol.system.active, sol.system.couplings
+    """Dual (and primal) solved in P2 on T_h with Lambda_H and the final active set.
 
-            def solve(act: np.ndarray, free: np.ndarray) -> None:
-                system2.solve_active(act, free, couplings)
-
-            if sol.obstacle_displacement is None:
-                solve(active, sol.system.free)
-            else:  # the bordered P2 system at w_h's delta (dwr_signorini.force)
-                force = system2.force_control = ForceControl(system2, move=False)
-                force.step(solve, active, sol.system.free)
-            z2 = solve_dual(system2, goal)
-        w2 = None
-        if primal:
-            u2 = fem.Function(rec.V2h, name="u2")
-            u_arr, lam_arr = system2.split(system2.x)
-            u2.x.array[: system2.n_u] = u_arr
-            u2.x.scatter_forward()
-            w2 = (u2, sol.multiplier_functions(lam_arr, "lambda2"))
-    finally:
-        if force is not None:
-            force.destroy()
-        system2.destroy()
-    return z2, w2
+    By one factorisation of the P2 system (:class:`~dwr_signorini.estimate_parts.FactoredP2`),
+    released before the return.
+    """
+    with FactoredP2(sol, rec, petsc_options) as p2:
+        return p2.dual(goal), p2.primal if primal else None
 
 
 @dataclass
 class _Inputs:
-    """What every kind of weights starts from: w_h, J's forms, z_h, the reconstructions."""
+    """What every kind of weights starts from: w_h, J's forms, z_h, the goal-independent parts.
+
+    ``parts`` (:class:`~dwr_signorini.estimate_parts.EstimateParts`) hold the reconstructor,
+    the P2 solvers and the primal weights, made once per solution.
+    """
 
     sol: Solution
     goal_forms: GoalForms
     z: DualSolution
-    rec: Reconstructor
+    parts: EstimateParts
     options: EstimateOptions
+
+    @property
+    def rec(self) -> Reconstructor:
+        """The reconstructor of the solution's parts."""
+        return self.parts.rec
 
     @property
     def want_eta(self) -> bool:
@@ -301,30 +241,24 @@ def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
     sol, z, rec, want_eta = inp.sol, inp.z, inp.rec, inp.want_eta
     if weights == "patch":
         z2, w2 = z, None
-    elif weights == "hierarchical":
-        if not sol.disc.problem.law.symmetric(sol.disc.mesh.topology.dim):
+    else:
+        if weights == "hierarchical" and not sol.disc.problem.law.symmetric(
+            sol.disc.mesh.topology.dim
+        ):
             raise ValueError(
                 "weights='hierarchical': the two-level P2 solver works on symmetric Newton "
                 "matrices; Tresca friction in 3D and Coulomb friction have coupled rows on "
                 "slipping facets: use "
                 "weights='higher_order' (the P2 system factored by LU) or 'patch'"
             )
-        z2, w2 = hierarchical_solutions(sol, inp.goal_forms, z, rec.V2h, want_eta)
-    else:
-        z2, w2 = _higher_order_solutions(sol, inp.goal_forms, rec, want_eta, inp.petsc_options)
-
-    def linear(functions: tuple[fem.Function, ...]) -> tuple:
-        return tuple(rec.patch_linear_multiplier(f) for f in functions)
-
+        z2, w2 = inp.parts.p2_solutions(
+            sol, weights, inp.goal_forms, z, want_eta, inp.petsc_options
+        )
     with timed("reconstruct"):
         w_y = rec.patch_weight(z.y) if weights == "patch" else rec.weight(z2.y, z.y)
-        xi_plus = linear(z2.multipliers)
-        if w2 is None:  # the patch reconstruction of w_h
-            w_u = rec.patch_weight(sol.u)
-            return w_y, xi_plus, sol.u + w_u, w_u, linear(sol.multipliers)
-        u_plus = w2[0]
-        w_u = rec.weight(u_plus, sol.u) if want_eta else None
-        return w_y, xi_plus, u_plus, w_u, linear(w2[1])
+        xi_plus = inp.parts.linear(z2.multipliers)
+    u_plus, w_u, lam_plus = inp.parts.primal_weights(sol, weights, want_eta, w2)
+    return w_y, xi_plus, u_plus, w_u, lam_plus
 
 
 @dataclass
@@ -358,21 +292,18 @@ def _terms(
     """rho(w_h)(A z_h - z_h), rho*(w_h, z_h)(A w_h - w_h), C(w_h)(xi_H) and R_A, eq. (13), (15)."""
     sol, z, want_eta = inp.sol, inp.z, inp.want_eta
     disc = sol.disc
-    w_y, xi_plus, u_plus, w_u, lam_plus = _weights(inp, weights)
-    w_xi = tuple(p - f for p, f in zip(xi_plus, z.multipliers, strict=True))
-    c = ncp_scale_function(sol)
-    forms = [
-        primal_residual(sol, w_y, w_xi, c),
-        contact_term(sol, z.multipliers, c),
-        active_set_remainder(sol, u_plus, lam_plus, xi_plus, c),
-    ]
-    if want_eta:
+    w_y, xi_plus, _, w_u, lam_plus = _weights(inp, weights)
+    compiled = inp.parts.residual_forms(sol, weights, want_eta, quadrature_degree)
+    with timed("indicators"):
+        indicators = compiled.indicators(z, w_y, xi_plus)
+    if want_eta:  # the goal's own term of rho*: J'(w_h)(A w_h - w_h, lambda^+ - lambda)
         w_lam = tuple(p - f for p, f in zip(lam_plus, sol.multipliers, strict=True))
-        forms.append(dual_residual(sol, inp.goal_forms, z, w_u, w_lam, c))
-    indicators = _assemble_indicators(disc, forms, DG0, quadrature_degree)
-    weighted = [(0, w_y), (3, w_u)] if want_eta else [(0, w_y)]
-    for k, weight in weighted:  # the master traces' terms to the master cells
-        indicators[k] += _master_share(disc, forms[k], weight, DG0, quadrature_degree)
+        dJ = inp.goal_forms.directional(w_u, *w_lam)
+        if dJ is not None:
+            (goal_part,) = _assemble_indicators(disc, [dJ], DG0, quadrature_degree)
+            with timed("indicators"):
+                goal_part += MasterShare(disc, dJ, w_u, DG0, quadrature_degree)()
+            indicators[3] += goal_part
     ind_rho, ind_c, ind_a, *rest = indicators
     ind_star = rest[0] if want_eta else None
 
@@ -410,14 +341,14 @@ def _auto_terms(
     if weights == "auto":
         first = p2 if nearly_incompressible(inp.sol.disc.problem) else "patch"
         if first != "patch":
-            fallback = memory_fallback(inp.sol, inp.rec, p2)
+            fallback = inp.parts.fallback(inp.sol, p2)
             first = "patch" if fallback else first
     terms = _terms(inp, first, quadrature_degree, DG0)
     value = terms.value(estimator)
     resolved = contact_set_resolved(value, terms.remainder, terms.contact, roundoff)
     second = second_weights(terms, estimator, resolved, J_h, roundoff, p2)
     if weights == "auto" and first == "patch" and fallback is None and second is not None:
-        fallback = memory_fallback(inp.sol, inp.rec, second)
+        fallback = inp.parts.fallback(inp.sol, second)
         if fallback is None:
             terms = _terms(inp, second, quadrature_degree, DG0)
     return terms, resolved, fallback
@@ -512,16 +443,26 @@ def estimate(
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
     t_dual = time.perf_counter() - tic
-    with timed("reconstruct"):
-        rec = Reconstructor(sol.disc)
-    try:  # on a failure the reconstruction's PETSc objects are released
-        est = _estimate(_Inputs(sol, goal_forms, z, rec, options), tic, t_dual)
+    # the goal-independent parts: the solution's own where it keeps them (a load path's
+    # history), else made for this estimate and released at its end but the reconstructor
+    parts = sol.estimate_parts
+    own = parts is None
+    if own:
+        parts = EstimateParts(sol)
+    try:  # on a failure the parts made here are released
+        est = _estimate(_Inputs(sol, goal_forms, z, parts, options), tic, t_dual)
         if model_error is not None:
             est.model = _model_error(est, sol, goal, model_error, options)
-        return est
     except BaseException:
-        rec.destroy()
+        if own:
+            parts.destroy()
         raise
+    if own:
+        parts.hand_over()
+        parts.destroy()
+    else:
+        est.owns_reconstructor = False
+    return est
 
 
 def _model_error(
@@ -544,7 +485,7 @@ def _model_error(
 def _estimate(inp: _Inputs, tic: float, t_dual: float) -> Estimate:
     """The :class:`Estimate` from its inputs (``tic``: the start of :func:`estimate`)."""
     sol, options, disc = inp.sol, inp.options, inp.sol.disc
-    DG0 = fem.functionspace(disc.mesh, ("DG", 0))
+    DG0 = inp.parts.DG0
     J_h = inp.goal_forms.value()
     q = roundoff_bound(
         goal_magnitude(inp.goal_forms, sol.disc.problem.quadrature_degree),

@@ -44,11 +44,11 @@ from .algebra import ContactAlgebra
 from .dual import DualSolution, dual_rhs
 from .force import ForceControl
 from .goal import GoalForms
-from .lifetime import destroy_attributes
+from .lifetime import Releasable, destroy_attributes
 from .newton import Solution
 from .timing import timed
 
-__all__ = ["HIERARCHICAL_RTOL", "hierarchical_solutions"]
+__all__ = ["HIERARCHICAL_RTOL", "HierarchicalP2", "hierarchical_solutions"]
 
 #: Relative residual of the P2 systems at which ``weights="hierarchical"`` stops.
 HIERARCHICAL_RTOL = 1e-3
@@ -421,6 +421,55 @@ def _solutions(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution, p
         bordered.destroy()
 
 
+class HierarchicalP2(Releasable):
+    """The two-level P2 solver of one solution's final active set, set up once for every goal.
+
+    The P2 system (K_2, N_2, the prolongation, the edge smoother, FGMRES) and the P2 primal
+    w^(2) do not depend on the goal: estimates of several goals at one solution
+    (:class:`~dwr_signorini.estimate_parts.EstimateParts`) solve only their dual with it.
+
+    Args:
+        sol: The solved discrete problem (its last Newton factorisations are reused).
+        V2: The P2 (Q2) vector space on T_h.
+        rtol: Relative residual to reach (default :data:`HIERARCHICAL_RTOL`).
+    """
+
+    def __init__(self, sol: Solution, V2: fem.FunctionSpace, rtol: float | None = None) -> None:
+        self.rtol = HIERARCHICAL_RTOL if rtol is None else rtol
+        if not self.rtol > 0:
+            raise ValueError(f"rtol must be positive, got {rtol}")
+        self.primal: tuple[fem.Function, tuple[fem.Function, ...]] | None = None
+        with timed("higher-order solve"):
+            self.p2: _P2System | None = _P2System(sol, V2)
+
+    def solutions(
+        self, sol: Solution, goal: GoalForms, z: DualSolution, primal: bool
+    ) -> tuple[DualSolution, tuple[fem.Function, tuple[fem.Function, ...]] | None]:
+        """The P2 dual of ``goal`` from z_h, and the P2 primal (solved once) if ``primal``.
+
+        ``sol`` is the solution the solver was set up for (it holds no reference to it).
+        """
+        # The coarse step is a preconditioner of a flexible GMRES to rtol: an iterative P1
+        # solver (method="krylov") solves it to its loose tolerance; direct solvers are exact.
+        loose = sol.system.set_loose(True)
+        try:
+            with timed("higher-order solve"):
+                z2, w2 = _solutions(self.p2, sol, goal, z, primal and self.primal is None,
+                                    self.rtol)
+        finally:
+            if loose:
+                sol.system.set_loose(False)
+        if w2 is not None:
+            self.primal = w2
+        return z2, self.primal if primal else None
+
+    def destroy(self) -> None:
+        """Release the P2 system (collective; idempotent)."""
+        if self.p2 is not None:
+            self.p2.destroy()
+            self.p2 = None
+
+
 def hierarchical_solutions(
     sol: Solution,
     goal: GoalForms,
@@ -442,19 +491,5 @@ def hierarchical_solutions(
     Returns:
         z^(2) = (y, xi) with y in V2, and w^(2) = (u, multipliers) or ``None``.
     """
-    rtol = HIERARCHICAL_RTOL if rtol is None else rtol
-    if not rtol > 0:
-        raise ValueError(f"rtol must be positive, got {rtol}")
-    with timed("higher-order solve"):
-        p2 = _P2System(sol, V2)
-    # The coarse step is a preconditioner of a flexible GMRES to rtol: an iterative P1 solver
-    # (method="krylov") solves it to its loose tolerance; direct solvers are exact anyway.
-    loose = sol.system.set_loose(True)
-    try:
-        with timed("higher-order solve"):
-            z2, w2 = _solutions(p2, sol, goal, z, primal, rtol)
-    finally:
-        if loose:
-            sol.system.set_loose(False)
-        p2.destroy()
-    return z2, w2
+    with HierarchicalP2(sol, V2, rtol) as solver:
+        return solver.solutions(sol, goal, z, primal)

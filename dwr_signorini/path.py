@@ -23,6 +23,17 @@ path after its last solve: n - 1 estimates for n steps, one per step in total; t
 those of the chain of the last step, as computed step by step. ``history="every"`` (or True)
 runs the chain after every step: k estimates at step k, n (n - 1) / 2 along the path.
 
+A history estimate is one of another goal at the solution that the step's own estimate judged:
+each kept step keeps what its own estimate made that does not depend on the goal
+(:mod:`~dwr_signorini.estimate_parts`: the reconstructor, the P2 system of the weights with
+its factors or two-level set-up, the primal weights, the compiled forms of the indicators),
+so a history estimate costs the goal's own work: J and its derivatives, the P1 and P2
+transposed solves, the weights of the dual and one assembly of the indicators. Each kept step
+holds its P2 factors (``weights="higher_order"``, and ``"auto"`` where it takes them) until the
+path ends, beside its Newton factors, where the memory allows
+(:class:`~dwr_signorini.estimate_parts.SolverBudget`); where it does not, its history estimate
+factors the P2 system again.
+
 **Adaptivity along the path** (``adaptive=True``): after each step the macro mesh is refined
 for that step's goal (the marking of :func:`~dwr_signorini.solve_adaptive`), and the next step
 lives on the refined mesh. The history is carried by interpolation: u^old, piecewise linear on
@@ -48,6 +59,7 @@ from dolfinx import fem
 from . import finite_strain_path
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
+from .estimate_parts import SolverBudget, release_estimate_parts
 from .estimator import Estimate, estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
@@ -344,6 +356,7 @@ def _steps(
         disc.destroy()
     if result.solution is not None:  # and the last mesh's with the last solution
         result.solution.owns_disc = True
+        release_estimate_parts(result.solution, result.estimate)
     return result
 
 
@@ -362,6 +375,8 @@ class _PathState:
     #: The discretisations made (one per mesh; their master traces are released at the end).
     discs: list[Discretization] = field(default_factory=list, repr=False)
     keep: bool = False
+    #: The memory the kept steps' P2 solvers may take (:mod:`~dwr_signorini.estimate_parts`).
+    budget: SolverBudget = field(default_factory=SolverBudget, repr=False)
     current: SignoriniProblem | None = None
     level: int = 0
     macro_parent: Any = None
@@ -412,7 +427,9 @@ def _step(
         guess = state.first_guess if previous is None else _warm_start(previous, disc)
     state.retire()
     t_setup = time.perf_counter() - t_start
-    sol, est, t_solve = settings.solve_and_estimate(disc, guess, goal)
+    sol, est, t_solve = settings.solve_and_estimate(
+        disc, guess, goal, keep_parts=state.budget if state.keep else None
+    )
     state.solution, state.estimate = sol, est
     tic = time.perf_counter()
     history = history_estimates(state.kept, sol, est, settings.estimate) if sweep else []
@@ -509,7 +526,9 @@ def history_estimates(
     From the last step back to the first: the history goal of the later step
     (:func:`history_goal`) is estimated at the earlier one (its own residuals, weighted by the
     dual solution of that goal), and that estimate's dual gives the next goal back. Costs one
-    estimate per earlier step (with the earlier step's factorisation).
+    estimate per earlier step (with the earlier step's factorisation), each reusing the parts
+    of the step's own estimate that the path kept with its solution
+    (:mod:`~dwr_signorini.estimate_parts`).
     """
     if not isinstance(options, EstimateOptions):
         options = EstimateOptions(**options)

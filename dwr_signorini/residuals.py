@@ -181,7 +181,7 @@ def primal_residual(sol: Any, v: Any, mu: Any, c: Any) -> ufl.Form:
 
 
 def dual_residual(
-    sol: Any, goal: GoalForms, z: DualSolution, v: Any, mu: Any, c: Any
+    sol: Any, goal: GoalForms | None, z: DualSolution, v: Any, mu: Any, c: Any
 ) -> ufl.Form:
     """rho*(w_h, z_h)(v, mu) of Proposition 8, with b_h carrying c (see the module docstring).
 
@@ -193,7 +193,8 @@ def dual_residual(
     (:meth:`~dwr_signorini.spaces.Discretization.force_balance`). Where a projection acts on
     several components (Tresca's ball in 3D) its derivative J is a matrix, chi_k = J_kk, and
     b_k, c_k gain
-    ``int c xi_k J_kj v . e_j`` and ``-int xi_k J_kj mu_j`` for j != k.
+    ``int c xi_k J_kj v . e_j`` and ``-int xi_k J_kj mu_j`` for j != k. With ``goal`` None
+    the form without its J' term (the part that does not depend on the goal).
     """
     disc = sol.disc
     m = disc.m
@@ -214,7 +215,7 @@ def dual_residual(
                 form += (c * xi * J_kj * ufl.dot(v_rel, e_j) + xi * J_kj * mu_j) * m.ds_contact
     if z.zeta is not None:  # the force balance's column of the bordered dual (dwr_signorini.force)
         form -= z.zeta * disc.force_balance(mus[0])
-    dJ = goal.directional(v, *mus)
+    dJ = None if goal is None else goal.directional(v, *mus)
     return form if dJ is None else dJ + form
 
 

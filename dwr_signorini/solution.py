@@ -80,6 +80,10 @@ class Solution(Releasable):
     #: Whether :meth:`destroy` releases the discretisation too (its master traces): set where
     #: :func:`solve` discretised the problem itself, and by the drivers for each level.
     owns_disc: bool = False
+    #: What estimates of several goals at this solution share (the reconstructor, the P2
+    #: solvers and primal weights, :class:`~dwr_signorini.estimate_parts.EstimateParts`), or
+    #: None: kept by a load path for its history's estimates, released by :meth:`destroy`.
+    estimate_parts: Any = field(default=None, repr=False)
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
@@ -100,10 +104,13 @@ class Solution(Releasable):
         return self.disc.comm.allreduce(int(rows.sum()), op=MPI.SUM)
 
     def destroy(self) -> None:
-        """Release the Newton system, its force control and, if owned, the discretisation.
+        """Release the Newton system, its force control, the estimate parts, an owned disc.
 
         Collective; idempotent.
         """
+        if self.estimate_parts is not None:
+            self.estimate_parts.destroy()
+            self.estimate_parts = None
         force = getattr(self.system, "force_control", None)
         if force is not None:
             force.destroy()

@@ -25,8 +25,7 @@ import ufl
 from dolfinx import mesh as dmesh
 
 import dwr_signorini as ds
-from dwr_signorini import compat
-from dwr_signorini import estimator as estimator_module
+from dwr_signorini import compat, estimate_parts
 from dwr_signorini.pairs import MasterTrace, TraceGeometry
 
 COMM = MPI.COMM_WORLD
@@ -182,9 +181,9 @@ def test_shared_indicators_sum_to_the_unshared_estimate(estimator, shift, monkey
         lower = _master_cells_total(est)
         est.destroy()
         monkeypatch.setattr(
-            estimator_module, "_master_share",
-            lambda disc, form, weight, DG0, degree: np.zeros(
-                DG0.dofmap.index_map.size_local + DG0.dofmap.index_map.num_ghosts),
+            estimate_parts.MasterShare, "__call__",
+            lambda share: np.zeros(
+                share.DG0.dofmap.index_map.size_local + share.DG0.dofmap.index_map.num_ghosts),
         )
         with ds.estimate(sol, lower_displacement, estimator=estimator, weights="patch") as e:
             unshared = e.value

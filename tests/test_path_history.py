@@ -6,6 +6,10 @@
   does the chain after every step (``history="every"``, the behaviour of ``history=True``);
 * its cost: the default runs one history estimate per earlier step in total (n - 1 for n
   steps), the chain after every step n (n - 1) / 2;
+* the path's history estimates reuse what each step's own estimate made that does not depend
+  on the goal (:mod:`dwr_signorini.estimate_parts`: the P2 system factored once per step, or
+  its two-level set-up, the primal weights, the compiled forms), and their terms are those of
+  fresh estimates to 1e-10, for the patch, factored P2 and hierarchical P2 weights;
 * serially and on 2 ranks (the chain's terms are reduced over the ranks).
 """
 
@@ -15,22 +19,24 @@ import pytest
 from dolfinx import fem
 
 import dwr_signorini as ds
+from dwr_signorini import estimate_parts
 from dwr_signorini import examples as ex
 from dwr_signorini import path as path_module
+from dwr_signorini.linalg import memory
 from dwr_signorini.path import history_goal
 
 COMM = MPI.COMM_WORLD
 TOPS = [(0.0, -0.02), (0.004, -0.02), (0.008, -0.02), (0.012, -0.021)]
 
 
-def sheared_path(comm=COMM):
-    """The block on a cylinder (examples.friction_problem), Coulomb friction, pressed then
-    sheared in three steps: partial slip, so the history's goals do not vanish."""
+def sheared_path(comm=COMM, law=None):
+    """The block on a cylinder (examples.friction_problem), Coulomb friction (or ``law``),
+    pressed then sheared in three steps: partial slip, so the history's goals do not vanish."""
     base = ex.friction_problem(comm, nx=12, ny=6)
     return [
         ds.SignoriniProblem(base.mesh, base.facet_tags, contact=ex.CONTACT,
                             dirichlet={ex.DIRICHLET: top}, E=10.0, nu=0.3, gap=base.gap,
-                            friction=ds.Coulomb(0.3))
+                            friction=ds.Coulomb(0.3) if law is None else law)
         for top in TOPS
     ]
 
@@ -45,20 +51,23 @@ def copies(sol):
     return tuple(out)
 
 
-def reference_chain(problems, goal):
+def reference_chain(problems, goal, weights="auto"):
     """The last step's own interval, and its history terms by the chain written out:
     (estimate, low, high) per earlier step, last first, the ends relative to the history goal's
-    J_h (as path.history_estimates)."""
+    J_h (as path.history_estimates). Every estimate is a fresh one: its own reconstruction, P2
+    solves and forms, nothing kept with the solutions."""
     sols, disc = [], None
     try:
         for p in problems:
             disc = ds.discretize(p) if disc is None else disc.for_problem(p)
             disc.set_u_old(sols[-1].u if sols else None)
             sols.append(ds.solve(disc, initial_guess=copies(sols[-1]) if sols else None))
-        ests = [ds.estimate(sols[-1], goal)]
+        assert all(sol.estimate_parts is None for sol in sols)
+        ests = [ds.estimate(sols[-1], goal, weights=weights)]
         terms = []
         for k in range(len(sols) - 2, -1, -1):
-            ests.append(ds.estimate(sols[k], history_goal(sols[k + 1], ests[-1])))
+            ests.append(ds.estimate(sols[k], history_goal(sols[k + 1], ests[-1]),
+                                    weights=weights))
             low, high = ests[-1].interval
             terms.append((ests[-1].value, low - ests[-1].J_h, high - ests[-1].J_h))
         own = ests[0].interval
@@ -115,3 +124,38 @@ def test_history_modes_are_checked():
     with pytest.raises(ValueError, match="adaptive path"):
         ds.solve_path(problems, ex.goal_friction_force(), adaptive=True, history="last",
                       verbose=False)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("budget", [None, 1], ids=["memory", "no-memory"])
+@pytest.mark.parametrize(("law", "weights", "solver"), [
+    (None, "higher_order", "FactoredP2"),
+    (ds.Tresca(0.1), "hierarchical", "HierarchicalP2"),
+])
+def test_history_reuses_each_steps_p2_solver(monkeypatch, law, weights, solver, budget):
+    """With P2 weights the history's estimates reuse each step's P2 solver: one per step in
+    total (n, against 2 n - 1 for fresh estimates), and terms equal to the fresh chain's; with
+    a memory budget of 1 byte no solver is kept (2 n - 1 made), the terms the same."""
+    problems, goal = sheared_path(law=law), ex.goal_friction_force()
+    n = len(problems)
+    made = []
+    cls = getattr(estimate_parts, solver)
+    original = cls.__init__
+
+    def counting(self, *args, **kwargs):
+        made.append(1)
+        original(self, *args, **kwargs)
+
+    own, terms = reference_chain(problems, goal, weights)
+    assert len(terms) == n - 1 and all(t[0] != 0.0 for t in terms)
+    monkeypatch.setattr(cls, "__init__", counting)
+    monkeypatch.setattr(memory, "MEMORY_BUDGET", budget)
+    with ds.solve_path(problems, goal, weights=weights, verbose=False) as res:
+        last = res.steps[-1]
+        assert res.solution.estimate_parts is None  # released with the path's end
+        assert res.estimate.reconstructor.V2h is not None  # the last estimate keeps its own
+    assert len(made) == (n if budget is None else 2 * n - 1)
+    assert last.eta_history == pytest.approx(sum(t[0] for t in terms), rel=1e-10, abs=1e-16)
+    assert last.J_low == pytest.approx(own[0] + sum(t[1] for t in terms), rel=1e-10, abs=1e-16)
+    assert last.J_high == pytest.approx(own[1] + sum(t[2] for t in terms), rel=1e-10,
+                                        abs=1e-16)
