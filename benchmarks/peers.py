@@ -30,7 +30,8 @@ each peer's is its solve alone (``Model.solve``, ``SNES.solve``: the Newton iter
 their assembly and factorisations), with its set-up (mesh import or refinement, spaces, data,
 bricks, assembly of K and f for SNES VI) excluded and printed beside it. Where our level's time
 went is printed as a third table: the package's timed phases (``dwr_signorini.timing``) of its
-fastest run, "discretize" being the refinement T_H -> T_h with the spaces.
+fastest run (rank 0's on more ranks), "discretize" being the refinement T_H -> T_h with the
+spaces.
 
     make peer-env                                          # once: installs GetFEM (optional)
     scripts/fenicsx python3 benchmarks/peers.py            # 49k, 196k and 786k fine triangles
