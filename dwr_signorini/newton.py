@@ -100,6 +100,7 @@ from .semismooth import ConvergenceError, NewtonLoop
 from .settings import SolverOptions
 from .solution import Solution, traction_vector
 from .spaces import Discretization
+from .timing import timed
 
 __all__ = ["Solution", "method_name", "solve"]
 
@@ -205,12 +206,13 @@ def _log_solution(sol: Solution, seconds: float) -> None:
 
 
 def _discretization(problem_or_disc: Any) -> Discretization:
-    """The discretisation to solve on: ``problem_or_disc``'s, or itself."""
+    """The discretisation to solve on: ``problem_or_disc``'s (timed as "discretize"), or itself."""
     from .problem import SignoriniProblem
     from .spaces import discretize
 
     if isinstance(problem_or_disc, SignoriniProblem):
-        return discretize(problem_or_disc)
+        with timed("discretize"):
+            return discretize(problem_or_disc)
     if isinstance(problem_or_disc, Discretization):
         return problem_or_disc
     raise TypeError(
