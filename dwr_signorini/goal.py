@@ -1,7 +1,7 @@
 """Quantities of interest J(u, lambda) written in UFL, and their derivatives J', J''.
 
 A goal is a function ``goal(u, lam, m) -> ufl.Form`` of the displacement ``u``, the normal contact
-force ``lam`` (on Gamma_C) and the measures ``m`` (:class:`~dwr_signorini.spaces.Measures`) of the
+force ``lam`` (on Gamma_C) and the measures ``m`` (:class:`~dwr_signorini.measures.Measures`) of the
 fine mesh; with friction it may take the tangential traction too, ``goal(u, lam, m, lam_t)``.
 Everything the estimators need (J'_u, J'_lambda for the dual problem (11)-(12), directional
 derivatives for the dual residual rho*) comes from ``ufl.derivative``.

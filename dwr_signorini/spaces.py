@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from dataclasses import dataclass
 from typing import Any
 
 from mpi4py import MPI
@@ -27,7 +26,8 @@ from dolfinx import mesh as dmesh
 
 from . import compat
 from .collective import shadow
-from .fields import MeshFields, deformation_gradient
+from .fields import MeshFields
+from .measures import Measures
 from .pairs import MasterTrace, TraceGeometry
 from .problem import SignoriniProblem
 from .quadrature import expand_integer_powers, is_polynomial
@@ -43,93 +43,6 @@ from .timing import timed
 from .validation import call_user, nonzero_literal
 
 __all__ = ["Discretization", "Measures", "discretize"]
-
-
-@dataclass(frozen=True)
-class Measures:
-    """What a goal functional may use, all on the fine mesh T_h.
-
-    Attributes:
-        x: Spatial coordinate.
-        dx: Cell measure.
-        ds_contact: Measure of the possible contact boundary Gamma_C.
-        ds: Boundary measure with the facet tags (``m.ds(tag)``).
-        n: Outer unit normal.
-        mesh: The fine mesh.
-        problem: The problem (for material data).
-        fields: The problem's data on the fine mesh (the discretisation's
-            :class:`~dwr_signorini.fields.MeshFields`).
-        obstacle_displacement: The displacement delta of an obstacle under a given force along
-            its direction (a dolfinx Constant, for goals: its dual entry takes dJ/ddelta), or
-            None.
-    """
-
-    x: Any
-    dx: ufl.Measure
-    ds_contact: ufl.Measure
-    ds: ufl.Measure
-    n: Any
-    mesh: dmesh.Mesh
-    problem: SignoriniProblem
-    fields: MeshFields
-    obstacle_displacement: Any = None
-
-    def sigma(self, u: Any) -> Any:
-        """Stress sigma(u) of the problem's material law.
-
-        Args:
-            u: A displacement (UFL vector).
-
-        Returns:
-            The stress tensor (UFL), with the problem's E, nu and model.
-        """
-        return self.fields.sigma(u)
-
-    def F(self, u: Any) -> Any:
-        """The deformation gradient F = I + grad u (for any material law).
-
-        Args:
-            u: A displacement (UFL vector).
-
-        Returns:
-            F (UFL tensor).
-        """
-        return deformation_gradient(u)
-
-    def P(self, u: Any) -> Any:
-        """The first Piola-Kirchhoff stress dpsi/dF(I + grad u) of the material law.
-
-        With E, nu per cell tag as given; Hooke's sigma(u) for the linear material.
-
-        Args:
-            u: A displacement (UFL vector).
-
-        Returns:
-            P (UFL tensor), :meth:`~dwr_signorini.fields.MeshFields.first_piola`.
-        """
-        return self.fields.first_piola(u)
-
-    def cauchy(self, u: Any) -> Any:
-        """The Cauchy stress P F^T / det F; Hooke's sigma(u) for the linear material.
-
-        Args:
-            u: A displacement (UFL vector).
-
-        Returns:
-            sigma (UFL tensor) at the reference points, :meth:`~.MeshFields.cauchy`.
-        """
-        return self.fields.cauchy(u)
-
-    def epsilon(self, u: Any) -> Any:
-        """Strain eps(u) = sym(grad u).
-
-        Args:
-            u: A displacement (UFL vector).
-
-        Returns:
-            The strain tensor (UFL).
-        """
-        return self.problem.epsilon(u)
 
 
 class Discretization:
