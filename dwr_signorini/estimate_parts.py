@@ -88,14 +88,25 @@ class IndicatorForm:
     def __init__(self, disc: Any, form: ufl.Form, DG0: fem.FunctionSpace,
                  degree: int | None) -> None:
         q = ufl.TestFunction(DG0)
-        self.compiled = disc.form(localize(with_quadrature_degrees(form, degree), q))
+        groups: dict[tuple, list] = {}
+        for itg in localize(with_quadrature_degrees(form, degree), q).integrals():
+            key = (itg.integral_type(), itg.subdomain_id(), itg.metadata().get("quadrature_degree"))
+            groups.setdefault(key, []).append(itg)
+        # One form per (type, subdomain, degree): integrals of one subdomain with different
+        # degrees compiled into one kernel assembled to another sum than their own (measured:
+        # rho* with J' added -1.318e-4 against -2.027e-4 for its integrals one by one).
+        self.compiled = [disc.form(ufl.Form(group)) for group in groups.values()]
+        index_map = DG0.dofmap.index_map
+        self._size = (index_map.size_local + index_map.num_ghosts) * DG0.dofmap.index_map_bs
 
     def assemble(self) -> np.ndarray:
         """The indicators (local array, ghosts included, their contributions summed)."""
-        vec = fem_petsc.assemble_vector(self.compiled)
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        out = vec.array.copy()
-        vec.destroy()
+        out = np.zeros(self._size)
+        for compiled in self.compiled:
+            vec = fem_petsc.assemble_vector(compiled)
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            out += vec.array
+            vec.destroy()
         return out
 
 

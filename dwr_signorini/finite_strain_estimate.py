@@ -63,6 +63,7 @@ from dolfinx.fem import petsc as fem_petsc
 from ufl.algorithms import expand_derivatives
 
 from .dual import DualSolution
+from .estimate_parts import IndicatorForm
 from .estimator import Estimate, _assemble_indicators, goal_magnitude
 from .finite_strain import (
     FiniteStrainSolution,
@@ -72,7 +73,7 @@ from .finite_strain import (
     residual_forms,
     signed_distance,
 )
-from .goal import Goal, GoalForms, localize
+from .goal import Goal, GoalForms
 from .interval import contact_set_resolved, roundoff_bound
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
@@ -412,11 +413,7 @@ def contact_facet_indicators(disc: Any, form: ufl.Form, degree: int | None) -> f
     part = _contact_part(form, disc.problem.contact_tags)
     if part is None:
         return out
-    q = ufl.TestFunction(disc.Q)
-    vec = fem_petsc.assemble_vector(disc.form(localize(with_quadrature_degrees(part, degree), q)))
-    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     n = disc.Q.dofmap.index_map.size_local
-    out.x.array[:n] = vec.array_r[:n]
+    out.x.array[:n] = IndicatorForm(disc, part, disc.Q, degree).assemble()[:n]
     out.x.scatter_forward()
-    vec.destroy()
     return out
