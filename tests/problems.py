@@ -128,10 +128,9 @@ def estimate_rel(level) -> float:
     """The relative tolerance to which a level's estimates agree between one process and several.
 
     The patch weights agree to round-off. The hierarchical P2 weights (``weights="auto"`` on a level
-    whose contact set is not resolved) are solved with SOR sweeps that are local to each process
-    and stop at a relative residual of ``HIERARCHICAL_RTOL``, so their estimates agree to that
-    tolerance (measured: 1e-5 on dolfinx 0.9, 1.9e-4 on 0.11 for the ghosted strip, whose
-    partition differs between the versions).
+    whose contact set is not resolved) are solved iteratively (the coarse step by the factors
+    of each partition, the smoother's eigenvalue estimate from a random start) and stop at a
+    relative residual of ``HIERARCHICAL_RTOL``, so their estimates agree to that tolerance.
     """
     from dwr_signorini.hierarchical import HIERARCHICAL_RTOL
 
