@@ -70,7 +70,7 @@ def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
     )
 
 
-def indented_block(comm, nx, ny, delta, s_L=1.0, s_E=1.0, radius=1.0):
+def indented_block(comm, nx, ny, delta, s_L=1.0, s_E=1.0, radius=1.0, nu=0.3):
     """(0, 1) x (0, 0.5) scaled by s_L, top clamped, bottom in possible contact with a disc of
     radius ``radius`` (paraboloid gap) touching at x = 0.5 and lowered by delta.
 
@@ -94,7 +94,7 @@ def indented_block(comm, nx, ny, delta, s_L=1.0, s_E=1.0, radius=1.0):
 
     return ds.SignoriniProblem(
         msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
-        dirichlet=(ex.DIRICHLET,), E=10.0 * s_E, nu=0.3, gap=gap,
+        dirichlet=(ex.DIRICHLET,), E=10.0 * s_E, nu=nu, gap=gap,
     )
 
 
