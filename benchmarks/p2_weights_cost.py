@@ -6,11 +6,16 @@ the hierarchical P2 weights on every level; goal the total contact force. On one
 ``--n`` x ``--n / 2`` squares (each cut in two triangles) the script solves, then estimates with
 ``weights="auto"`` (and with ``--compare``, also with ``"patch"`` and ``"higher_order"``), and
 prints the seconds of the solve and of every timed phase of the estimate
-(:mod:`dwr_signorini.timing`), the FGMRES iterations of each P2 solve, and, with
-``--profile``, the functions of the estimate that take most time (cProfile)::
+(:mod:`dwr_signorini.timing`), the FGMRES iterations of each P2 solve, the ratio of the
+estimate's time to the solve's, and, with ``--profile``, the functions of the estimate that take
+most time (cProfile). ``--baseline FILE`` also estimates with the two-level solver of another
+version of ``dwr_signorini/hierarchical.py`` (in the same run, on the same solution)::
 
-    scripts/fenicsx python3 benchmarks/p2_weights_cost.py --n 190
-    scripts/fenicsx mpirun -n 2 python3 benchmarks/p2_weights_cost.py --n 190
+    git show 2b0e0a5:dwr_signorini/hierarchical.py > results/baseline_hierarchical.py
+    scripts/fenicsx python3 benchmarks/p2_weights_cost.py --n 190 --compare \
+        --baseline results/baseline_hierarchical.py
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/p2_weights_cost.py --n 190 \
+        --baseline results/baseline_hierarchical.py
 """
 
 from __future__ import annotations
@@ -19,7 +24,10 @@ import argparse
 import cProfile
 import io
 import pstats
+import sys
 import time
+import types
+from pathlib import Path
 from typing import Any
 
 from mpi4py import MPI
@@ -29,8 +37,8 @@ import ufl
 from dolfinx import mesh
 
 import dwr_signorini as ds
+from dwr_signorini import estimator, hierarchical
 from dwr_signorini import examples as ex
-from dwr_signorini import hierarchical
 from dwr_signorini.timing import snapshot
 
 
@@ -61,10 +69,20 @@ def total_force(u: Any, lam: Any, m: Any) -> ufl.Form:
 ITERATIONS: list[tuple[bool, int]] = []
 
 
-def count_iterations() -> None:
-    """Record the FGMRES iterations of every hierarchical P2 solve in :data:`ITERATIONS`."""
+def baseline_module(path: str) -> types.ModuleType:
+    """Another version of ``dwr_signorini/hierarchical.py``, loaded inside the package."""
+    source = Path(path).read_text()
+    module = types.ModuleType("dwr_signorini._baseline_hierarchical")
+    module.__package__ = "dwr_signorini"
+    sys.modules[module.__name__] = module
+    exec(compile(source, path, "exec"), module.__dict__)
+    return module
+
+
+def count_iterations(module: types.ModuleType = hierarchical) -> None:
+    """Record the FGMRES iterations of every P2 solve of ``module`` in :data:`ITERATIONS`."""
     record = ITERATIONS
-    solve = hierarchical._P2System.solve
+    solve = module._P2System.solve
 
     def counted(self: Any, transpose: bool, *args: Any, **kwargs: Any) -> Any:
         try:
@@ -72,7 +90,7 @@ def count_iterations() -> None:
         finally:
             record.append((transpose, self.ksp.getIterationNumber()))
 
-    hierarchical._P2System.solve = counted
+    module._P2System.solve = counted
 
 
 def phases(before: dict[str, float], after: dict[str, float]) -> dict[str, float]:
@@ -80,7 +98,7 @@ def phases(before: dict[str, float], after: dict[str, float]) -> dict[str, float
     return {k: after[k] - before[k] for k in after if after[k] - before[k] > 1e-3}
 
 
-def estimate(comm: MPI.Comm, sol: Any, weights: str, profile: bool) -> None:
+def estimate(comm: MPI.Comm, sol: Any, weights: str, profile: bool, t_solve: float) -> None:
     """One estimate, its phases, FGMRES iterations and profile printed on rank 0."""
     ITERATIONS.clear()
     record = ITERATIONS
@@ -96,8 +114,9 @@ def estimate(comm: MPI.Comm, sol: Any, weights: str, profile: bool) -> None:
     seconds = comm.allreduce(time.perf_counter() - tic, op=MPI.MAX)
     spent = phases(before, snapshot())
     if comm.rank == 0:
-        print(f"estimate weights={weights!r} -> {est.weights}: {seconds:.2f} s, "
-              f"eta {est.eta:.6e}, eta_p {est.eta_p:.6e}")
+        print(f"estimate weights={weights!r} -> {est.weights}: {seconds:.2f} s "
+              f"({seconds / t_solve:.2f} x the solve), eta {est.eta:.8e}, "
+              f"eta_p {est.eta_p:.8e}")
         print("  phases: " + ", ".join(f"{k} {v:.2f}" for k, v in spent.items()))
         if record:
             print("  FGMRES iterations (transpose, count): " + str(record))
@@ -115,9 +134,14 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true")
     parser.add_argument("--compare", action="store_true",
                         help="also estimate with patch and higher_order weights")
+    parser.add_argument("--baseline", help="a file with another hierarchical.py to compare")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     count_iterations()
+    baseline = None
+    if args.baseline:
+        baseline = baseline_module(args.baseline)
+        count_iterations(baseline)
     disc = ds.discretize(hertz_problem(comm, args.n, args.nu))
     comm.Barrier()
     before, tic = snapshot(), time.perf_counter()
@@ -129,9 +153,18 @@ def main() -> None:
                   f"{disc.num_dofs} DoFs, nu = {args.nu}")
             print(f"solve: {t_solve:.2f} s, {sol.newton_iterations} Newton steps; phases: "
                   + ", ".join(f"{k} {v:.2f}" for k, v in spent.items()))
-        kinds = ("auto", "patch", "higher_order") if args.compare else ("auto",)
-        for weights in kinds:
-            estimate(comm, sol, weights, args.profile and weights == "auto")
+        if args.compare:  # first, so that the P2 forms are compiled before the timings below
+            for weights in ("patch", "higher_order"):
+                estimate(comm, sol, weights, False, t_solve)
+        if baseline is not None:
+            if comm.rank == 0:
+                print(f"baseline: the hierarchical solver of {args.baseline}")
+            estimator.hierarchical_solutions = baseline.hierarchical_solutions
+            estimate(comm, sol, "auto", False, t_solve)
+            estimator.hierarchical_solutions = hierarchical.hierarchical_solutions
+            if comm.rank == 0:
+                print("this version:")
+        estimate(comm, sol, "auto", args.profile, t_solve)
 
 
 if __name__ == "__main__":
