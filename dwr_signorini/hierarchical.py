@@ -3,23 +3,22 @@ r"""The P2 solutions of the higher-order weights, by a two-level solver instead 
 ``weights="higher_order"`` solves the dual problem (11)-(12), and for eta the primal one, in P2
 on T_h (with Lambda_H and the final active set) by a factorisation of the P2 system, which in 3D
 costs many times the P1 level. ``weights="hierarchical"`` solves the same two P2 systems, to a
-relative residual of :data:`HIERARCHICAL_RTOL`, by FGMRES preconditioned with a two-level sweep
-in the hierarchical basis of P2 = P1 + span{edge functions} (the P2 nodal functions that vanish
-at the vertices; on Q2 those of the edges, faces and cells):
+relative residual of :data:`HIERARCHICAL_RTOL`, by FGMRES preconditioned with a two-level cycle
+on P1 subset P2 (a p-multigrid cycle; on Q2 the coarse space is Q1):
 
-1. *edge step*: one symmetric SOR sweep on the edge block of the P2 stiffness matrix, which is
-   well conditioned on every mesh;
+1. *smoothing*: :data:`SMOOTHING_STEPS` Chebyshev steps with Jacobi on the P2 stiffness
+   matrix (on all its unknowns);
 2. *coarse step*: the residual tested with the P1 functions (P^T r, P the interpolation
    P1 -> P2) and with the multipliers, corrected by the Newton matrix of the last step (the
    primal) or its transpose (the dual), with the factorisations the P1 dual already used
    (:mod:`~dwr_signorini.dual`);
-3. the edge step again.
+3. the smoothing again.
 
 The dual's unknowns are y and the multiplier xi^(1) of the Newton system's scaling (c = 1 in
 b_h, see :mod:`~dwr_signorini.residuals`): xi = xi^(1) / c on the active facets; the primal's
 are the correction of w_h. The iterations start from z_h and w_h written in P2. No matrix of
-the size of the P2 system is factored: each iteration costs two SOR sweeps on the edge
-unknowns, one solve with the existing factors and a few sparse matrix-vector products.
+the size of the P2 system is factored: each iteration costs two smoothing steps, one solve with
+the existing factors and a few sparse matrix-vector products.
 ``tests/test_hierarchical.py`` checks both solutions against the directly solved P2 systems.
 On coarse 3D meshes where the patch-wise recovery of z_h misses the first contact
 (``benchmarks/weights_3d.py``) it gives the estimate of the higher-order weights, in a third to
@@ -37,7 +36,6 @@ from petsc4py import PETSc
 
 import numpy as np
 from dolfinx import fem
-from dolfinx.cpp import mesh as _cpp_mesh
 from dolfinx.fem import petsc as fem_petsc
 
 from .algebra import ContactAlgebra
@@ -45,13 +43,17 @@ from .dual import DualSolution, dual_rhs
 from .force import ForceControl
 from .goal import GoalForms
 from .lifetime import Releasable, destroy_attributes
+from .linalg.options import OptionsScope, unique_prefix
 from .newton import Solution
 from .timing import timed
 
 __all__ = ["HIERARCHICAL_RTOL", "HierarchicalP2", "hierarchical_solutions"]
 
-#: Relative residual of the P2 systems at which ``weights="hierarchical"`` stops.
-HIERARCHICAL_RTOL = 1e-3
+#: Relative residual of the P2 systems at which ``weights="hierarchical"`` stops. With the
+#: Chebyshev smoother a residual of 1e-3 left eta 1.7 % from the factored P2 weights' on a level
+#: of the strip of ``tests/test_hierarchical.py``; 1e-4 left at most 3.6e-4 there and 2e-5 on
+#: the Hertz block of ``benchmarks/p2_weights_cost.py`` (41k P1 DoFs, nu = 0.49).
+HIERARCHICAL_RTOL = 1e-4
 
 #: The bordered systems of an obstacle under a given force solve each of their P2 systems to
 #: this fraction of the tolerance: z = z1 - zeta z2 (:mod:`~dwr_signorini.force`) may cancel.
@@ -60,22 +62,42 @@ BORDERED_RTOL_FACTOR = 0.1
 #: Relative to the right-hand side: a residual of w_h below it counts as solved (round-off).
 ROUNDOFF = 1e-12
 
+#: Chebyshev steps (Jacobi-preconditioned, on all P2 unknowns) of one smoothing step. Measured
+#: on the nearly incompressible Hertz block of ``benchmarks/p2_weights_cost.py`` (147k P1 DoFs,
+#: nu = 0.49), FGMRES iterations of the dual and the primal: 36 and 24 with one SOR sweep on the
+#: edge unknowns only, 21 and 13 with one SOR sweep on all P2 unknowns, 13 and 8 with three;
+#: 22 and 14 with two Chebyshev steps, 15 and 9 with four, 11 and 7 with eight. A Chebyshev step
+#: costs one product with K_2, a symmetric SOR sweep about six.
+SMOOTHING_STEPS = 4
+
+#: The smoother's options: Chebyshev on the eigenvalues of diag(K_2)^-1 K_2 in
+#: [0.1, 1.1] x the largest one, estimated by a few Krylov steps (rank-count independent, unlike
+#: SOR, which sweeps per process).
+SMOOTHER = {
+    "ksp_type": "chebyshev",
+    "pc_type": "jacobi",
+    "ksp_max_it": SMOOTHING_STEPS,
+    "ksp_norm_type": "none",
+    "ksp_chebyshev_esteig": "0,0.1,0,1.1",
+}
+
 #: Most FGMRES iterations on a P2 system.
 MAX_ITERATIONS = 200
 
 
-def _edge_index_set(V2: fem.FunctionSpace) -> PETSc.IS:
-    """The owned non-vertex dofs of V2 (all components), as global PETSc indices."""
-    imap, bs = V2.dofmap.index_map, V2.dofmap.index_map_bs
-    layout = V2.dofmap.dof_layout
-    num_vertices = _cpp_mesh.cell_num_entities(V2.mesh.topology.cell_type, 0)
-    vertex_dofs = [d for i in range(num_vertices) for d in layout.entity_dofs(0, i)]
-    is_vertex = np.zeros(imap.size_local + imap.num_ghosts, dtype=bool)
-    is_vertex[V2.dofmap.list[:, vertex_dofs].ravel()] = True
-    edges = np.flatnonzero(~is_vertex[: imap.size_local]).astype(np.int32)
-    blocks = imap.local_to_global(edges)
-    indices = (blocks[:, None] * bs + np.arange(bs)[None, :]).ravel().astype(PETSc.IntType)
-    return PETSc.IS().createGeneral(indices, comm=V2.mesh.comm)
+def _smoother(K2: PETSc.Mat) -> PETSc.KSP:
+    """:data:`SMOOTHING_STEPS` Chebyshev steps with Jacobi on K_2 from zero (:data:`SMOOTHER`)."""
+    scope = OptionsScope(unique_prefix(), SMOOTHER)
+    ksp = PETSc.KSP().create(K2.getComm())
+    try:
+        ksp.setOperators(K2)
+        scope.apply(ksp)
+    except BaseException:
+        ksp.destroy()
+        raise
+    finally:
+        scope.destroy()
+    return ksp
 
 
 class _P2System:
@@ -89,7 +111,7 @@ class _P2System:
     system of :mod:`~dwr_signorini.dual`, whose multiplier is xi^(1).
     """
 
-    _petsc_objects = ("P", "edges", "edge_ksp", "ksp", "op", "b", "x", "rhs1", "z1")
+    _petsc_objects = ("P", "smoother", "r_s", "d_s", "ksp", "op", "b", "x", "rhs1", "z1")
 
     def __init__(self, sol: Solution, V2: fem.FunctionSpace) -> None:
         self.disc, self.system, self.V2 = sol.disc, sol.system, V2
@@ -102,23 +124,15 @@ class _P2System:
             raise
 
     def _set_up(self, sol: Solution, V2: fem.FunctionSpace) -> None:
-        """The P2 algebra, the prolongation P, the edge smoother and the FGMRES solver."""
+        """The P2 algebra, the prolongation P, the smoother and the FGMRES solver."""
         disc, system = self.disc, self.system
         # K_2, N_2, f_2, g on V2: what the factored P2 solve of weights="higher_order" uses.
         self.algebra = ContactAlgebra(disc, V2, sol.ncp_scale)
         self.K2, self.N2 = self.algebra.K, self.algebra.N
         self.P = fem_petsc.interpolation_matrix(disc.V, V2)
         self.P.assemble()
-        self.edges = _edge_index_set(V2)
-        # The edge step: one symmetric SOR sweep on the edge block (per process).
-        A_ee = self.K2.createSubMatrix(self.edges, self.edges)
-        self.edge_ksp = PETSc.KSP().create(disc.comm)
-        self.edge_ksp.setOperators(A_ee)
-        self.edge_ksp.setType("richardson")
-        self.edge_ksp.getPC().setType("sor")
-        self.edge_ksp.setNormType(PETSc.KSP.NormType.NONE)
-        self.edge_ksp.setTolerances(max_it=1)
-        A_ee.destroy()
+        self.smoother = _smoother(self.K2)
+        self.r_s, self.d_s = self.K2.createVecs()
 
         self.n2 = self.K2.getLocalSize()[0]
         self.n_lam = system.n_lam
@@ -166,19 +180,11 @@ class _P2System:
         for vec in (u_vec, out_u, lam_vec, out_lam, tmp):
             vec.destroy()
 
-    def edge_solve(self, r: np.ndarray) -> np.ndarray:
-        """One smoothing step for A_ee d_e = r_e, as a full P2 array (zero at the vertices)."""
-        r_vec = self._u_vec(np.ascontiguousarray(r))
-        d_vec = r_vec.duplicate()
-        d_vec.zeroEntries()
-        r_e, d_e = r_vec.getSubVector(self.edges), d_vec.getSubVector(self.edges)
-        self.edge_ksp.solve(r_e, d_e)
-        r_vec.restoreSubVector(self.edges, r_e)
-        d_vec.restoreSubVector(self.edges, d_e)
-        out = d_vec.array.copy()
-        for vec in (r_vec, d_vec):
-            vec.destroy()
-        return out
+    def smooth(self, r: np.ndarray) -> np.ndarray:
+        """One smoothing step for K_2 d = r (owned P2 arrays)."""
+        self.r_s.array_w[:] = r
+        self.smoother.solve(self.r_s, self.d_s)
+        return self.d_s.array_r.copy()
 
     def coarse_solve(self, r_u: np.ndarray, r_lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The P1 correction by the factors of the last Newton step: (P d_u, d_lam).
@@ -267,7 +273,7 @@ class _Operator:
 
 
 class _TwoLevel:
-    """The preconditioner: edge step, coarse step, edge step (a symmetric two-level sweep)."""
+    """The preconditioner: smoothing, coarse step, smoothing (a symmetric two-level cycle)."""
 
     def __init__(self, system: _P2System) -> None:
         self.s = system
@@ -277,7 +283,7 @@ class _TwoLevel:
         n2 = s.n2
         res = r.array_r.copy()
         out = np.zeros_like(res)
-        out[:n2] = s.edge_solve(res[:n2])
+        out[:n2] = s.smooth(res[:n2])
         k = np.empty_like(res)
         s.apply(out, k)
         rest = res - k
@@ -285,7 +291,7 @@ class _TwoLevel:
         out[:n2] += d_u
         out[n2:] += d_lam
         s.apply(out, k)
-        out[:n2] += s.edge_solve((res - k)[:n2])
+        out[:n2] += s.smooth((res - k)[:n2])
         d.array_w[:] = out
 
 

@@ -433,8 +433,8 @@ def test_a_failure_in_the_p2_set_up_leaves_nothing_behind(monkeypatch):
             super().__init__(*args, **kwargs)
             made.append(self)
 
-    def fails(V2):
-        raise RuntimeError("edge set failed")
+    def fails(K2):
+        raise RuntimeError("smoother failed")
 
     def goal(u, lam, m):
         return lam * m.ds_contact
@@ -443,8 +443,8 @@ def test_a_failure_in_the_p2_set_up_leaves_nothing_behind(monkeypatch):
         with ds.estimate(sol, goal, weights="patch") as est:
             good = est.eta
         monkeypatch.setattr(hierarchical, "ContactAlgebra", Recorded)
-        monkeypatch.setattr(hierarchical, "_edge_index_set", fails)
-        with pytest.raises(RuntimeError, match="edge set failed"):
+        monkeypatch.setattr(hierarchical, "_smoother", fails)
+        with pytest.raises(RuntimeError, match="smoother failed"):
             ds.estimate(sol, goal, weights="hierarchical")
         assert len(made) == 1
         assert all(getattr(made[0], name) is None for name in ("K", "N", "NT", "f", "M", "g"))

@@ -44,8 +44,8 @@ def _energy(u, lam, m):
 @pytest.mark.parametrize("weights", ["patch", "auto"])
 def test_ghosted_mesh_solve_estimate_and_adaptive_step_equal_serial(weights):
     """With the patch weights every number agrees to round-off. With ``weights="auto"`` the
-    unresolved first level is estimated by the hierarchical P2 solver, whose SOR sweeps are per
-    process and which stops at a relative residual of 1e-3: its estimates agree to that
+    unresolved first level is estimated by the hierarchical P2 solver, which stops at a
+    relative residual of ``HIERARCHICAL_RTOL``: its estimates agree to that
     (``tests.problems.estimate_rel``)."""
     runs = {}
     for name, comm in (("world", MPI.COMM_WORLD), ("self", MPI.COMM_SELF)):

@@ -27,7 +27,7 @@ from dwr_signorini.hierarchical import hierarchical_solutions
 from dwr_signorini.reconstruction import Reconstructor
 
 from .helpers import total_force
-from .problems import strip_problem
+from .problems import indented_block, strip_problem
 
 pytestmark = pytest.mark.mpi
 
@@ -51,6 +51,10 @@ CASES = {
     ),
     "example 5.3": (lambda comm: ex.obstacle_problem(comm, (1, 4, 4)), ex.goal_obstacle()),
     "Tresca friction 2D": (lambda comm: ex.friction_problem(comm), ex.goal_friction_force()),
+    # nu = 0.49: the P1 coarse space locks, the smoother carries the divergence-free modes
+    "nearly incompressible Hertz block": (
+        lambda comm: indented_block(comm, 24, 11, 0.01, nu=0.49), total_force,
+    ),
 }
 
 
@@ -82,8 +86,10 @@ def test_iterative_p2_dual_equals_the_factored_one(case):
 @pytest.mark.parametrize("case", CASES)
 def test_hierarchical_estimate_approaches_higher_order(case, monkeypatch):
     """eta_p and eta to a tight tolerance equal those of the factored P2 solutions, and to the
-    default one are within 1 % of them."""
+    default one (a relative residual of 1e-4) are within 1e-3 of them (measured: at most
+    3.6e-4, on a level of the strip)."""
     build, goal = CASES[case]
+    rel = 10 * hierarchical.HIERARCHICAL_RTOL
     comm = MPI.COMM_WORLD
     with ds.solve(build(comm)) as sol:
         with ds.estimate(sol, goal, weights="higher_order") as high:
@@ -94,8 +100,8 @@ def test_hierarchical_estimate_approaches_higher_order(case, monkeypatch):
     assert many.eta_p == pytest.approx(high.eta_p, rel=1e-6)
     assert many.eta == pytest.approx(high.eta, rel=1e-6)
     assert hier.J_h == high.J_h
-    assert hier.eta_p == pytest.approx(high.eta_p, rel=1e-2)
-    assert hier.eta == pytest.approx(high.eta, rel=1e-2)
+    assert hier.eta_p == pytest.approx(high.eta_p, rel=rel)
+    assert hier.eta == pytest.approx(high.eta, rel=rel)
 
 
 def test_hierarchical_weights_on_the_krylov_path(monkeypatch):
@@ -121,7 +127,7 @@ def test_hierarchical_weights_on_the_krylov_path(monkeypatch):
 
 
 def test_adaptive_run_with_hierarchical_weights():
-    """solve_adaptive refines by the hierarchical indicators; on every level eta is within 1 %
+    """solve_adaptive refines by the hierarchical indicators; on every level eta is within 1e-3
     of that of the factored P2 solutions on the same solution."""
     comm = MPI.COMM_WORLD
     levels = []
@@ -137,4 +143,4 @@ def test_adaptive_run_with_hierarchical_weights():
     assert len(levels) == 3
     for level, weights, eta, eta_high in levels:
         assert weights == "hierarchical"
-        assert eta == pytest.approx(eta_high, rel=1e-2), level
+        assert eta == pytest.approx(eta_high, rel=10 * hierarchical.HIERARCHICAL_RTOL), level
