@@ -15,7 +15,7 @@ import pytest
 from dolfinx import fem
 
 import dwr_signorini as ds
-from dwr_signorini import cases
+from dwr_signorini import cases, hierarchical
 from dwr_signorini import examples as ex
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.goal import GoalForms
@@ -140,8 +140,20 @@ def test_path_matches_block_path(case, path):
     # The estimator takes the dual solution through Solution.system on either path.
     est0, est1 = ds.estimate(s0, goal), ds.estimate(s1, goal)
     assert np.isclose(est1.J_h, est0.J_h, rtol=tol)
-    assert np.isclose(est1.eta, est0.eta, rtol=100 * tol)
-    assert np.isclose(est1.eta_p, est0.eta_p, rtol=100 * tol)
+    assert est1.weights == est0.weights
+    for a, b in ((est0.eta, est1.eta), (est0.eta_p, est1.eta_p)):
+        assert abs(b - a) <= _estimate_tolerance(est0, 100 * tol * abs(a))
+
+
+def _estimate_tolerance(est, tol):
+    """How far two solver paths' estimates may differ: ``tol``, or with the hierarchical P2
+    weights (an FGMRES to HIERARCHICAL_RTOL from each path's P1 factors) 10 x that tolerance of
+    the size of the terms |rho| + |rho*| + |C| (measured 1.2e-5 of eta on the 3D obstacle's
+    Krylov path, where the factored weights agree to 1e-8)."""
+    if est.weights != "hierarchical":
+        return tol
+    scale = abs(est.rho) + abs(est.rho_star or 0.0) + abs(est.contact_term)
+    return max(tol, 10 * hierarchical.HIERARCHICAL_RTOL * scale)
 
 
 @pytest.mark.mpi
@@ -640,7 +652,11 @@ def test_newton_steps_reusing_factors_match_factoring(monkeypatch):
         assert (a.num_cells, a.newton_iterations, a.num_active) == (
             b.num_cells, b.newton_iterations, b.num_active)
         assert b.J_h == pytest.approx(a.J_h, rel=1e-11)
-        assert b.eta == pytest.approx(a.eta, rel=1e-8, abs=1e-10 * abs(a.J_h))
+        assert b.weights == a.weights
+        # the hierarchical P2 weights (an FGMRES to HIERARCHICAL_RTOL from each path's factors)
+        # agree to that tolerance: measured 1.1e-5 of eta on a level of this run
+        rel = 10 * hierarchical.HIERARCHICAL_RTOL if a.weights == "hierarchical" else 1e-8
+        assert b.eta == pytest.approx(a.eta, rel=rel, abs=1e-10 * abs(a.J_h))
 
 
 @pytest.mark.mpi
