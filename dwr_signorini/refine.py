@@ -125,11 +125,11 @@ def _restore_geometry(
     the midpoint to round-off).
     """
     gdim = macro.geometry.dim
-    fine_dofs = fine.geometry.dofmap[: len(parent_cell)]
+    fine_dofs = compat.geometry_dofmap(fine)[: len(parent_cell)]
     # each fine node once, with the first local cell it belongs to (any cell gives the same
     # point: a vertex, or the midpoint 0.5 (a + b) of the same edge)
     nodes, first_at = np.unique(fine_dofs.ravel(), return_index=True)
-    macro_dofs = macro.geometry.dofmap[parent_cell[first_at // fine_dofs.shape[1]]]
+    macro_dofs = compat.geometry_dofmap(macro)[parent_cell[first_at // fine_dofs.shape[1]]]
     nv = macro_dofs.shape[1]
     pairs = [(a, b) for a in range(nv) for b in range(a, nv)]  # a == b: the vertex itself
     first, second = (macro_dofs[:, list(p)] for p in zip(*pairs, strict=True))
