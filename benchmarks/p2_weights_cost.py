@@ -32,7 +32,6 @@ from typing import Any
 
 from mpi4py import MPI
 
-import numpy as np
 import ufl
 from dolfinx import mesh
 
@@ -47,14 +46,9 @@ def hertz_problem(comm: MPI.Comm, n: int, nu: float) -> ds.SignoriniProblem:
     msh = mesh.create_rectangle(comm, [(0.0, 0.0), (1.0, 0.5)], [n, n // 2 + 1],
                                 mesh.CellType.triangle, ghost_mode=mesh.GhostMode.none)
 
-    def classify(x: np.ndarray) -> np.ndarray:
-        tags = np.full(x.shape[1], ex.NEUMANN)
-        tags[np.isclose(x[1], 0.5)] = ex.DIRICHLET
-        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
-        return tags
 
     return ds.SignoriniProblem(
-        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        msh, ex.tag_block_facets(msh, 0.5), contact=ex.CONTACT,
         dirichlet=(ex.DIRICHLET,), E=10.0, nu=nu, model="plane_strain",
         gap=lambda x: (x[0] - 0.5) ** 2 / 2.0 - 0.01,
     )

@@ -31,17 +31,8 @@ def tag_by_midpoint(msh, default, rules):
     return mesh.meshtags(msh, fdim, facets, values)
 
 
-def top_clamped_tags(msh, height):
-    """The examples' facet tags of a rectangle (0, l) x (0, height): its top y = height clamped
-    (DIRICHLET), its bottom y = 0 in possible contact (CONTACT), its sides free (NEUMANN)."""
-
-    def classify(x):
-        values = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
-        values[np.isclose(x[1], height)] = ex.DIRICHLET
-        values[np.isclose(x[1], 0.0)] = ex.CONTACT
-        return values
-
-    return ex.tag_exterior_facets(msh, classify)
+#: The examples' facet tags of a block clamped on top, in possible contact at the bottom.
+top_clamped_tags = ex.tag_block_facets
 
 
 def strip_problem(comm, nx=32, ny=8, cell_type=TRI):
@@ -83,17 +74,12 @@ def indented_block(comm, nx, ny, delta, s_L=1.0, s_E=1.0, radius=1.0, nu=0.3):
         ghost_mode=mesh.GhostMode.none,
     )
 
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN)
-        tags[np.isclose(x[1], 0.5 * s_L)] = ex.DIRICHLET
-        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
-        return tags
 
     def gap(x):
         return s_L * (((x[0] / s_L - 0.5) ** 2) / (2 * radius) - delta)
 
     return ds.SignoriniProblem(
-        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        msh, ex.tag_block_facets(msh, 0.5 * s_L), contact=ex.CONTACT,
         dirichlet=(ex.DIRICHLET,), E=10.0 * s_E, nu=nu, gap=gap,
     )
 

@@ -282,13 +282,8 @@ def test_cylinder_force_control_is_displacement_control():
     msh = mesh.create_box(COMM, [(0.0, 0.0, 0.0), (1.0, 1.0, 0.5)], [4, 4, 2],
                           mesh.CellType.tetrahedron, ghost_mode=mesh.GhostMode.none)
 
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN)
-        tags[np.isclose(x[2], 0.5)] = ex.DIRICHLET
-        tags[np.isclose(x[2], 0.0)] = ex.CONTACT
-        return tags
 
-    tags = ex.tag_exterior_facets(msh, classify)
+    tags = ex.tag_block_facets(msh, 0.5)
 
     def cylinder(lift, **force):
         return ob.Cylinder((0.0, 0.5, -1.0 + lift), (1.0, 0.0, 0.0), 1.0, **force)

@@ -312,17 +312,12 @@ def _scaled(comm, s_L=1.0, s_E=1.0, s=None, nx=17, ny=7):
     msh = mesh.create_rectangle(comm, [(0.0, 0.0), (s_L, 0.5 * s_L)], [nx, ny],
                                 mesh.CellType.triangle, ghost_mode=mesh.GhostMode.none)
 
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
-        tags[np.isclose(x[1], 0.5 * s_L)] = ex.DIRICHLET
-        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
-        return tags
 
     def gap(x):
         return s_L * (x[0] / s_L - 0.5) ** 2 / (2.0 * d["radius"])
 
     return ds.SignoriniProblem(
-        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        msh, ex.tag_block_facets(msh, 0.5 * s_L), contact=ex.CONTACT,
         dirichlet={ex.DIRICHLET: (d["shear"] * s_L, -d["press"] * s_L)}, E=10.0 * s_E, nu=0.3,
         gap=gap, friction=ds.Tresca(d["s"] * s_E if s is None else s),
     )

@@ -279,17 +279,12 @@ def _scaled(s_L, s_E):
     msh = mesh.create_box(COMM, [np.zeros(3), np.array([s_L, s_L, 0.5 * s_L])], [6, 6, 3],
                           mesh.CellType.tetrahedron, ghost_mode=mesh.GhostMode.none)
 
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN, dtype=np.int32)
-        tags[np.isclose(x[2], 0.5 * s_L)] = ex.DIRICHLET
-        tags[np.isclose(x[2], 0.0)] = ex.CONTACT
-        return tags
 
     def gap(x):
         return ((x[0] - 0.5 * s_L) ** 2 + (x[1] - 0.5 * s_L) ** 2) / (2.0 * 4.0 * s_L)
 
     return ds.SignoriniProblem(
-        msh, ex.tag_exterior_facets(msh, classify), contact=ex.CONTACT,
+        msh, ex.tag_block_facets(msh, 0.5 * s_L), contact=ex.CONTACT,
         dirichlet={ex.DIRICHLET: (d["shear"] * s_L, 0.0, -d["press"] * s_L)}, E=10.0 * s_E,
         nu=0.3, gap=gap, friction=ds.Tresca(d["s"] * s_E),
     )

@@ -232,13 +232,8 @@ def test_coulomb_without_friction_is_the_frictionless_law():
     msh = mesh.create_rectangle(COMM, [(0.0, 0.0), (1.0, 0.5)], [16, 8],
                                 mesh.CellType.triangle, ghost_mode=mesh.GhostMode.none)
 
-    def classify(x):
-        tags = np.full(x.shape[1], ex.NEUMANN)
-        tags[np.isclose(x[1], 0.5)] = ex.DIRICHLET
-        tags[np.isclose(x[1], 0.0)] = ex.CONTACT
-        return tags
 
-    tags = ex.tag_exterior_facets(msh, classify)
+    tags = ex.tag_block_facets(msh, 0.5)
     ball = ds.obstacles.Sphere((0.5, -0.98), 1.0)
     block = [ds.SignoriniProblem(msh, tags, contact=ex.CONTACT, dirichlet=(ex.DIRICHLET,),
                                  E=10.0, nu=0.3, gap=ball, friction=law)

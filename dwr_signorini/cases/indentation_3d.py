@@ -12,11 +12,10 @@ from __future__ import annotations
 
 from mpi4py import MPI
 
-import numpy as np
 import ufl
 from dolfinx import mesh as _mesh
 
-from ..examples import CONTACT, DIRICHLET, NEUMANN, GoalContext, Material, tag_exterior_facets
+from ..examples import CONTACT, DIRICHLET, GoalContext, Material, tag_block_facets
 from ..problem import SignoriniProblem
 
 __all__ = ["INDENTATION_MATERIAL", "goal_total_force", "indentation_problem"]
@@ -42,15 +41,10 @@ def indentation_problem(
     msh = _mesh.create_box(comm, [(-1, -1, -1), (1, 1, 0)], [n, n, n // 2],
                            _mesh.CellType.tetrahedron, ghost_mode=_mesh.GhostMode.none)
 
-    def classify(x: np.ndarray) -> np.ndarray:
-        tags = np.full(x.shape[1], NEUMANN)
-        tags[np.isclose(x[2], -1.0)] = DIRICHLET
-        tags[np.isclose(x[2], 0.0)] = CONTACT
-        return tags
 
     mat = INDENTATION_MATERIAL
     return SignoriniProblem(
-        msh, tag_exterior_facets(msh, classify), contact=CONTACT, dirichlet=(DIRICHLET,),
+        msh, tag_block_facets(msh, -1.0), contact=CONTACT, dirichlet=(DIRICHLET,),
         E=mat.E, nu=mat.nu, model=mat.model,
         gap=lambda x: (x[0] ** 2 + x[1] ** 2) / (2 * radius) - depth,
     )

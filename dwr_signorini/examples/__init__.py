@@ -37,7 +37,7 @@ from dolfinx.mesh import CellType
 
 from ..problem import lame_parameters, stress
 from ._common import Goal, GoalContext, Material
-from ._mesh import CONTACT, DIRICHLET, NEUMANN, tag_exterior_facets
+from ._mesh import CONTACT, DIRICHLET, NEUMANN, tag_block_facets, tag_exterior_facets
 from .analytic_2d import (
     ANALYTIC_MATERIAL,
     analytic_2d_mesh,
@@ -135,5 +135,6 @@ __all__ = [
     "obstacle_psi",
     "omega",
     "stress",
+    "tag_block_facets",
     "tag_exterior_facets",
 ]

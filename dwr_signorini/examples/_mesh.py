@@ -55,6 +55,32 @@ def tag_exterior_facets(
     return _mesh.meshtags(msh, fdim, facets[order], values[order])
 
 
+def tag_block_facets(msh: Mesh, clamped_at: float, contact_at: float = 0.0) -> MeshTags:
+    """Tag the exterior facets of a block by their height (the last coordinate).
+
+    The facets in the plane at height ``clamped_at`` get :data:`DIRICHLET`, those at
+    ``contact_at`` :data:`CONTACT` and the others (the sides) :data:`NEUMANN`: a block clamped
+    (or moved) on one face and in possible contact on the opposite one.
+
+    Args:
+        msh: The mesh of a box or rectangle whose two faces are planes of constant height.
+        clamped_at: Height of the Dirichlet face.
+        contact_at: Height of the contact face.
+
+    Returns:
+        Facet tags on all exterior facets (:func:`tag_exterior_facets`).
+    """
+    up = msh.topology.dim - 1
+
+    def classify(x: npt.NDArray[np.float64]) -> npt.NDArray[np.int32]:
+        tags = np.full(x.shape[1], NEUMANN, dtype=np.int32)
+        tags[np.isclose(x[up], clamped_at)] = DIRICHLET
+        tags[np.isclose(x[up], contact_at)] = CONTACT
+        return tags
+
+    return tag_exterior_facets(msh, classify)
+
+
 def check_cell_type(cell_type: CellType, allowed: Sequence[CellType]) -> None:
     """Check that a mesh builder was asked for one of the cell types it supports.
 

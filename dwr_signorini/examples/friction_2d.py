@@ -27,7 +27,7 @@ from dolfinx import mesh as dmesh
 
 from ..laws import Tresca
 from ..problem import SignoriniProblem
-from ._mesh import CONTACT, DIRICHLET, NEUMANN, tag_exterior_facets
+from ._mesh import CONTACT, DIRICHLET, tag_block_facets
 
 __all__ = [
     "FRICTION_DEFAULTS",
@@ -115,15 +115,10 @@ def friction_problem(
             dmesh.CellType.tetrahedron, ghost_mode=dmesh.GhostMode.none,
         )
 
-    def classify(x: np.ndarray) -> np.ndarray:
-        tags = np.full(x.shape[1], NEUMANN, dtype=np.int32)
-        tags[np.isclose(x[dim - 1], top)] = DIRICHLET
-        tags[np.isclose(x[dim - 1], 0.0)] = CONTACT
-        return tags
 
     moved = (shear, -press) if dim == 2 else (shear, 0.0, -press)
     return SignoriniProblem(
-        msh, tag_exterior_facets(msh, classify), contact=CONTACT,
+        msh, tag_block_facets(msh, top), contact=CONTACT,
         dirichlet={DIRICHLET: moved}, E=10.0, nu=0.3,
         gap=friction_gap(radius, dim), friction=Tresca(s),
     )
