@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -77,6 +77,33 @@ def refine_near(model: Any, points: list[int], h_min: float, h_max: float, dist:
     field.setNumber(t, "DistMin", dist)
     field.setNumber(t, "DistMax", 4 * dist)
     field.setAsBackgroundMesh(t)
+
+
+def onto_round(
+    centre: Sequence[float], radius: float, axes: Sequence[int] = (0, 1, 2)
+) -> Callable[[np.ndarray], np.ndarray]:
+    """Points -> their nearest points on a circle, sphere or cylinder, for ``boundary_projection``.
+
+    Args:
+        centre: A point of the centre (of the axis, for a cylinder), three coordinates.
+        radius: The radius.
+        axes: The coordinates the distance is measured in: all three for a sphere; two for a
+            circle in that plane, or a cylinder along the third.
+
+    Returns:
+        The map of points (shape ``(3, n)``) that moves the coordinates ``axes`` radially onto
+        the surface and keeps the others.
+    """
+    axes = list(axes)
+    c = np.asarray(centre, dtype=float)[axes][:, None]
+
+    def project(x: np.ndarray) -> np.ndarray:
+        out = x.copy()
+        d = x[axes] - c
+        out[axes] = c + radius * d / np.linalg.norm(d, axis=0)
+        return out
+
+    return project
 
 
 def main(name: str, build: Callable[..., None], **defaults: float) -> None:

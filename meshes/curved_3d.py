@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_body_groups, main
+from _common import add_body_groups, main, onto_round
 
 CONTACT, TOP, SYMMETRY, ENDS = 1, 2, 3, 4
 BODY = 1
@@ -44,15 +44,7 @@ def build(model: Any, radius: float = RADIUS, length: float = LENGTH, h: float =
 
 def projections(radius: float = RADIUS) -> dict[int, Callable[[np.ndarray], np.ndarray]]:
     """``{CONTACT: points -> the nearest points of the cylinder}`` for ``boundary_projection``."""
-
-    def onto_cylinder(x: np.ndarray) -> np.ndarray:
-        out = x.copy()
-        d = np.stack([x[0], x[2] - radius])
-        d *= radius / np.linalg.norm(d, axis=0)
-        out[0], out[2] = d[0], radius + d[1]
-        return out
-
-    return {CONTACT: onto_cylinder}
+    return {CONTACT: onto_round((0.0, 0.0, radius), radius, axes=(0, 2))}
 
 
 if __name__ == "__main__":

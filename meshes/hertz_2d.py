@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_body_groups, main, refine_near
+from _common import add_body_groups, main, onto_round, refine_near
 
 CONTACT, TOP, SYMMETRY = 1, 2, 3
 BODY = 1
@@ -47,14 +47,7 @@ def build(
 
 def projections(radius: float = RADIUS) -> dict[int, Callable[[np.ndarray], np.ndarray]]:
     """``{CONTACT: points -> the nearest points of the circle}`` for ``boundary_projection``."""
-    center = np.array([0.0, radius, 0.0])[:, None]
-
-    def onto_circle(x: np.ndarray) -> np.ndarray:
-        d = x - center
-        d[2] = 0.0
-        return center + radius * d / np.linalg.norm(d, axis=0)
-
-    return {CONTACT: onto_circle}
+    return {CONTACT: onto_round((0.0, radius, 0.0), radius, axes=(0, 1))}
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_body_groups, boundary_of, main, refine_near
+from _common import add_body_groups, boundary_of, main, onto_round, refine_near
 
 CONTACT, TOP, SYMMETRY_X, SYMMETRY_Y = 1, 2, 3, 4
 BODY = 1
@@ -69,13 +69,7 @@ def build(
 
 def projections(radius: float = RADIUS) -> dict[int, Callable[[np.ndarray], np.ndarray]]:
     """``{CONTACT: points -> the nearest points of the sphere}`` for ``boundary_projection``."""
-    center = np.array([0.0, 0.0, radius])[:, None]
-
-    def onto_sphere(x: np.ndarray) -> np.ndarray:
-        d = x - center
-        return center + radius * d / np.linalg.norm(d, axis=0)
-
-    return {CONTACT: onto_sphere}
+    return {CONTACT: onto_round((0.0, 0.0, radius), radius)}
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_groups, boundary_of, main, refine_near
+from _common import add_groups, boundary_of, main, onto_round, refine_near
 
 LOWER_ARC, UPPER_ARC, LOWER_FLAT, UPPER_FLAT, LOWER_SYMMETRY, UPPER_SYMMETRY = 1, 2, 3, 4, 5, 6
 LOWER, UPPER = 1, 2
@@ -86,18 +86,8 @@ def projections(
     r_lower: float = 1.0, r_upper: float = 1.5
 ) -> dict[int, Callable[[np.ndarray], np.ndarray]]:
     """``{arc tag: points -> the nearest points of its circle}`` for ``boundary_projection``."""
-
-    def onto(center_y: float, radius: float) -> Callable[[np.ndarray], np.ndarray]:
-        center = np.array([0.0, center_y, 0.0])[:, None]
-
-        def project(x: np.ndarray) -> np.ndarray:
-            d = x - center
-            d[2] = 0.0
-            return center + radius * d / np.linalg.norm(d, axis=0)
-
-        return project
-
-    return {LOWER_ARC: onto(-r_lower, r_lower), UPPER_ARC: onto(r_upper, r_upper)}
+    return {LOWER_ARC: onto_round((0.0, -r_lower, 0.0), r_lower, axes=(0, 1)),
+            UPPER_ARC: onto_round((0.0, r_upper, 0.0), r_upper, axes=(0, 1))}
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_groups, boundary_of, main, refine_near
+from _common import add_groups, boundary_of, main, onto_round, refine_near
 
 LOWER_CONTACT, UPPER_CONTACT, LOWER_BASE, UPPER_TOP = 1, 2, 3, 4
 LOWER_SYMMETRY_X, UPPER_SYMMETRY_X, LOWER_SYMMETRY_Y, UPPER_SYMMETRY_Y = 5, 6, 7, 8
@@ -87,19 +87,9 @@ def projections(
     r_upper: float = 1.0, r_lower: float = 0.0
 ) -> dict[int, Callable[[np.ndarray], np.ndarray]]:
     """``{sphere tag: points -> the nearest points of its sphere}`` for ``boundary_projection``."""
-
-    def onto(centre_z: float, radius: float) -> Callable[[np.ndarray], np.ndarray]:
-        centre = np.array([0.0, 0.0, centre_z])[:, None]
-
-        def project(x: np.ndarray) -> np.ndarray:
-            d = x - centre
-            return centre + radius * d / np.linalg.norm(d, axis=0)
-
-        return project
-
-    out = {UPPER_CONTACT: onto(r_upper, r_upper)}
+    out = {UPPER_CONTACT: onto_round((0.0, 0.0, r_upper), r_upper)}
     if r_lower > 0.0:
-        out[LOWER_CONTACT] = onto(-r_lower, r_lower)
+        out[LOWER_CONTACT] = onto_round((0.0, 0.0, -r_lower), r_lower)
     return out
 
 

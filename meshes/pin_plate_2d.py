@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_groups, boundary_of, main
+from _common import add_groups, boundary_of, main, onto_round
 
 PIN_SURFACE, HOLE, PIN_BORE, PLATE_EDGE, PIN_SYMMETRY, PLATE_SYMMETRY = 1, 2, 3, 4, 5, 6
 PIN, PLATE = 1, 2
@@ -64,16 +64,8 @@ def projections(
     r_pin: float = 0.95, r_hole: float = 1.0
 ) -> dict[int, Callable[[np.ndarray], np.ndarray]]:
     """``{tag: points -> the nearest points of its circle}`` for ``boundary_projection``."""
-
-    def onto(r: float) -> Callable[[np.ndarray], np.ndarray]:
-        def project(x: np.ndarray) -> np.ndarray:
-            out = x.copy()
-            out[:2] *= r / np.linalg.norm(x[:2], axis=0)
-            return out
-
-        return project
-
-    return {PIN_SURFACE: onto(r_pin), HOLE: onto(r_hole)}
+    return {PIN_SURFACE: onto_round((0.0, 0.0, 0.0), r_pin, axes=(0, 1)),
+            HOLE: onto_round((0.0, 0.0, 0.0), r_hole, axes=(0, 1))}
 
 
 if __name__ == "__main__":
