@@ -21,6 +21,7 @@ int_GC u_x ds, which friction holds back.
 * mu = 0 (the richer path Coulomb(0)): zero to round-off.
 * The indicators (per cell and per macro facet) sum to the estimate; the summands per step sum
   to it.
+* Unit invariance: E and Tresca's threshold times 1000, the model error unchanged.
 * The backward chain of duals (the history goals): on a block whose third step sticks where its
   second slid, Tresca in place of Coulomb, the earlier steps' terms carry most of (M7) (ieff
   0.978 with them, 5.0 with the step's own term alone).
@@ -30,6 +31,7 @@ About 20 s serial without the ``slow`` tests (facets of 0.01, about 25 s more).
 
 from mpi4py import MPI
 
+import numpy as np
 import pytest
 import ufl
 
@@ -223,23 +225,21 @@ def test_indicators_and_steps_sum_to_the_estimate():
         assert abs(sum(row["steps"]) - row["eta"]) < 1e-12 * scale
 
 
-def block_path(law, msh, tags):
+def block_path(law, msh, tags, E=1.0):
     """A block (0, 4) x (0, 0.5) on a rigid plane, its top displaced by a press, a shear that
     slides the whole base, a second press that makes it stick, a small shear."""
     loads = [(0.0, -0.005), (0.03, -0.005), (0.03, -0.01), (0.035, -0.01)]
     return [ds.SignoriniProblem(msh, tags, contact=ex.CONTACT, dirichlet={ex.DIRICHLET: d},
-                                E=1.0, nu=0.3, friction=law) for d in loads]
+                                E=E, nu=0.3, friction=law) for d in loads]
 
 
-@pytest.mark.mpi
-def test_history_chain_carries_the_earlier_steps():
-    """Tresca(s = 0.0015) in place of Coulomb(0.3) on a path whose third step sticks where the
-    second slid: the slide that the second step's model error leaves is carried into the third
-    step's J by the history goal. Measured ieff 1.000, 1.000, 0.978, 0.938 on steps 0-3; on
-    step 2 the earlier steps' terms are -1.21e-2 of -1.51e-2 (the step's own term alone would
-    give ieff 5.0)."""
+def block_rows(E=1.0):
+    """Per step of the block path, Tresca(0.0015 E) in place of Coulomb(0.3): (true model
+    difference, eta_M, its steps' terms, its interval)."""
+    if ("block", E, COMM.size) in _CACHE:
+        return _CACHE["block", E, COMM.size]
     msh, tags = block(COMM, 16, 2, lx=4.0, ly=0.5)
-    rich = block_path(ds.Coulomb(0.3), msh, tags)
+    rich = block_path(ds.Coulomb(0.3), msh, tags, E)
     truth = []
     ds.solve_path(rich, slide, verbose=False,
                   callback=lambda r, sol, e: truth.append(value(sol))).destroy()
@@ -250,8 +250,20 @@ def test_history_chain_carries_the_earlier_steps():
         with ds.estimate(sol, slide, model_error=rich[: k + 1]) as e:
             rows.append((truth[k] - value(sol), e.model.value, e.model.steps, e.model.interval))
 
-    ds.solve_path(block_path(ds.Tresca(0.0015), msh, tags), slide, callback=judge, verbose=False,
-                  keep_steps=True).destroy()
+    ds.solve_path(block_path(ds.Tresca(0.0015 * E), msh, tags, E), slide, callback=judge,
+                  verbose=False, keep_steps=True).destroy()
+    _CACHE["block", E, COMM.size] = rows
+    return rows
+
+
+@pytest.mark.mpi
+def test_history_chain_carries_the_earlier_steps():
+    """Tresca(s = 0.0015) in place of Coulomb(0.3) on a path whose third step sticks where the
+    second slid: the slide that the second step's model error leaves is carried into the third
+    step's J by the history goal. Measured ieff 1.000, 1.000, 0.978, 0.938 on steps 0-3; on
+    step 2 the earlier steps' terms are -1.21e-2 of -1.51e-2 (the step's own term alone would
+    give ieff 5.0)."""
+    rows = block_rows()
     for true, eta, _, (low, high) in rows:
         assert 0.5 <= true / eta <= 2.0, rows
         assert low <= true <= high, rows
@@ -259,6 +271,16 @@ def test_history_chain_carries_the_earlier_steps():
     assert abs(true) > 1e-2
     assert abs(sum(steps[:-1])) > 0.5 * abs(eta)  # the chain carries most of it
     assert not 0.5 <= true / steps[-1] <= 2.0
+
+
+@pytest.mark.mpi
+def test_unit_invariance():
+    """E and the threshold times 1000 (the loads displacements): J = int u_x, its model error
+    and each step's term unchanged."""
+    scale = max(abs(row[1]) for row in block_rows())
+    for a, b in zip(block_rows(), block_rows(1e3), strict=True):
+        assert abs(a[0] - b[0]) <= 1e-8 * scale and abs(a[1] - b[1]) <= 1e-8 * scale, (a, b)
+        assert np.allclose(a[2], b[2], rtol=0.0, atol=1e-8 * scale)
 
 
 @pytest.mark.mpi
