@@ -38,13 +38,13 @@ from dolfinx.fem import petsc as fem_petsc
 
 from .algebra import ContactAlgebra
 from .collective import collective
-from .goal import GoalForms
+from .goal import Goal, GoalForms
 from .laws import multiplier_names
 from .linalg import NewtonLinearSystem
 from .quadrature import with_quadrature_degrees
 from .timing import timed
 
-__all__ = ["DualSolution", "dual_rhs", "solve_dual"]
+__all__ = ["DualSolution", "dual_rhs", "multiplier_functions", "slip_offset_goal", "solve_dual"]
 
 
 @dataclass
@@ -160,13 +160,7 @@ def _solve_dual(
     # b_h: xi = xi^(1) / c on the constrained rows (see dwr_signorini.residuals).
     xi_1 = z.array_r[system.n_u :]
     xi_all = np.where(system.active, xi_1 / system.c_n, xi_1)
-    names = multiplier_names(system.algebra.components, "xi")
-    xis = []
-    for k, values in enumerate(system.algebra.components_of(xi_all)):
-        xi = fem.Function(system.disc.Q, name=names[k])
-        xi.x.array[: len(values)] = values
-        xi.x.scatter_forward()
-        xis.append(xi)
+    xis = multiplier_functions(system, xi_all, "xi")
     finite = bool(np.all(np.isfinite(y.x.array)) and np.all(np.isfinite(xi_all)))
     if not system.disc.comm.allreduce(finite, op=MPI.LAND):
         raise RuntimeError("NaN or Inf in the dual solution")
@@ -174,3 +168,62 @@ def _solve_dual(
     if force is not None:
         out.zeta = force.zeta
     return out
+
+
+def multiplier_functions(
+    system: NewtonLinearSystem, values: np.ndarray, name: str
+) -> list[fem.Function]:
+    """One function on Lambda_H per component of the law from the stacked owned rows.
+
+    Args:
+        system: The Newton system (its algebra's layout of the multiplier rows).
+        values: The owned multiplier rows.
+        name: The name of the first function; the next get the tangential suffixes.
+
+    Returns:
+        The functions, normal first (ghosts updated).
+    """
+    names = multiplier_names(system.algebra.components, name)
+    out = []
+    for k, part in enumerate(system.algebra.components_of(values)):
+        f = fem.Function(system.disc.Q, name=names[k])
+        f.x.array[: len(part)] = part
+        f.x.scatter_forward()
+        out.append(f)
+    return out
+
+
+def slip_offset_goal(system: NewtonLinearSystem, xi: np.ndarray) -> Goal:
+    """The sensitivity of J to the slip offsets g_l = B_l u_old of a load step, as a goal.
+
+    With the sets of the system's last Newton step and its dual solution (``xi`` the owned
+    multiplier rows as :func:`solve_dual` returns them), L(v) = J(w(u_old + v)) -
+    J(w(u_old)) = - sum_l (w_l, v . e_l)_GC (:func:`~dwr_signorini.path.history_goal`).
+
+    Args:
+        system: The solved Newton system of the step (its sets, couplings and c_n).
+        xi: The dual's multiplier rows (owned, stacked).
+
+    Returns:
+        ``goal(u, lam, m, lam_t) -> ufl.Form``, L(u), on the system's discretisation.
+    """
+    z = np.where(system.active, xi * system.c_n, xi)  # the raw dual (solve_dual's map undone)
+    w = np.where(system.active, z, 0.0)
+    for cp in system.couplings:
+        own = ~system.active[cp.rows]  # (m, k): the coupled rows that are not constrained
+        zc = np.where(own, z[cp.rows], 0.0)
+        c = system.c_n[cp.rows[:, 0]]
+        w[cp.rows] += c[:, None] * np.einsum("mk,mkl->ml", zc, cp.J)
+    weights = multiplier_functions(system, w, "history_weight")[1:]
+    disc = system.disc
+    directions = disc.directions(system.algebra.components)[1:]
+
+    def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> Any:
+        form = None
+        u_rel = disc.relative(u)  # u - P u with contact pairs (GoalForms differentiates P u)
+        for w_l, e_l in zip(weights, directions, strict=True):
+            term = -w_l * ufl.dot(u_rel, e_l) * m.ds_contact
+            form = term if form is None else form + term
+        return form
+
+    return goal

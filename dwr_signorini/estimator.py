@@ -37,9 +37,9 @@ from .finite_strain import FiniteStrainSolution
 from .goal import Goal, GoalForms
 from .interval import best_estimate, contact_set_resolved, error_interval, roundoff_bound
 from .lifetime import Releasable
-from .model_error import ModelError, check_richer
-from .model_error import model_error as model_error_estimate
+from .model_error import ModelError
 from .newton import Solution
+from .path_model_error import any_model_error, check_model_error
 from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .settings import EstimateOptions
@@ -400,6 +400,9 @@ def estimate(
             hyperelastic material (``material=ds.NeoHookean()``, ...; small strain in place of
             finite strain, :mod:`~dwr_signorini.strain_model_error`, eq. (M6)):
             ``Estimate.model`` then holds the estimate of J(richer) - J(simpler) at ``sol``.
+            For the last step of a load path whose earlier steps the path kept
+            (``solve_path(..., keep_steps=True)``): the richer path's problems, one per step
+            (:mod:`~dwr_signorini.path_model_error`, eq. (M7)).
 
     Returns:
         The :class:`Estimate` (collective; release it with ``destroy()`` or ``with``);
@@ -438,7 +441,7 @@ def estimate(
         )
     check_options_on_ranks(sol.disc.mesh, "estimate", options)
     if model_error is not None:
-        check_richer(sol.disc.problem, model_error)
+        check_model_error(sol, model_error)
     goal_forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.tangential or None)
     tic = time.perf_counter()
     z = solve_dual(sol.system, goal_forms)
@@ -473,7 +476,7 @@ def _model_error(
     DG0 = est.indicators.function_space
     degree = options.degree(disc.problem)
     tic = time.perf_counter()
-    out = model_error_estimate(
+    out = any_model_error(
         sol, goal, richer,
         lambda form: _assemble_indicators(disc, [form], DG0, degree)[0],
         est.roundoff,

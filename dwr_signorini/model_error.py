@@ -48,7 +48,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from .dual import solve_dual
+from .dual import slip_offset_goal, solve_dual
 from .goal import Goal, GoalForms
 from .laws import multiplier_names
 from .linalg import system_class
@@ -114,6 +114,10 @@ class ModelError:
         material: The richer problem's finite-strain material, or None (a richer law).
         correction: With a richer material: the change of J of the chord steps after the
             Newton step (:mod:`~dwr_signorini.strain_model_error`), else 0.
+        history: At a load step (``history=True``): the sensitivity of the richer step's J to
+            its u_old, a goal of the previous step (eq. (M7)), else None.
+        steps: Along a load path (:mod:`~dwr_signorini.path_model_error`): each step's
+            summand of (M7), the first step first; else ().
     """
 
     value: float
@@ -126,6 +130,8 @@ class ModelError:
     num_changed: int = -1
     material: Any = None
     correction: float = 0.0
+    history: Goal | None = field(default=None, repr=False)
+    steps: tuple[float, ...] = ()
 
     @property
     def richer(self) -> str:
@@ -297,6 +303,7 @@ def model_error(
     richer: Any,
     localize: Callable[[ufl.Form], np.ndarray],
     roundoff: float = 0.0,
+    history: bool = False,
 ) -> ModelError:
     """eta_M of (M1) for the solution ``sol`` of the simpler law and the problem ``richer``.
 
@@ -309,21 +316,28 @@ def model_error(
         richer: The same problem with a richer law or material (:func:`check_richer`).
         localize: Cell indicators (on T_h, local array) of a scalar form.
         roundoff: The round-off of J (widens the interval).
+        history: ``sol`` is a load step: the richer step measures its slip from the same
+            u_old (``sol.disc.u_old``), and :attr:`ModelError.history` is its sensitivity to
+            u_old (one summand of (M7), :mod:`~dwr_signorini.path_model_error`).
 
     Returns:
         The :class:`ModelError` (collective).
 
     Raises:
         TypeError, ValueError: ``richer`` is no problem, or not ``sol``'s problem with a
-            richer law (:func:`check_richer`); ``sol`` is a load step of a path.
+            richer law (:func:`check_richer`); ``sol`` is a load step of a path (without
+            ``history``: its model error is that of the path, eq. (M7)).
     """
     check_richer(sol.disc.problem, richer)
-    if sol.disc.u_old is not None:
+    if sol.disc.u_old is not None and not history:
         raise ValueError(
-            "model_error: sol is a load step of solve_path (frictional history); estimate the "
-            "model error of a single solve"
+            "model_error: sol is a load step of solve_path, whose richer model is a load path "
+            "too: pass the richer path's problems (a sequence, one per step) as model_error, "
+            "with sol from solve_path(..., keep_steps=True) (eq. (M7))"
         )
     disc = sol.disc.for_problem(richer)
+    if history and sol.disc.u_old is not None:
+        disc.set_u_old(sol.disc.u_old)
     if richer.finite_strain:
         from .strain_model_error import strain_model_error  # it builds on this module
 
@@ -369,6 +383,7 @@ def _model_error(
     value = comm.allreduce(float(facet.sum()), op=MPI.SUM)
     cells, facet_f = indicator_functions(disc, facet, algebra.M.array[:n_q], localize)
     step, changed = _step(system, goal, goal_forms, disc, algebra, (wanted, free, couplings))
+    history = None if disc.u_old is None else slip_offset_goal(system, xi)
     return ModelError(
         value=value,
         interval=model_interval(value, step, changed, roundoff),
@@ -378,6 +393,7 @@ def _model_error(
         newton_step=step,
         num_slip=_num_slip(couplings, wanted, free, algebra, comm),
         num_changed=changed,
+        history=history,
     )
 
 

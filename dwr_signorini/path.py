@@ -53,12 +53,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import ufl
 from dolfinx import fem
 
 from . import finite_strain_path
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
+from .dual import slip_offset_goal
 from .estimate_parts import SolverBudget, release_estimate_parts
 from .estimator import Estimate, estimate
 from .goal import Goal
@@ -193,6 +193,7 @@ def solve_path(
     history: bool | str | None = None,
     *,
     load_factors: Sequence[float] | None = None,
+    keep_steps: bool = False,
 ) -> PathResult:
     """Solve a quasi-static load path step by step, each step from the last (module docstring).
 
@@ -237,6 +238,12 @@ def solve_path(
             :class:`~dwr_signorini.finite_strain_path.FiniteStrainStep`), and ``initial_guess`` may
             be the last solution of an earlier finite-strain path on the same mesh: the path
             starts from it, its prescribed values moving from the state's to the problem's.
+        keep_steps: Keep every step's solution: each step's
+            :attr:`~dwr_signorini.Solution.earlier` lists the steps before it (in
+            ``callback`` and on the result's last solution, which releases them), so that
+            ``estimate(sol, goal, model_error=richer_steps)`` estimates the model error along
+            the path (:mod:`~dwr_signorini.path_model_error`, eq. (M7)). Not with
+            ``adaptive``.
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -261,12 +268,14 @@ def solve_path(
             "growth": growth, "output_dir": None if output_dir is None else str(output_dir),
             "callback": callback is None, "petsc_options": petsc_options, "method": method,
             "ncp_scale": ncp_scale, "initial_guess": initial_guess is None, "history": history,
+            "keep_steps": keep_steps,
         },
     )
     goals = _goals(goal, len(problems))
     settings = _path_settings(problems[0], adaptive, fraction, growth, estimator, weights,
                               petsc_options, method, ncp_scale)
     history = _history_mode(history, adaptive, problems[0].law.frictional)
+    _check_keep_steps(keep_steps, adaptive)
     comm = problems[0].mesh.comm
     marking = settings.marking if adaptive else None
     meta = {"steps": len(problems), "adaptive": adaptive, "estimator": estimator,
@@ -276,7 +285,20 @@ def solve_path(
             "max_growth": None if marking is None else marking.max_growth, "history": history,
             "num_processes": comm.size, "law": repr(problems[0].law)}
     reporter = Reporter(comm, "path", meta, output_dir, callback, verbose, series=True)
-    return _steps(problems, goals, settings, adaptive, history, initial_guess, reporter)
+    state = _PathState(first_guess=initial_guess, keep=history is not None or keep_steps,
+                       parts=history is not None, link=keep_steps)
+    return _steps(problems, goals, settings, adaptive, history, state, reporter)
+
+
+def _check_keep_steps(keep_steps: Any, adaptive: bool) -> None:
+    """``keep_steps`` of :func:`solve_path` validated (TypeError, ValueError)."""
+    if not isinstance(keep_steps, bool):
+        raise TypeError(f"keep_steps must be True or False, got {keep_steps!r}")
+    if keep_steps and adaptive:
+        raise ValueError(
+            "keep_steps=True needs every step on one mesh: the steps of an adaptive path live "
+            "on different meshes (use adaptive=False)"
+        )
 
 
 HISTORY_MODES = ("last", "every")
@@ -330,12 +352,11 @@ def _steps(
     settings: LevelSettings,
     adaptive: bool,
     history: str | None,
-    initial_guess: tuple[Any, ...] | None,
+    state: _PathState,
     reporter: Reporter,
 ) -> PathResult:
     """The loop of :func:`solve_path` over the load steps."""
     result = PathResult(levels=[], meta=reporter.meta, comm=reporter.comm)
-    state = _PathState(first_guess=initial_guess, keep=history is not None)
     try:
         with reporter:
             for k, problem in enumerate(problems):
@@ -350,8 +371,11 @@ def _steps(
     except Exception:
         state.destroy()
         raise
-    for kept in state.kept:  # the last step's solution and estimate go with the result
-        kept.destroy()
+    if state.link and result.solution is not None:  # the kept steps go with the last one
+        result.solution.owns_earlier = True
+    else:
+        for kept in state.kept:  # the last step's solution and estimate go with the result
+            kept.destroy()
     for disc in state.discs[:-1]:  # the earlier meshes' master traces
         disc.destroy()
     if result.solution is not None:  # and the last mesh's with the last solution
@@ -375,6 +399,10 @@ class _PathState:
     #: The discretisations made (one per mesh; their master traces are released at the end).
     discs: list[Discretization] = field(default_factory=list, repr=False)
     keep: bool = False
+    #: Whether the kept steps keep their estimates' parts (for the history's estimates).
+    parts: bool = False
+    #: Whether each step's solution lists the kept earlier steps (``keep_steps``).
+    link: bool = False
     #: The memory the kept steps' P2 solvers may take (:mod:`~dwr_signorini.estimate_parts`).
     budget: SolverBudget = field(default_factory=SolverBudget, repr=False)
     current: SignoriniProblem | None = None
@@ -428,8 +456,10 @@ def _step(
     state.retire()
     t_setup = time.perf_counter() - t_start
     sol, est, t_solve = settings.solve_and_estimate(
-        disc, guess, goal, keep_parts=state.budget if state.keep else None
+        disc, guess, goal, keep_parts=state.budget if state.parts else None
     )
+    if state.link:
+        sol.earlier = tuple(state.kept)
     state.solution, state.estimate = sol, est
     tic = time.perf_counter()
     history = history_estimates(state.kept, sol, est, settings.estimate) if sweep else []
@@ -477,31 +507,7 @@ def history_goal(sol: Solution, est: Estimate) -> Goal:
     error at the previous step, L(u - u_h), is the part of the step's error that the history
     carries (module docstring).
     """
-    system = sol.system
-    algebra = system.algebra
-    xi = sol.stacked(est.dual.multipliers)
-    z = np.where(system.active, xi * system.c_n, xi)  # the raw dual (solve_dual's map undone)
-    w = np.where(system.active, z, 0.0)
-    for cp in system.couplings:
-        own = ~system.active[cp.rows]  # (m, k): the coupled rows that are not constrained
-        zc = np.where(own, z[cp.rows], 0.0)
-        c = system.c_n[cp.rows[:, 0]]
-        w[cp.rows] += c[:, None] * np.einsum("mk,mkl->ml", zc, cp.J)
-    parts = algebra.components_of(w)
-    weights = [sol.multiplier_function(part, f"history_weight_{k}")
-               for k, part in enumerate(parts[1:], start=1)]
-    disc = sol.disc
-    directions = disc.directions(algebra.components)[1:]
-
-    def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> Any:
-        form = None
-        u_rel = disc.relative(u)  # u - P u with contact pairs (GoalForms differentiates P u)
-        for w_l, e_l in zip(weights, directions, strict=True):
-            term = -w_l * ufl.dot(u_rel, e_l) * m.ds_contact
-            form = term if form is None else form + term
-        return form
-
-    return goal
+    return slip_offset_goal(sol.system, sol.stacked(est.dual.multipliers))
 
 
 def history_estimates(

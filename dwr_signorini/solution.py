@@ -84,6 +84,12 @@ class Solution(Releasable):
     #: solvers and primal weights, :class:`~dwr_signorini.estimate_parts.EstimateParts`), or
     #: None: kept by a load path for its history's estimates, released by :meth:`destroy`.
     estimate_parts: Any = field(default=None, repr=False)
+    #: The earlier steps of a load path, the first step first, where
+    #: :func:`~dwr_signorini.solve_path` keeps them (``keep_steps=True``; the model error along
+    #: the path, :mod:`~dwr_signorini.path_model_error`), else ().
+    earlier: tuple[Solution, ...] = field(default=(), repr=False)
+    #: Whether :meth:`destroy` releases :attr:`earlier` too (the path's last step's do).
+    owns_earlier: bool = field(default=False, repr=False)
 
     @property
     def multipliers(self) -> tuple[fem.Function, ...]:
@@ -106,8 +112,13 @@ class Solution(Releasable):
     def destroy(self) -> None:
         """Release the Newton system, its force control, the estimate parts, an owned disc.
 
+        And the earlier steps of a path where it owns them (:attr:`owns_earlier`).
+
         Collective; idempotent.
         """
+        if self.owns_earlier:
+            for step in self.earlier:
+                step.destroy()
         if self.estimate_parts is not None:
             self.estimate_parts.destroy()
             self.estimate_parts = None
