@@ -32,6 +32,11 @@ contact frame of a rigid obstacle, ``docs/theory.md``): an obstacle given anew a
 (the cylinder moved down) does not carry its own displacement into the slip, and the slip along
 its tilted tangent then includes the approach.
 
+The steps grow geometrically because a step adds its new contact in slip: with a uniform step
+in a that contact is a shrinking fraction of a, and so is the slip zone it leaves; a fixed
+factor per step adds the same fraction of a at every step, so the discrete path is
+self-similar as the theory is.
+
 The measurements of :func:`~dwr_signorini.cases.measure_cattaneo_mindlin` apply as they are
 (the contact is centred at x = 0, P and a from the computed lambda_n, c_h from the sticking
 facets, ``rms_lam_t`` and ``coupling`` the size of lambda_t against mu lambda_n).
@@ -102,10 +107,8 @@ def spence_presses(
 ) -> list[float]:
     """Geometric presses: ``press ratio^(-2 j)``, j = n, ..., 0, from about ``first press`` up.
 
-    The contact half-width grows about as the square root of the press, so a grows by the
-    factor ``ratio`` per step: every step adds the same fraction of a to the contact, which
-    keeps the discrete path self-similar as the theory's (a uniform step in a would add a
-    shrinking fraction of it, and the slip zone of one step's new contact with it).
+    a grows about as the square root of the press, by ``ratio`` per step: each step adds the
+    same fraction of a, which keeps the discrete path self-similar (module docstring).
 
     Args:
         press: The last (largest) press.
