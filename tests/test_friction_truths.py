@@ -27,7 +27,10 @@ of Mindlin-Deresiewicz is closed by symmetry), and c' = c*.
 On a rigid flat, Spence's theory (1975) is not met by the half-disc of the 2D Cattaneo-Mindlin
 case, two strict xfails with their numbers: the limit beta -> 0 (nu -> 1/2: the press leaves no
 tangential traction), and the self-similar stick zone of a press in many steps (c / a constant;
-its value as a function of beta / mu is not checked).
+its value as a function of beta / mu is not checked). On a large block indented by a rigid
+cylinder, the half-plane's nearer approximant, the self-similar stick zone is met and the
+tangential traction falls with h at nu = 0.49; at nu = 0.499 P1 locks there too
+(:mod:`tests.test_spence`).
 """
 
 from mpi4py import MPI

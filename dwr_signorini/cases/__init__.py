@@ -8,6 +8,8 @@ Not in the paper, with gmsh meshes (:mod:`dwr_signorini.meshes`), tags and load 
   steps (the meshes and the load path they share: :mod:`~dwr_signorini.cases.load_path`),
   measured against the theory (:mod:`~dwr_signorini.cases.cattaneo_mindlin_measure`, with
   :mod:`~dwr_signorini.cases.measurement`);
+* Spence's problem (:mod:`~dwr_signorini.cases.spence_block`): a rigid cylinder pressed with
+  friction into a large block, the half-plane of the theory;
 * :mod:`~dwr_signorini.cases.indentation_3d`: a sphere pressed into a block, the goal the total
   contact force (the benchmarks' 3D problem);
 * :mod:`~dwr_signorini.cases.rubber_cylinder`: finite strain, a Neo-Hookean cylinder pressed
@@ -56,6 +58,12 @@ from .rubber_cylinder import (
     rubber_cylinder_mesh,
     rubber_cylinder_problems,
 )
+from .spence_block import (
+    SPENCE_DEFAULTS,
+    spence_block_mesh,
+    spence_block_path,
+    spence_presses,
+)
 
 __all__ = [
     "CM_CONTACT",
@@ -65,6 +73,7 @@ __all__ = [
     "CM_TOP",
     "INDENTATION_MATERIAL",
     "RC_DEFAULTS",
+    "SPENCE_DEFAULTS",
     "CMMeasure",
     "ContactMeasure",
     "ContactPatch",
@@ -90,6 +99,9 @@ __all__ = [
     "reversal_traction",
     "rubber_cylinder_mesh",
     "rubber_cylinder_problems",
+    "spence_block_mesh",
+    "spence_block_path",
+    "spence_presses",
     "stick_half_width",
     "stick_radius",
 ]
