@@ -187,6 +187,30 @@ def print_table(name: str, J_ref: float, U: float, runs: dict[str, list[dict]]) 
                   f"{r['t_estimate']:6.2f}")
 
 
+#: The problems' names in the Markdown table.
+LABELS = {"analytic": "5.1, J_a1 (exact)", "bar": "5.2", "block": "2D indented block",
+          "obstacle": "5.3", "indentation8": "indentation 8x8x4",
+          "indentation12": "indentation 12x12x6", "friction": "Tresca friction"}
+
+
+def print_markdown(problems: dict[str, Any]) -> None:
+    """The judged levels of every problem as one Markdown table (benchmarks/README.md)."""
+    print("| problem | run | L | cells | J_h | [J_low, J_high] | J_ref - J_h | contains "
+          "| width / error | Ieff of the centre | weights |")
+    print("|---|---|---:|---:|---:|---|---:|---|---:|---:|---|")
+    for name, p in problems.items():
+        for refinement, rows in p["runs"].items():
+            for r in rows:
+                if not r["judged"] or (refinement == "uniform" and r["level"] == 0):
+                    continue  # (a uniform run's level 0 is the adaptive one's)
+                weights = "patch" if r["weights"] == "patch" else "P2"
+                print(f"| {LABELS.get(name, name)} | {refinement} | {r['level']} "
+                      f"| {r['num_cells']:,} | {r['J_h']:.6g} "
+                      f"| [{r['J_low']:.6g}, {r['J_high']:.6g}] | {r['error']:+.2e} "
+                      f"| {'yes' if r['covered'] else 'NO'} | {r['width_over_error']:.2f} "
+                      f"| {r['ieff_centre']:.2f} | {weights} |")
+
+
 def plot(name: str, result: dict[str, Any]) -> None:
     """J_h and its interval per level against the reference: ``interval_<name>.png``."""
     path = RESULTS / f"interval_{name}.png"
@@ -206,9 +230,14 @@ def main() -> None:
     parser.add_argument("--max-cells", type=int, default=800_000)
     parser.add_argument("--quick", action="store_true", help="few levels, for checking")
     parser.add_argument("--tables-from", type=Path, help="print the tables of a JSON file")
+    parser.add_argument("--markdown", action="store_true",
+                        help="with --tables-from: the judged levels as one Markdown table")
     parser.add_argument("--output", type=Path, default=OUTPUT)
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
+    if args.tables_from is not None and args.markdown:
+        print_markdown(json.loads(args.tables_from.read_text())["problems"])
+        return
     if args.tables_from is not None:
         for name, p in json.loads(args.tables_from.read_text())["problems"].items():
             print_table(name, p["J_ref"], p["uncertainty"], p["runs"])
