@@ -98,7 +98,14 @@ def path_pairs(simple_law, rich_mu=MU, h_contact=H_CONTACT):
     if key in _CACHE:
         return _CACHE[key]
     rich = coulomb_path(rich_mu, h_contact)
-    simple = with_law(rich, simple_law(h_contact))
+    _CACHE[key] = model_error_rows(rich, with_law(rich, simple_law(h_contact)))
+    return _CACHE[key]
+
+
+def model_error_rows(rich, simple):
+    """Per step of the simpler path ``simple``: the true model difference J(rich path) -
+    J(simple path) of the goal ``slide``, the estimate along the path and its interval, its
+    steps' summands and the local sums of its cell and facet indicators."""
     truth = []
     ds.solve_path(rich, slide, verbose=False,
                   callback=lambda r, sol, e: truth.append(value(sol))).destroy()
@@ -116,7 +123,6 @@ def path_pairs(simple_law, rich_mu=MU, h_contact=H_CONTACT):
             })
 
     ds.solve_path(simple, slide, callback=judge, verbose=False, keep_steps=True).destroy()
-    _CACHE[key] = rows
     return rows
 
 
@@ -234,26 +240,13 @@ def block_path(law, msh, tags, E=1.0):
 
 
 def block_rows(E=1.0):
-    """Per step of the block path, Tresca(0.0015 E) in place of Coulomb(0.3): (true model
-    difference, eta_M, its steps' terms, its interval)."""
-    if ("block", E, COMM.size) in _CACHE:
-        return _CACHE["block", E, COMM.size]
-    msh, tags = block(COMM, 16, 2, lx=4.0, ly=0.5)
-    rich = block_path(ds.Coulomb(0.3), msh, tags, E)
-    truth = []
-    ds.solve_path(rich, slide, verbose=False,
-                  callback=lambda r, sol, e: truth.append(value(sol))).destroy()
-    rows = []
-
-    def judge(record, sol, est):
-        k = record.step
-        with ds.estimate(sol, slide, model_error=rich[: k + 1]) as e:
-            rows.append((truth[k] - value(sol), e.model.value, e.model.steps, e.model.interval))
-
-    ds.solve_path(block_path(ds.Tresca(0.0015 * E), msh, tags, E), slide, callback=judge,
-                  verbose=False, keep_steps=True).destroy()
-    _CACHE["block", E, COMM.size] = rows
-    return rows
+    """:func:`model_error_rows` of the block path, Tresca(0.0015 E) in place of Coulomb(0.3)."""
+    key = ("block", E, COMM.size)
+    if key not in _CACHE:
+        msh, tags = block(COMM, 16, 2, lx=4.0, ly=0.5)
+        _CACHE[key] = model_error_rows(block_path(ds.Coulomb(0.3), msh, tags, E),
+                                       block_path(ds.Tresca(0.0015 * E), msh, tags, E))
+    return _CACHE[key]
 
 
 @pytest.mark.mpi
@@ -264,10 +257,10 @@ def test_history_chain_carries_the_earlier_steps():
     step 2 the earlier steps' terms are -1.21e-2 of -1.51e-2 (the step's own term alone would
     give ieff 5.0)."""
     rows = block_rows()
-    for true, eta, _, (low, high) in rows:
-        assert 0.5 <= true / eta <= 2.0, rows
-        assert low <= true <= high, rows
-    true, eta, steps, _ = rows[2]
+    for row in rows:
+        assert 0.5 <= row["true"] / row["eta"] <= 2.0, rows
+        assert row["interval"][0] <= row["true"] <= row["interval"][1], rows
+    true, eta, steps = rows[2]["true"], rows[2]["eta"], rows[2]["steps"]
     assert abs(true) > 1e-2
     assert abs(sum(steps[:-1])) > 0.5 * abs(eta)  # the chain carries most of it
     assert not 0.5 <= true / steps[-1] <= 2.0
@@ -277,10 +270,11 @@ def test_history_chain_carries_the_earlier_steps():
 def test_unit_invariance():
     """E and the threshold times 1000 (the loads displacements): J = int u_x, its model error
     and each step's term unchanged."""
-    scale = max(abs(row[1]) for row in block_rows())
+    scale = max(abs(row["eta"]) for row in block_rows())
     for a, b in zip(block_rows(), block_rows(1e3), strict=True):
-        assert abs(a[0] - b[0]) <= 1e-8 * scale and abs(a[1] - b[1]) <= 1e-8 * scale, (a, b)
-        assert np.allclose(a[2], b[2], rtol=0.0, atol=1e-8 * scale)
+        for name in ("true", "eta"):
+            assert abs(a[name] - b[name]) <= 1e-8 * scale, (a, b)
+        assert np.allclose(a["steps"], b["steps"], rtol=0.0, atol=1e-8 * scale)
 
 
 @pytest.mark.mpi
