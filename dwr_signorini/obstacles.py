@@ -453,6 +453,12 @@ class Graph(Obstacle):
 
         A graph is given by a function, whose translates cannot be recognised: a moving
         graph obstacle is refused along a frictional path (:meth:`Obstacle.translation_from`).
+
+        Args:
+            previous: The obstacle of the step before.
+
+        Returns:
+            Zeros, or None where ``previous`` is not this graph.
         """
         same = isinstance(previous, Graph) and previous.psi is self.psi and (
             previous.axis == self.axis and previous.dim == self.dim

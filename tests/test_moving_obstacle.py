@@ -13,9 +13,13 @@ must give the same tractions, J and estimates (to the solver's tolerance):
   a pressed block against the block dragged the other way (the sign of the translation);
 * (d) the refusals: another radius, another callable gap, a force-controlled disc.
 
-Measured without the translation in the slip (``path_translations`` returning None), the
-disc of (a) gave ||lambda_t^A - lambda_t^B|| / ||lambda_t^B|| = 0.75 on the last step;
-the drags of (c) gave lambda_t = 0 against a sliding block's mu lambda_n.
+Measured without the translation in the slip (``path_translations`` returning None), on the
+steps after the first: ||lambda_t^A - lambda_t^B|| / ||lambda_t^B|| = 0.041, 0.52, 0.57 and
+J 5e-4, 1.3e-3, 2.8e-3 relative for the disc of (a); 0.27, 0.49, 0.66 and J 5e-3, 1.2e-2,
+2.1e-2 for the dragged flat of (c). With it: 0 (the same arrays) on 1 rank.
+
+The first step's obstacle is where the slip starts from (there is no step before it): the
+paths start with the obstacle touching, before either description moves anything.
 """
 
 from mpi4py import MPI
@@ -143,12 +147,13 @@ def test_cylinder_dragged_along_its_axis():
     """(c) 3D: a cylinder along x under a block, dragged along its axis by +s_k, against the
     block's top moved by -s_k over the held cylinder (the same set at every step, the
     translation only in the slip)."""
-    msh, tags = block(8, 3, dim=3)
+    msh, tags = block(4, 2, dim=3)
     axis = (1.0, 0.0, 0.0)
-    moved = path(msh, tags, [Cylinder((s, 0.125, -R), axis, R) for s in DRAG],
-                 [(0.0, 0.0, -0.01)] * len(DRAG), model="3d")
-    held = path(msh, tags, [Cylinder((0.0, 0.125, -R), axis, R)] * len(DRAG),
-                [(-s, 0.0, -0.01) for s in DRAG], model="3d")
+    drag = DRAG[:3]
+    moved = path(msh, tags, [Cylinder((s, 0.125, -R), axis, R) for s in drag],
+                 [(0.0, 0.0, -0.01)] * len(drag), model="3d")
+    held = path(msh, tags, [Cylinder((0.0, 0.125, -R), axis, R)] * len(drag),
+                [(-s, 0.0, -0.01) for s in drag], model="3d")
     assert_same_paths(moved, held)
 
 
