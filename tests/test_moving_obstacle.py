@@ -8,6 +8,7 @@ must give the same tractions, J and estimates (to the solver's tolerance):
   down (its flat contact face is normal to the motion, so the gap and the contact frame are
   the same in both descriptions; the disc's frame is tilted away from the face's normal, and
   the approach has a tangential part there);
+* (a) again with a gap per contact tag (a disc and a flat, each with its own translation);
 * (b) a flat moved along its normal against the block moved onto it;
 * (c) a tangential drag: a flat (2D) and a cylinder along its axis (3D) dragged sideways under
   a pressed block against the block dragged the other way (the sign of the translation);
@@ -113,12 +114,43 @@ def test_disc_moved_up_is_the_block_moved_down():
 
 @pytest.mark.mpi
 def test_flat_moved_along_its_normal():
-    """(b) A flat moved up along its normal against the block moved down onto a held flat."""
+    """(b) A flat moved up along its normal against the block moved down onto a held flat.
+
+    The translation has no part along the flat's tangent (its frame), so this holds with or
+    without it in the slip: it guards that such a path is accepted and its offsets unchanged."""
     msh, tags = block(16, 6)
     zero = [(0.0, 0.0)] * len(PRESSES)
     moved = path(msh, tags, [Plane((0.3, d), (0.0, -1.0)) for d in PRESSES], zero)
     held = path(msh, tags, [Plane((0.3, 0.0), (0.0, -1.0))] * len(PRESSES),
                 [(0.0, -d) for d in PRESSES])
+    assert_same_paths(moved, held)
+
+
+@pytest.mark.mpi
+def test_an_obstacle_per_contact_tag():
+    """(a) with a gap per contact tag: a disc under the left half of the bottom moved up by d_k
+    and a flat under the right half by d_k / 2, against the disc held, the flat moved down by
+    d_k / 2 and the top by d_k (each tag's own translation, through the tags' indicators)."""
+    msh, halves = block(16, 6)
+    contact = (ex.CONTACT, ex.CONTACT + 10)
+    facets = halves.indices
+    x = mesh.compute_midpoints(msh, 1, facets)[:, 0]
+    values = np.where((halves.values == ex.CONTACT) & (x > 0.5), contact[1], halves.values)
+    tags = mesh.meshtags(msh, 1, facets, values.astype(np.int32))
+
+    def steps(discs, flats, tops):
+        return [ds.SignoriniProblem(msh, tags, contact=contact, dirichlet={ex.DIRICHLET: top},
+                                    E=10.0, nu=0.3, gap={contact[0]: d, contact[1]: f},
+                                    friction=ds.Coulomb(0.3))
+                for d, f, top in zip(discs, flats, tops, strict=True)]
+
+    held_disc = Sphere((0.3, -R), R)
+    moved = steps([Sphere((0.3, -R + d), R) for d in PRESSES],
+                  [Plane((0.7, 0.5 * d), (0.0, -1.0)) for d in PRESSES],
+                  [(0.0, 0.0)] * len(PRESSES))
+    held = steps([held_disc] * len(PRESSES),
+                 [Plane((0.7, -0.5 * d), (0.0, -1.0)) for d in PRESSES],
+                 [(0.0, -d) for d in PRESSES])
     assert_same_paths(moved, held)
 
 
