@@ -155,8 +155,8 @@ class ContactAlgebra:
             forms["B"] = [
                 form(ufl.inner(mu, ufl.dot(w, e)) * m.ds_contact) for e in directions
             ]
-        if disc.u_old is not None:  # the slip increment of a load step: g_k = B_k u_old
-            u_old = disc.relative(disc.u_old)
+        if disc.u_old is not None:  # a load step's slip increment: g_k = B_k (u_old + t)
+            u_old = disc.slip_origin()
             forms["u_old"] = [
                 form(ufl.dot(u_old, e) * mu * m.ds_contact) for e in directions[1:]
             ]

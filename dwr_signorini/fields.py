@@ -323,6 +323,23 @@ class MeshFields:
 
         return self._rigid_and_pairs(x, value, self.pair_frame)
 
+    def translation(self, moves: Mapping[int, np.ndarray]) -> ufl.core.expr.Expr:
+        """The translation of each rigid contact tag's obstacle as a UFL vector on Gamma_C.
+
+        Args:
+            moves: ``{rigid contact tag: t}`` (:mod:`~dwr_signorini.obstacle_motion`).
+
+        Returns:
+            t on each tag's facets (a Constant, or a sum weighted by the contact-tag
+            indicators), zero on the slave facets of contact pairs.
+        """
+        constants = {t: fem.Constant(self.mesh, np.asarray(v, dtype=float))
+                     for t, v in moves.items()}
+        first = next(iter(moves.values()))
+        if not self.problem.pairs and all(np.array_equal(v, first) for v in moves.values()):
+            return constants[next(iter(moves))]
+        return sum(self.contact_indicators[t] * constants[t] for t in moves)
+
     def _rigid_and_pairs(
         self, x: Any, value: Callable[[Any], Any], pairs: Callable[[], Any] | None
     ) -> ufl.core.expr.Expr:

@@ -337,7 +337,7 @@ def model_error(
         )
     disc = sol.disc.for_problem(richer)
     if history and sol.disc.u_old is not None:
-        disc.set_u_old(sol.disc.u_old)
+        disc.set_u_old(sol.disc.u_old, sol.disc.obstacle_translation)
     if richer.finite_strain:
         from .strain_model_error import strain_model_error  # it builds on this module
 

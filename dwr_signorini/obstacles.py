@@ -57,6 +57,13 @@ def _positive(value: float, name: str) -> float:
     return float(value)
 
 
+def _same(a: Any, b: Any) -> bool:
+    """Whether two radii or unit vectors agree to round-off (relative 1e-12)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = max(float(np.abs(a).max()), float(np.abs(b).max()))
+    return a.shape == b.shape and bool(np.all(np.abs(a - b) <= 1e-12 * scale))
+
+
 def _dot(a: Sequence[Expr], b: Sequence[Expr]) -> Expr:
     return sum(ai * bi for ai, bi in zip(a, b, strict=True))
 
@@ -149,6 +156,37 @@ class Obstacle:
         """
         raise NotImplementedError
 
+    def translation_from(self, previous: Obstacle) -> np.ndarray | None:
+        """The rigid translation t that moves ``previous`` onto this obstacle, or None.
+
+        A load path's frictional step measures the slip relative to the obstacle: where
+        step k's obstacle is step k - 1's translated by t, the slip increment is
+        u - (u_old + t) (:func:`~dwr_signorini.solve_path`). The translation is that of the
+        obstacle's defining point (:attr:`reference_point`: a plane's point, a sphere's
+        center, a point of a cylinder's axis), which moves with the obstacle as a material
+        point of it: a plane or cylinder given with its point moved along the plane or the
+        axis is dragged that way over the body.
+
+        Args:
+            previous: The obstacle of the step before.
+
+        Returns:
+            t (``dim`` components): zero for the same object; None where this obstacle is
+            not ``previous`` translated (another kind, radius, normal or axis, another
+            function, another dimension).
+        """
+        if previous is self:
+            return np.zeros(self.dim or 3)
+        if type(previous) is not type(self) or previous.dim != self.dim:
+            return None
+        if not self._same_shape(previous):
+            return None
+        return self.reference_point - previous.reference_point
+
+    def _same_shape(self, other: Obstacle) -> bool:
+        """Whether ``other`` (of this class) has this obstacle's shape and orientation."""
+        return False
+
     def gap(self, x: Expr, n: Expr, miss: float) -> Expr:
         """The distance along ``n`` from ``x`` to the obstacle's surface, as UFL.
 
@@ -229,6 +267,9 @@ class Plane(Obstacle):
     def reference_point(self) -> np.ndarray:  # noqa: D102
         return self.point
 
+    def _same_shape(self, other: Obstacle) -> bool:
+        return _same(self.normal, other.normal)
+
     def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
         nu = [float(c) for c in self.normal]
         n_dot = _dot(_components(n, self.dim), nu)
@@ -285,6 +326,9 @@ class Sphere(Obstacle):
     def reference_point(self) -> np.ndarray:  # noqa: D102
         return self.center
 
+    def _same_shape(self, other: Obstacle) -> bool:
+        return _same(self.radius, other.radius)
+
     def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
         d = [xi - float(c) for xi, c in zip(_components(x, self.dim), self.center, strict=True)]
         nn = _components(n, self.dim)
@@ -337,6 +381,11 @@ class Cylinder(Obstacle):
     @property
     def reference_point(self) -> np.ndarray:  # noqa: D102
         return self.point
+
+    def _same_shape(self, other: Obstacle) -> bool:
+        return _same(self.radius, other.radius) and (
+            _same(self.axis, other.axis) or _same(self.axis, -other.axis)
+        )
 
     def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
         a = [float(c) for c in self.axis]
@@ -398,6 +447,23 @@ class Graph(Obstacle):
     @property
     def reference_point(self) -> np.ndarray:  # noqa: D102
         return np.zeros(self.dim or 3)
+
+    def translation_from(self, previous: Obstacle) -> np.ndarray | None:
+        """Zero for the same graph (the same ``psi`` and axis), else None.
+
+        A graph is given by a function, whose translates cannot be recognised: a moving
+        graph obstacle is refused along a frictional path (:meth:`Obstacle.translation_from`).
+
+        Args:
+            previous: The obstacle of the step before.
+
+        Returns:
+            Zeros, or None where ``previous`` is not this graph.
+        """
+        same = isinstance(previous, Graph) and previous.psi is self.psi and (
+            previous.axis == self.axis and previous.dim == self.dim
+        )
+        return np.zeros(self.dim or 3) if same or previous is self else None
 
     def gap(self, x: Expr, n: Expr, miss: float) -> Expr:  # noqa: D102
         dim = ufl.shape(x)[0]

@@ -5,7 +5,9 @@ increment of a load step, u_t - u_t^old (:class:`~dwr_signorini.laws.Coulomb`), 
 the displacement at the end of the previous step. :func:`solve_path` solves the steps in order;
 step k starts from step k - 1's solution (warm start) and measures its slip from it
 (:meth:`~dwr_signorini.spaces.Discretization.set_u_old`), and each step's quantity of interest is
-estimated with its interval (:attr:`~dwr_signorini.Estimate.interval`).
+estimated with its interval (:attr:`~dwr_signorini.Estimate.interval`). A rigid obstacle given
+translated from one step to the next carries its translation into the slip
+(:mod:`~dwr_signorini.obstacle_motion`): moving it or the body gives the same tractions.
 
 **The error the history carries.** The estimate of a step's own residuals is that of its
 discrete problem for the given u^old; the error of u^old enters its J to first order as
@@ -64,6 +66,7 @@ from .estimator import Estimate, estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
 from .newton import Solution
+from .obstacle_motion import path_translations
 from .problem import SignoriniProblem
 from .report import AdaptiveResult, LevelRecord, Reporter
 from .settings import EstimateOptions, SolverOptions
@@ -200,7 +203,8 @@ def solve_path(
     Args:
         problems: One :class:`~dwr_signorini.SignoriniProblem` per load step, on the same macro
             mesh with the same tags and contact law; their data (prescribed displacements,
-            loads, gaps) change from step to step.
+            loads, gaps) change from step to step; with friction, a rigid obstacle from step
+            to step only by a translation (:mod:`~dwr_signorini.obstacle_motion`).
         goal: The quantity of interest of every step, or one per step.
         adaptive: Refine the macro mesh after each step for that step's goal (the next step
             lives on the refined mesh, the history interpolated; module docstring).
@@ -250,7 +254,8 @@ def solve_path(
         with ``destroy()`` or ``with``).
 
     Raises:
-        TypeError, ValueError: Bad arguments, naming them (before the first solve).
+        TypeError, ValueError: Bad arguments, naming them (before the first solve); a
+            frictional step whose obstacle is not the previous step's translated.
         ConvergenceError: As :func:`~dwr_signorini.solve`, on any step.
     """
     if load_factors is not None or getattr(problems, "finite_strain", False):
@@ -276,6 +281,7 @@ def solve_path(
                               petsc_options, method, ncp_scale)
     history = _history_mode(history, adaptive, problems[0].law.frictional)
     _check_keep_steps(keep_steps, adaptive)
+    translations = path_translations(problems)
     comm = problems[0].mesh.comm
     marking = settings.marking if adaptive else None
     meta = {"steps": len(problems), "adaptive": adaptive, "estimator": estimator,
@@ -286,7 +292,7 @@ def solve_path(
             "num_processes": comm.size, "law": repr(problems[0].law)}
     reporter = Reporter(comm, "path", meta, output_dir, callback, verbose, series=True)
     state = _PathState(first_guess=initial_guess, keep=history is not None or keep_steps,
-                       parts=history is not None, link=keep_steps)
+                       parts=history is not None, link=keep_steps, translations=translations)
     return _steps(problems, goals, settings, adaptive, history, state, reporter)
 
 
@@ -409,6 +415,8 @@ class _PathState:
     level: int = 0
     macro_parent: Any = None
     first_guess: tuple[Any, ...] | None = None
+    #: Each step's obstacle translation from the step before (:mod:`.obstacle_motion`).
+    translations: list[Any] = field(default_factory=list, repr=False)
 
     def retire(self) -> None:
         """Release the last step's estimate; its solution too unless the history needs it."""
@@ -451,7 +459,7 @@ def _step(
         disc = state.disc = _discretization(current, state)
     previous = state.solution
     with timed("transfer"):
-        disc.set_u_old(None if previous is None else previous.u)
+        disc.set_u_old(None if previous is None else previous.u, state.translations[k])
         guess = state.first_guess if previous is None else _warm_start(previous, disc)
     state.retire()
     t_setup = time.perf_counter() - t_start

@@ -137,7 +137,7 @@ def ncp_terms(sol: Any, u: Any, lams: Any, c: Any) -> list:
     """Each component's (x_k, P_k(x_k), P_k'(x_k)) at (u, lams) (:mod:`~dwr_signorini.laws`)."""
     disc = sol.disc
     m, fields = disc.m, disc.fields
-    u_old = None if disc.u_old is None else disc.relative(disc.u_old)
+    u_old = disc.slip_origin()
     return disc.problem.law.ncp_arguments(
         disc.relative(u), _tuple(lams), fields.gap(m.x), m.n, c, fields, u_old,
         frame=disc.contact_frame(),

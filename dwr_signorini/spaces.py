@@ -82,6 +82,9 @@ class Discretization:
         u_old: The displacement at the end of the previous load step (a function on V), whose
             tangential part a frictional law's slip is measured from (u_t - u_t^old); None
             (zero) outside a load path. Set it with :meth:`set_u_old` before solving.
+        obstacle_translation: ``{rigid contact tag: t}``, the translation of the rigid
+            obstacles since the previous load step (:mod:`~dwr_signorini.obstacle_motion`),
+            or None (no obstacle moved); set with :meth:`set_u_old`.
     """
 
     def __init__(self, problem: SignoriniProblem) -> None:
@@ -139,6 +142,7 @@ class Discretization:
             t: self.facet_tags.find(t).astype(np.int32) for t in problem.dirichlet
         }
         self.u_old: fem.Function | None = None
+        self.obstacle_translation: dict[int, np.ndarray] | None = None
         self.bcs = self.dirichlet_bcs(self.V)
         self.prescribed_bcs = self.dirichlet_bcs(self.V, homogeneous=False)
         self._make_fields()
@@ -185,7 +189,7 @@ class Discretization:
             )
         out = copy.copy(self)
         out.problem = problem
-        out.u_old = None
+        out.u_old = out.obstacle_translation = None
         out._dirichlet_facets = {
             t: self.facet_tags.find(t).astype(np.int32) for t in problem.dirichlet
         }
@@ -358,16 +362,22 @@ class Discretization:
             trace.destroy()
         self._traces.clear()
 
-    def set_u_old(self, u_old: fem.Function | None) -> None:
+    def set_u_old(
+        self, u_old: fem.Function | None, translation: dict[int, np.ndarray] | None = None
+    ) -> None:
         """Measure the slip of this discretisation's solves from ``u_old`` (a load step's start).
 
         Args:
             u_old: A displacement on V (copied), or on another mesh of the same body
                 (interpolated: exact for P1 on a mesh that T_h refines), or None (zero).
+            translation: ``{rigid contact tag: t}``, the obstacles' translation since
+                ``u_old`` (:func:`~dwr_signorini.obstacle_motion.path_translations`), or None:
+                the slip is measured from u_old + t (:meth:`slip_origin`).
 
         Raises:
             TypeError: ``u_old`` is not a vector function of the mesh's dimension.
         """
+        self.obstacle_translation = None if u_old is None else translation
         if u_old is None:
             self.u_old = None
             return
@@ -386,6 +396,24 @@ class Discretization:
             out.interpolate_nonmatching(u_old, cells, data)
             out.x.scatter_forward()
         self.u_old = out
+
+    def slip_origin(self) -> Any:
+        """Where a load step's slip is measured from: the tangential offsets' displacement.
+
+        ``u_old - P u_old`` (:meth:`relative`), plus the translation t of a rigid obstacle that
+        moved since the previous step (:mod:`~dwr_signorini.obstacle_motion`): the slip
+        increment is (u - u_old - t) . e_l, and g_l = B_l (u_old + t), in the Newton matrix's
+        right-hand side and in the estimator's residuals alike.
+
+        Returns:
+            A UFL vector on Gamma_C, or None outside a load path (zero).
+        """
+        if self.u_old is None:
+            return None
+        origin = self.relative(self.u_old)
+        if self.obstacle_translation is None:
+            return origin
+        return origin + self.fields.translation(self.obstacle_translation)
 
     def _make_fields(self) -> None:
         """The problem's fields on T_h and T_H: cell tags of T_h (from the parents), indicators."""

@@ -26,11 +26,10 @@ of ``h_contact`` on the part ``|x| <= contact_half`` of its top that the cylinde
 mesh growing linearly away from it. The cylinder (:class:`~dwr_signorini.obstacles.Sphere` of
 radius R in 2D, centred at (0, R)) touches the top at the origin and stays where it is; the
 press is the bottom's upward displacement, growing from step to step so that a grows by a
-fixed factor per step (:func:`spence_presses`). Holding the obstacle and driving the body keeps
-the slip of a step what it is, the body's displacement increment along the cylinder's tangent (the
-contact frame of a rigid obstacle, ``docs/theory.md``): an obstacle given anew at every step
-(the cylinder moved down) does not carry its own displacement into the slip, and the slip along
-its tilted tangent then includes the approach.
+fixed factor per step (:func:`spence_presses`). The slip of a step is the body's displacement
+increment relative to the cylinder along its tangent (the contact frame of a rigid obstacle,
+``docs/theory.md``); the cylinder moved down instead, one translated obstacle per step, gives
+the same tractions (:mod:`~dwr_signorini.obstacle_motion`).
 
 The steps grow geometrically because a step adds its new contact in slip: with a uniform step
 in a that contact is a shrinking fraction of a, and so is the slip zone it leaves; a fixed

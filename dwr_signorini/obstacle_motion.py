@@ -1,0 +1,142 @@
+"""A rigid obstacle that moves between the steps of a frictional load path.
+
+The slip of a frictional step is the tangential displacement of the body relative to the
+obstacle. A rigid obstacle translated by t_k between steps k - 1 and k (step k's obstacle is
+step k - 1's moved, :meth:`~dwr_signorini.obstacles.Obstacle.translation_from`) moves every
+one of its points by t_k, so the slip increment of step k is
+
+    (u - u_old - t_k) . e_l,    e_l the tangents of the contact frame
+    (:meth:`~dwr_signorini.spaces.Discretization.contact_frame`),
+
+the tangential offsets g_l = B_l (u_old + t_k) (:meth:`~dwr_signorini.spaces.Discretization.
+slip_origin`). Moving the obstacle by t_k or the body by -t_k (its prescribed displacements)
+then gives the same tractions: a change of frame. t_k is data, a constant offset: the Newton
+matrix, the dual problem and the history's goal (:func:`~dwr_signorini.path.history_goal`, the
+derivative in u_old) are unchanged, and the estimator's residuals take the same offsets.
+
+Where the obstacle changes between frictional steps in any other way, the slip relative to it
+is not defined and :func:`path_translations` refuses the path, except where the change leaves
+the slip unaffected by construction:
+
+- a number gap changed: a flat obstacle at distance g along the body's normal n, whose contact
+  frame is n itself, moved along n (no tangential part);
+- the same object (gap, callable or obstacle) at both steps: no motion.
+
+A force-controlled obstacle moves by its unknown displacement delta d within a step; that
+motion has no tangential part only for a :class:`~dwr_signorini.obstacles.Plane` approached
+along its normal (its frame's normal), the one force-controlled obstacle a frictional path
+accepts. Contact pairs carry their relative motion in u and are unaffected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from .obstacles import Obstacle, Plane
+from .problem import SignoriniProblem
+from .validation import is_real
+
+__all__ = ["path_translations", "step_translation"]
+
+#: The translation of the obstacle of each rigid contact tag between two steps.
+Translation = dict[int, np.ndarray]
+
+
+def path_translations(problems: Sequence[SignoriniProblem]) -> list[Translation | None]:
+    """Each step's obstacle translation from the step before (None: none moved).
+
+    Args:
+        problems: The steps of a load path (validated: one mesh, the same tags and law).
+
+    Returns:
+        One entry per step: None for the first step, for a frictionless law (no slip) and
+        where no obstacle moved tangentially; else ``{rigid contact tag: t_k}``.
+
+    Raises:
+        ValueError: A frictional step whose obstacle is not the previous step's translated
+            (module docstring), or a force-controlled obstacle other than a plane approached
+            along its normal, naming the step and the contact tag.
+    """
+    out: list[Translation | None] = [None] * len(problems)
+    if not problems[0].law.frictional:
+        return out
+    for k, problem in enumerate(problems):
+        _check_force(problem, k)
+        if k > 0:
+            out[k] = step_translation(problems[k - 1], problem, k)
+    return out
+
+
+def step_translation(
+    previous: SignoriniProblem, current: SignoriniProblem, step: int
+) -> Translation | None:
+    """The translation of the obstacle of each rigid contact tag from ``previous``.
+
+    Args:
+        previous: Step k - 1's problem.
+        current: Step k's problem (the same contact tags).
+        step: k, for the error message.
+
+    Returns:
+        ``{tag: t}`` over the rigid contact tags, or None where every t is zero.
+
+    Raises:
+        ValueError: The obstacle of a tag is not the previous one translated.
+    """
+    dim = current.mesh.geometry.dim
+    moves = {}
+    for tag in current.rigid_tags:
+        old, new = _gap_of(previous, tag), _gap_of(current, tag)
+        t = _translation(old, new)
+        if t is None:
+            raise ValueError(
+                f"solve_path: step {step}'s gap on contact tag {tag} ({new!r}) is not step "
+                f"{step - 1}'s ({old!r}) translated, so the slip of a frictional step cannot "
+                "be measured relative to the obstacle: give every step the same obstacle, or "
+                "one moved rigidly (the same kind, size and orientation at a moved point, "
+                "Obstacle.translation_from), or hold the obstacle and move the body"
+            )
+        moves[tag] = np.zeros(dim) if t.size == 0 else t[:dim]
+    if not any(np.any(t != 0.0) for t in moves.values()):
+        return None
+    return moves
+
+
+def _gap_of(problem: SignoriniProblem, tag: int) -> Any:
+    """The gap of contact tag ``tag`` (a number, a callable or an obstacle)."""
+    gap = problem.gap
+    return gap[tag] if isinstance(gap, Mapping) else gap
+
+
+def _translation(old: Any, new: Any) -> np.ndarray | None:
+    """The translation from gap ``old`` to ``new``; empty for none; None if not a translate."""
+    if new is old or (is_real(old) and is_real(new)):
+        return np.zeros(0)
+    if isinstance(old, Obstacle) and isinstance(new, Obstacle):
+        return new.translation_from(old)
+    return None
+
+
+def _check_force(problem: SignoriniProblem, step: int) -> None:
+    """A force-controlled obstacle of a frictional step: a plane approached along its normal.
+
+    Raises:
+        ValueError: Another force-controlled obstacle (its unknown motion delta d would enter
+            the slip).
+    """
+    obstacle = problem.force_obstacle
+    if obstacle is None:
+        return
+    if isinstance(obstacle, Plane) and abs(abs(float(obstacle.direction @ obstacle.normal))
+                                           - 1.0) <= 1e-12:
+        return
+    raise ValueError(
+        f"solve_path: step {step}'s obstacle {obstacle!r} is force-controlled on a frictional "
+        "path: its displacement along its direction is an unknown of the step with a part "
+        "along the contact frame's tangents, which the slip does not subtract; a frictional "
+        "path accepts force control only for a Plane approached along its normal (prescribe "
+        "the obstacle's position per step instead)"
+    )
