@@ -24,8 +24,9 @@ the slip unaffected by construction:
 
 A force-controlled obstacle moves by its unknown displacement delta d within a step; that
 motion has no tangential part only for a :class:`~dwr_signorini.obstacles.Plane` approached
-along its normal (its frame's normal), the one force-controlled obstacle a frictional path
-accepts. Contact pairs carry their relative motion in u and are unaffected.
+along its normal (its frame's normal), the one force-controlled obstacle a frictional problem
+accepts (:class:`~dwr_signorini.SignoriniProblem` refuses the others). Contact pairs carry
+their relative motion in u and are unaffected.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from .obstacles import Obstacle, Plane
+from .obstacles import Obstacle
 from .problem import SignoriniProblem
 from .validation import is_real
 
@@ -57,14 +58,12 @@ def path_translations(problems: Sequence[SignoriniProblem]) -> list[Translation 
 
     Raises:
         ValueError: A frictional step whose obstacle is not the previous step's translated
-            (module docstring), or a force-controlled obstacle other than a plane approached
-            along its normal, naming the step and the contact tag.
+            (module docstring), naming the step and the contact tag.
     """
     out: list[Translation | None] = [None] * len(problems)
     if not problems[0].law.frictional:
         return out
     for k, problem in enumerate(problems):
-        _check_force(problem, k)
         if k > 0:
             out[k] = step_translation(problems[k - 1], problem, k)
     return out
@@ -118,25 +117,3 @@ def _translation(old: Any, new: Any) -> np.ndarray | None:
     if isinstance(old, Obstacle) and isinstance(new, Obstacle):
         return new.translation_from(old)
     return None
-
-
-def _check_force(problem: SignoriniProblem, step: int) -> None:
-    """A force-controlled obstacle of a frictional step: a plane approached along its normal.
-
-    Raises:
-        ValueError: Another force-controlled obstacle (its unknown motion delta d would enter
-            the slip).
-    """
-    obstacle = problem.force_obstacle
-    if obstacle is None:
-        return
-    if isinstance(obstacle, Plane) and abs(abs(float(obstacle.direction @ obstacle.normal))
-                                           - 1.0) <= 1e-12:
-        return
-    raise ValueError(
-        f"solve_path: step {step}'s obstacle {obstacle!r} is force-controlled on a frictional "
-        "path: its displacement along its direction is an unknown of the step with a part "
-        "along the contact frame's tangents, which the slip does not subtract; a frictional "
-        "path accepts force control only for a Plane approached along its normal (prescribe "
-        "the obstacle's position per step instead)"
-    )

@@ -225,12 +225,15 @@ def test_refused_changes(second, match):
 
 
 def test_refused_force_controlled_disc():
-    """(d) A force-controlled disc on a frictional path (its unknown approach would enter the
-    slip) is refused; a force-controlled flat approached along its normal is not."""
+    """(d) A force-controlled disc with friction (its unknown approach would enter the slip)
+    is refused, for a single solve as for a path, with either law; without friction it is
+    accepted; a force-controlled flat approached along its normal is accepted with friction."""
     msh, tags = block(4, 2)
     disc = Sphere((0.5, -R), R, force=0.1, direction=(0.0, 1.0))
-    with pytest.raises(ValueError, match="force-controlled on a frictional path"):
-        ds.solve_path(path(msh, tags, [disc], [(0.0, 0.0)]), goal, verbose=False)
+    for law in (ds.Coulomb(0.3), ds.Tresca(0.01)):
+        with pytest.raises(ValueError, match="force-controlled with friction"):
+            path(msh, tags, [disc], [(0.0, 0.0)], law=law)
+    assert path(msh, tags, [disc], [(0.0, 0.0)], law=ds.Frictionless())[0].force_obstacle is disc
     from dwr_signorini.obstacle_motion import path_translations
 
     flat = Plane((0.0, 0.0), (0.0, -1.0), force=0.1)
