@@ -69,8 +69,11 @@ def _half(poly: np.ndarray, count: np.ndarray, a: np.ndarray, b: np.ndarray):
     meet = poly + (q - poly) * t[..., None]
     slots = np.stack([poly, meet], axis=2).reshape(k, 2 * size, 2)
     used = np.stack([keep, cross], axis=2).reshape(k, 2 * size)
-    order = np.argsort(~used, axis=1, kind="stable")
-    return np.take_along_axis(slots, order[..., None], axis=1), used.sum(axis=1)
+    # the used slots moved to the front, in order (the rest zero: beyond the count)
+    row, col = np.nonzero(used)
+    out = np.zeros_like(slots)
+    out[row, (np.cumsum(used, axis=1) - 1)[row, col]] = slots[row, col]
+    return out, used.sum(axis=1)
 
 
 def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray):
@@ -101,25 +104,32 @@ def _pairs_within(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _overlap(poly: np.ndarray, a: np.ndarray, b: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """Whether the padded convex polygons a and b may overlap in more than an edge.
 
-    The separating-axes test of :func:`~dwr_signorini.mortar._overlaps`, pair by pair.
+    The separating-axes test of :func:`~dwr_signorini.mortar._overlaps`, pair by pair; the
+    axes of each polygon and its own extent on them are computed once per polygon.
     """
+    edges = np.roll(poly, -1, axis=1) - poly
+    ax, ay = edges[..., 1], -edges[..., 0]  # (k, a)
+    length = np.hypot(ax, ay)
+    valid = length > 0.0
+    ax, ay = ax / np.where(valid, length, 1.0), ay / np.where(valid, length, 1.0)
+    own = _extent(poly, ax, ay)
+
     def separated(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        edges = np.roll(p, -1, axis=1) - p
-        ax, ay = edges[..., 1], -edges[..., 0]  # (k, a)
-        length = np.hypot(ax, ay)
-        valid = length > 0.0
-        ax, ay = ax / np.where(valid, length, 1.0), ay / np.where(valid, length, 1.0)
-
-        def extent(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            on = ax[:, :, None] * r[:, None, :, 0] + ay[:, :, None] * r[:, None, :, 1]
-            return on.min(axis=2), on.max(axis=2)
-
-        (own_lo, own_hi), (lo, hi) = extent(p), extent(q)
-        apart = ((own_hi <= lo + tol[:, None]) | (hi <= own_lo + tol[:, None])) & valid
+        lo, hi = _extent(poly[q], ax[p], ay[p])
+        own_lo, own_hi = own[0][p], own[1][p]
+        apart = ((own_hi <= lo + tol[:, None]) | (hi <= own_lo + tol[:, None])) & valid[p]
         return apart.any(axis=1)
 
-    p, q = poly[a], poly[b]
-    return ~(separated(p, q) | separated(q, p))
+    return ~(separated(a, b) | separated(b, a))
+
+
+def _extent(r: np.ndarray, ax: np.ndarray, ay: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least and largest projections of the vertices of polygons r (k, v, 2) on axes (k, a)."""
+    lo = hi = ax * r[:, None, 0, 0] + ay * r[:, None, 0, 1]
+    for v in range(1, r.shape[1]):
+        on = ax * r[:, None, v, 0] + ay * r[:, None, v, 1]
+        lo, hi = np.minimum(lo, on), np.maximum(hi, on)
+    return lo, hi
 
 
 def batched_rule(
