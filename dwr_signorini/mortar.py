@@ -476,6 +476,7 @@ class FacetMap:
         self.element = basix.create_element(basix.ElementFamily.P, cell, 1,
                                             basix.LagrangeVariant.equispaced)
         self.affine = nv == gdim
+        self._inverse: np.ndarray | None = None  # (A^T A)^{-1} A^T per affine facet, once
         check_planar(warp(vertices))
 
     def push(self, facet: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -491,15 +492,26 @@ class FacetMap:
         return x, J
 
     def pull(self, facet: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """The reference points X with x(X) = x on ``facet`` (x on the facets' planes)."""
-        fdim = self.vertices.shape[1] - 1 if self.affine else 2
+        """The reference points X with x(X) = x on ``facet`` (x on the facets' planes).
+
+        An affine facet: X = (A^T A)^{-1} A^T (x - x_0), A's columns x_k - x_0 (vertex k at
+        e_k on the reference facet), the matrix formed once per facet; a quadrilateral:
+        Newton's method.
+        """
+        if self.affine:
+            if self._inverse is None:
+                A = np.swapaxes(self.vertices[:, 1:] - self.vertices[:, :1], 1, 2)
+                At = np.swapaxes(A, 1, 2)
+                self._inverse = np.linalg.solve(At @ A, At) if len(A) else At
+            return np.einsum("qkd,qd->qk", self._inverse[facet], x - self.vertices[facet, 0])
+        fdim = 2
         X = np.full((len(x), fdim), 1.0 / (fdim + 1.0))
-        for _ in range(1 if self.affine else 20):
+        for _ in range(20):
             y, J = self.push(facet, X)
             step = np.linalg.solve(np.einsum("qdk,qdl->qkl", J, J),
                                    np.einsum("qdk,qd->qk", J, x - y)[..., None])[..., 0]
             X = X + step
-            if not self.affine and np.max(np.abs(step), initial=0.0) < 1e-14:
+            if np.max(np.abs(step), initial=0.0) < 1e-14:
                 break
         return X
 

@@ -131,8 +131,11 @@ def cell_basis(
         raise NotImplementedError(
             "contact pairs need an element without dof transformations (Lagrange of degree <= 2)"
         )
-    cmap = compat.geometry_cmap(mesh)
     gdim = mesh.geometry.dim
+    tdim = mesh.topology.dim
+    if len(y) and geometry.shape[1] == tdim + 1 and gdim == tdim:  # affine simplices
+        return tabulate(element, _affine_pull_back(geometry, which, y[:, :gdim]))
+    cmap = compat.geometry_cmap(mesh)
     out = np.zeros((len(y), element.dim))
     order = np.argsort(which, kind="stable")  # the points of each cell, in one pass
     cuts = np.flatnonzero(np.diff(which[order])) + 1
@@ -140,6 +143,19 @@ def cell_basis(
         X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[which[at[0]]])
         out[at] = tabulate(element, X)
     return out
+
+
+def _affine_pull_back(geometry: np.ndarray, which: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The reference points X of y_q in the affine simplices ``geometry[which[q]]``.
+
+    x(X) = x_0 + sum_k X_k (x_k - x_0) on basix's reference simplex (vertex k at e_k), so
+    X = A^{-1} (y - x_0) with A's columns x_k - x_0, inverted once per cell.
+    """
+    cells, at = np.unique(which, return_inverse=True)
+    nodes = geometry[cells]
+    origin = nodes[:, 0]
+    inverse = np.linalg.inv(np.swapaxes(nodes[:, 1:] - origin[:, None], 1, 2))
+    return np.einsum("qkd,qd->qk", inverse[at], y - origin[at])
 
 
 def entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
