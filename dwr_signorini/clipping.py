@@ -19,10 +19,11 @@ import numpy as np
 
 from .mortar import (
     _PIECE_TOL,
-    NONAFFINE_EXTRA_DEGREE,
     MortarRule,
-    _reference_rule,
+    bilinear,
     facet_reach,
+    piece_rule,
+    rays,
 )
 
 __all__ = ["batched_rule"]
@@ -134,7 +135,7 @@ def _extent(r: np.ndarray, ax: np.ndarray, ay: np.ndarray) -> tuple[np.ndarray, 
 
 def batched_rule(
     slave: np.ndarray, slave_normals: np.ndarray, master: np.ndarray,
-    master_normals: np.ndarray, degree: int, windows: np.ndarray, facet: np.ndarray,
+    master_normals: np.ndarray, degree: int | None, windows: np.ndarray, facet: np.ndarray,
     candidate: np.ndarray,
 ) -> tuple[MortarRule, np.ndarray]:
     """The 3D mortar rule of every slave facet against its candidates (module docstring).
@@ -144,7 +145,8 @@ def batched_rule(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, 3).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece (None: the pieces,
+            :func:`~dwr_signorini.mortar.piece_rule`).
         windows: The penetration window of each slave facet.
         facet: The slave facet of each candidate pair, sorted.
         candidate: The master facet of each pair, each facet's in the order it meets them.
@@ -154,8 +156,7 @@ def batched_rule(
         ``master`` indexing ``master``, in the order of the pairs), and the facets whose pieces
         overlap (to the per-facet rule).
     """
-    bilinear = slave.shape[1] != 3 or master.shape[1] != 3
-    points, weights = _reference_rule(2, degree + (NONAFFINE_EXTRA_DEGREE if bilinear else 0))
+    points, weights = piece_rule(2, degree, bilinear(slave, master))
     n = slave_normals
     e1 = slave[:, 1] - slave[:, 0]
     e1 /= np.linalg.norm(e1, axis=1)[:, None]
@@ -189,7 +190,7 @@ def batched_rule(
     centre = np.einsum("pvk,pv->pk", piece, np.arange(piece.shape[1])[None] < count[:, None])
     centre /= np.maximum(count, 1)[:, None]
     x = origin[facet] + np.einsum("pk,pkd->pd", centre, frame[facet])
-    ok &= _ray(x, n[facet], master[candidate, 0], master_normals[candidate]) >= -windows[facet]
+    ok &= rays(x, n[facet], master[candidate, 0], master_normals[candidate]) >= -windows[facet]
     facet, candidate, piece, count = facet[ok], candidate[ok], piece[ok], count[ok]
     a, b = _pairs_within(facet)
     clash = _overlap(piece, a, b, 1e-9 * np.sqrt(area_F[facet[a]]))
@@ -197,7 +198,7 @@ def batched_rule(
     fast = ~np.isin(facet, overlapping)
     rule = _fan(piece[fast], count[fast], facet[fast], candidate[fast], origin, frame,
                 (points, weights), area_F)
-    gap = _ray(rule.points, n[rule.facet], master[rule.master, 0], master_normals[rule.master])
+    gap = rays(rule.points, n[rule.facet], master[rule.master, 0], master_normals[rule.master])
     return MortarRule(rule.facet, rule.points, rule.weights, rule.master, gap), overlapping
 
 
@@ -221,8 +222,3 @@ def _fan(piece: np.ndarray, count: np.ndarray, facet: np.ndarray, master: np.nda
     x = origin[f] + np.einsum("pk,pkd->pd", xy.reshape(-1, 2), frame[f])
     w = ((2.0 * area[k, t])[:, None] * weights[None]).ravel()
     return MortarRule(f, x, w, np.repeat(master[k], q), np.zeros(0))
-
-
-def _ray(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:
-    """The ray parameters t of x + t n on the planes through p0 with normals nm, row by row."""
-    return np.einsum("pd,pd->p", p0 - x, nm) / np.einsum("pd,pd->p", n, nm)

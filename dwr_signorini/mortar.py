@@ -44,10 +44,8 @@ import basix
 import numpy as np
 
 __all__ = [
-    "FacetBasis", "FacetMap", "MortarRule", "check_planar", "entry", "facet_normals", "facet_reach",
-    "in_shadow",
-    "mortar_rule",
-    "tabulate", "warp",
+    "FacetBasis", "FacetMap", "MortarRule", "bilinear", "check_planar", "entry", "facet_normals",
+    "facet_reach", "in_shadow", "mortar_rule", "piece_rule", "place", "rays", "tabulate", "warp",
 ]
 
 #: Relative size below which a piece of a slave facet is dropped (a touching corner).
@@ -123,7 +121,7 @@ def mortar_rule(
     slave_normals: np.ndarray,
     master: np.ndarray,
     master_normals: np.ndarray,
-    degree: int,
+    degree: int | None,
     window: np.ndarray | float,
 ) -> MortarRule:
     """The mortar rule of degree ``degree`` on the slave facets (module docstring).
@@ -133,7 +131,8 @@ def mortar_rule(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece; None: the pieces
+            (:func:`piece_rule`, placed on with :func:`place`).
         window: The penetration window w_F of each slave facet (or one for all), >= 0.
 
     Returns:
@@ -145,8 +144,7 @@ def mortar_rule(
     gdim = slave.shape[2]
     check_planar(max(warp(slave), warp(master)))
     pieces = _pieces_2d if gdim == 2 else _pieces_3d
-    bilinear = slave.shape[1] != gdim or master.shape[1] != gdim  # quadrilaterals
-    rule = _reference_rule(gdim - 1, degree + (NONAFFINE_EXTRA_DEGREE if bilinear else 0))
+    rule = piece_rule(gdim - 1, degree, bilinear(slave, master))
     windows = np.broadcast_to(np.asarray(window, dtype=float), (len(slave),))
     out: list[list[np.ndarray]] = [[], [], [], [], []]
     # bounding spheres: a master facet whose sphere's shadow along n misses F's cannot meet F
@@ -207,11 +205,81 @@ def _ray(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.nda
     return ((p0 - x) @ nm) / (n @ nm)
 
 
+def rays(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:
+    """The ray parameters t of x + t n on the planes through p0 with normals nm, row by row."""
+    return np.einsum("pd,pd->p", p0 - x, nm) / np.einsum("pd,pd->p", n, nm)
+
+
+def bilinear(slave: np.ndarray, master: np.ndarray) -> bool:
+    """Whether a side's facets (m, nv, gdim) are quadrilaterals (bilinear maps)."""
+    gdim = slave.shape[2]
+    return slave.shape[1] != gdim or master.shape[1] != gdim
+
+
+def piece_rule(
+    fdim: int, degree: int | None, quadrilaterals: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The reference rule put on each simplex of a piece (a triangle of its fan, 2D: a segment).
+
+    Args:
+        fdim: The facets' dimension.
+        degree: The Gauss rule's degree (plus :data:`NONAFFINE_EXTRA_DEGREE` on
+            ``quadrilaterals``); None: the simplex's vertices, each with its share of the
+            measure. A rule of those is the pieces themselves, independent of any degree, on
+            which :func:`place` puts the Gauss points of each degree.
+        quadrilaterals: Whether a side has quadrilateral facets (:func:`bilinear`).
+
+    Returns:
+        The reference points and weights.
+    """
+    if degree is None:
+        cell = basix.CellType.interval if fdim == 1 else basix.CellType.triangle
+        vertices = basix.geometry(cell)
+        return vertices, np.full(len(vertices), _REFERENCE_MEASURE[fdim] / len(vertices))
+    return _reference_rule(fdim, degree + (NONAFFINE_EXTRA_DEGREE if quadrilaterals else 0))
+
+
 def _reference_rule(fdim: int, degree: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss points and weights of degree ``degree`` on [0, 1] (fdim 1) or the triangle."""
     cell = basix.CellType.interval if fdim == 1 else basix.CellType.triangle
     points, weights = basix.make_quadrature(cell, max(degree, 1))
     return points, weights
+
+
+#: The measure of the reference interval and triangle.
+_REFERENCE_MEASURE = {1: 1.0, 2: 0.5}
+
+
+def place(
+    pieces: MortarRule, degree: int, quadrilaterals: bool, slave_normals: np.ndarray,
+    master: np.ndarray, master_normals: np.ndarray,
+) -> MortarRule:
+    """The mortar rule of degree ``degree`` on the pieces of a rule of degree None.
+
+    Each simplex (its vertices v_0, ..., v_d: d + 1 consecutive points of ``pieces``) gets
+    the Gauss points x_q = v_0 + sum_k X_qk (v_k - v_0) of :func:`piece_rule` with weights
+    |S| w_q / |S_ref|, and each point its gap along its slave facet's normal. The pieces (the
+    search) do not depend on the degree: one search serves every degree.
+
+    Args:
+        pieces: The rule of degree None (:func:`mortar_rule`).
+        degree: The Gauss rule's degree.
+        quadrilaterals: Whether a side has quadrilateral facets (:func:`bilinear`).
+        slave_normals: The slave facets' outward unit normals (``pieces.facet`` indexes them).
+        master: The master facets' vertices (``pieces.master`` indexes them).
+        master_normals: Their outward unit normals.
+    """
+    gdim = pieces.points.shape[1]
+    k = gdim  # vertices per simplex
+    X, w = piece_rule(gdim - 1, degree, quadrilaterals)
+    v = pieces.points.reshape(-1, k, gdim)
+    x = (v[:, None, 0] + np.einsum("qj,pjd->pqd", X, v[:, 1:] - v[:, :1])).reshape(-1, gdim)
+    measure = pieces.weights.reshape(-1, k).sum(axis=1)
+    weights = (measure[:, None] * (w / _REFERENCE_MEASURE[gdim - 1])[None]).ravel()
+    facet = np.repeat(pieces.facet[::k], len(w))
+    partner = np.repeat(pieces.master[::k], len(w))
+    gap = rays(x, slave_normals[facet], master[partner, 0], master_normals[partner])
+    return MortarRule(facet, x, weights, partner, gap)
 
 
 def _pieces_2d(

@@ -63,8 +63,10 @@ from .mortar import (
     FacetBasis,
     FacetMap,
     MortarRule,
+    bilinear,
     facet_reach,
     mortar_rule,
+    place,
 )
 from .pair_facets import (
     Side,
@@ -162,6 +164,8 @@ class TraceGeometry:
         exchanges: Per pair, the :class:`~dwr_signorini.exchange.MasterExchange` of its master
             facets (this rank's own, and those it holds).
         facets: The slave facets' coordinate map (:class:`~dwr_signorini.mortar.FacetMap`).
+        pieces: The pieces of the mortar rule, found once (:meth:`_search`); the rule of each
+            degree is placed on them (:meth:`rule`).
         measure, covered: The measure of each slave facet and of its covered part.
         frame: The normal of the contact frame on the fine slave facets (vector DG0,
             :meth:`_frame`), in which the tangential slip is measured.
@@ -194,7 +198,8 @@ class TraceGeometry:
             slave, _, w = self._pair_slaves(pair)
             exchange.boxes(facet_reach(slave)[0], search_radius(slave, w, exchange.reach))
             self.exchanges.append(exchange)
-        self._rules: dict[int, list[MortarRule]] = {}
+        self.pieces = self._search()
+        self._rules: dict[int, MortarRule] = {}
         rule = self.rule(1)
         f, _, _, w = self.facets.quadrature(1)
         num = len(self.vertices)
@@ -213,12 +218,26 @@ class TraceGeometry:
         """V's global block dofs of the cells of :attr:`master` (collective)."""
         return np.concatenate([x.dofs(V) for x in self.exchanges])
 
+    def _search(self) -> MortarRule:
+        """The pieces of the mortar rule of every pair (the search; collective).
+
+        Returns:
+            The rule of degree None (:func:`~dwr_signorini.mortar.piece_rule`) of this
+            rank's slave facets, its ``master`` an index into :attr:`master`.
+        """
+        rules = [self._pair_rule(pair, x) for pair, x in zip(
+            self.disc.problem.pairs, self.exchanges, strict=True)]
+        offsets = np.cumsum([0] + [len(x.number) for x in self.exchanges])
+        rules = [MortarRule(r.facet, r.points, r.weights, r.master + offset, r.gap)
+                 for r, offset in zip(rules, offsets, strict=False)]
+        return merge_rules(rules, self.vertices.shape[2])
+
     def rule(self, degree: int) -> MortarRule:
         """The mortar rule for a space of ``degree`` (exact to degree 2 ``degree``), kept.
 
-        The pieces do not depend on the degree (the share is the same from any rule); the
-        Gauss points on them do. Each degree asked for runs the mortar search once per mesh,
-        with each pair's penetration window (:func:`windows`). Collective the first time.
+        The pieces do not depend on the degree (nor does the share): the mortar search runs
+        once per mesh, with each pair's penetration window (:func:`windows`), and each degree
+        asked for puts its Gauss points on the pieces (:func:`~dwr_signorini.mortar.place`).
 
         Args:
             degree: The degree of the displacement space.
@@ -228,12 +247,11 @@ class TraceGeometry:
             ``master`` an index into :attr:`master`.
         """
         if degree not in self._rules:
-            self._rules[degree] = [self._pair_rule(pair, x, degree) for pair, x in zip(
-                self.disc.problem.pairs, self.exchanges, strict=True)]
-        offsets = np.cumsum([0] + [len(x.number) for x in self.exchanges])
-        rules = [MortarRule(r.facet, r.points, r.weights, r.master + offset, r.gap)
-                 for r, offset in zip(self._rules[degree], offsets, strict=False)]
-        return merge_rules(rules, self.vertices.shape[2])
+            master = self.master
+            self._rules[degree] = place(
+                self.pieces, 2 * degree, bilinear(self.vertices, master.vertices),
+                self.normals, master.vertices, master.normals)
+        return self._rules[degree]
 
     def _pair_slaves(self, pair: ContactPair) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """This rank's slave facets of ``pair``: vertices, indices, penetration windows."""
@@ -242,8 +260,8 @@ class TraceGeometry:
         w = np.broadcast_to(np.asarray(windows(pair, slave), dtype=float), (len(on),))
         return slave, on, w
 
-    def _pair_rule(self, pair: ContactPair, exchange: MasterExchange, degree: int) -> MortarRule:
-        """One pair's rule: the candidate search, then the facets it leaves against their shadow.
+    def _pair_rule(self, pair: ContactPair, exchange: MasterExchange) -> MortarRule:
+        """One pair's pieces: the candidate search, then the facets it leaves against their shadow.
 
         Collective (the facets left over ask every rank for the master facets in their
         shadow, :meth:`~dwr_signorini.exchange.MasterExchange.shadows`).
@@ -251,12 +269,12 @@ class TraceGeometry:
         slave, on, w = self._pair_slaves(pair)
         normals = self.normals[on]
         held = exchange.side
-        parts, full = candidate_parts(slave, normals, held.vertices, held.normals, 2 * degree,
-                                      w, exchange.reach, exchange.number)
+        parts, full = candidate_parts(slave, normals, held.vertices, held.normals, None, w,
+                                      exchange.reach, exchange.number)
         exchange.shadows(slave[full], normals[full], w[full])
         held, order = exchange.side, np.argsort(exchange.number, kind="stable")
         r = mortar_rule(slave[full], normals[full], held.vertices[order], held.normals[order],
-                        2 * degree, w[full])
+                        None, w[full])
         parts.append(MortarRule(full[r.facet], r.points, r.weights, order[r.master], r.gap))
         r = merge_rules(parts, slave.shape[2])
         return MortarRule(on[r.facet], r.points, r.weights, r.master, r.gap)

@@ -34,7 +34,7 @@ def candidate_rule(
     slave_normals: np.ndarray,
     master: np.ndarray,
     master_normals: np.ndarray,
-    degree: int,
+    degree: int | None,
     window: np.ndarray | float,
 ) -> MortarRule:
     """The mortar rule of each slave facet against its candidate master facets only.
@@ -50,7 +50,7 @@ def candidate_rule(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece (None: the pieces).
         window: The penetration window w_F of each slave facet (or one for all), >= 0
             (:func:`~dwr_signorini.mortar.mortar_rule`).
 
@@ -86,7 +86,7 @@ def candidate_parts(
     slave_normals: np.ndarray,
     master: np.ndarray,
     master_normals: np.ndarray,
-    degree: int,
+    degree: int | None,
     windows: np.ndarray,
     master_reach: float | None = None,
     keys: np.ndarray | None = None,
@@ -106,7 +106,8 @@ def candidate_parts(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece (None: the pieces,
+            :func:`~dwr_signorini.mortar.piece_rule`).
         windows: The penetration window of each slave facet.
         master_reach: The largest reach of a master facet (default: of those given; the
             largest over all ranks where the masters are distributed).
