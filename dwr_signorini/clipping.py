@@ -20,6 +20,7 @@ import numpy as np
 from .mortar import (
     _PIECE_TOL,
     MortarRule,
+    _dot,
     bilinear,
     facet_reach,
     piece_rule,
@@ -53,28 +54,30 @@ def _half(poly: np.ndarray, count: np.ndarray, a: np.ndarray, b: np.ndarray):
     """One Sutherland-Hodgman step for all polygons: the part left of the line a -> b.
 
     The vertices kept and the crossings, in the order of the per-facet step
-    (:func:`~dwr_signorini.mortar._half`).
+    (:func:`~dwr_signorini.mortar._half`). The polygons are closed: vertex ``count`` repeats
+    vertex 0 (so each vertex's successor is the next slot), the result's likewise.
     """
-    k, size = poly.shape[:2]
-    valid = np.arange(size)[None] < count[:, None]
+    k, size = poly.shape[0], poly.shape[1] - 1
     e = b - a
     side = e[:, None, 0] * (poly[..., 1] - a[:, None, 1]) - e[:, None, 1] * (
         poly[..., 0] - a[:, None, 0])
-    nxt = np.where(np.arange(size)[None] + 1 < count[:, None], np.arange(size)[None] + 1, 0)
-    q = np.take_along_axis(poly, nxt[..., None], axis=1)
-    sq = np.take_along_axis(side, nxt, axis=1)
-    keep = valid & (side >= 0.0)
-    cross = valid & ((side >= 0.0) != (sq >= 0.0))
+    p, q, sp, sq = poly[:, :-1], poly[:, 1:], side[:, :-1], side[:, 1:]
+    valid = np.arange(size)[None] < count[:, None]
+    inside = sp >= 0.0
+    keep = valid & inside
+    cross = valid & (inside != (sq >= 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(cross, side / np.where(cross, side - sq, 1.0), 0.0)
-    meet = poly + (q - poly) * t[..., None]
-    slots = np.stack([poly, meet], axis=2).reshape(k, 2 * size, 2)
+        t = np.where(cross, sp / np.where(cross, sp - sq, 1.0), 0.0)
+    meet = p + (q - p) * t[..., None]
+    slots = np.stack([p, meet], axis=2).reshape(k, 2 * size, 2)
     used = np.stack([keep, cross], axis=2).reshape(k, 2 * size)
-    # the used slots moved to the front, in order (the rest zero: beyond the count)
+    # the used slots moved to the front, in order, then vertex 0 again (the rest zero)
     row, col = np.nonzero(used)
-    out = np.zeros_like(slots)
+    out = np.zeros((k, 2 * size + 1, 2))
     out[row, (np.cumsum(used, axis=1) - 1)[row, col]] = slots[row, col]
-    return out, used.sum(axis=1)
+    new = used.sum(axis=1)
+    out[np.arange(k), new] = out[:, 0]
+    return out, new
 
 
 def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray):
@@ -84,10 +87,12 @@ def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray):
         The pieces (padded) and their numbers of vertices.
     """
     m, size = clip.shape[1], subject.shape[1]
+    subject = np.concatenate([subject, subject[:, :1]], axis=1)
+    subject[np.arange(len(count)), count] = subject[:, 0]  # closed (:func:`_half`)
     for i in range(m):
         subject, count = _half(subject, count, clip[:, i], clip[:, (i + 1) % m])
-        subject = subject[:, :size + i + 1]  # each half-plane adds at most one vertex
-    return subject, count
+        subject = subject[:, :size + i + 2]  # each half-plane adds at most one vertex
+    return subject[:, :-1], count
 
 
 def _pairs_within(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -170,14 +175,14 @@ def batched_rule(
     slave_centres, slave_reach = facet_reach(slave)
     nf = n[facet]
     d = centres[candidate] - slave_centres[facet]
-    along = np.einsum("pd,pd->p", d, nf)
+    along = _dot(d, nf)
     lateral = np.linalg.norm(d - along[:, None] * nf, axis=1)
     s_reach = reach[candidate] + slave_reach[facet]
-    facing = np.einsum("pd,pd->p", master_normals[candidate], nf) < 0.0
+    facing = _dot(master_normals[candidate], nf) < 0.0
     ok = facing & (lateral <= (1.0 + 1e-9) * s_reach) & (along >= -(windows[facet] + s_reach))
     facet, candidate = facet[ok], candidate[ok]
-    proj = np.einsum("pvd,pkd->pvk", _ring(master[candidate]) - origin[facet][:, None],
-                     frame[facet])
+    relative, axes = _ring(master[candidate]) - origin[facet][:, None], frame[facet]
+    proj = np.stack([_dot(relative, axes[:, None, k]) for k in range(2)], axis=2)
     lo, hi = ring.min(axis=1)[facet], ring.max(axis=1)[facet]
     ok = np.all(proj.max(axis=1) > lo, axis=1) & np.all(proj.min(axis=1) < hi, axis=1)
     facet, candidate, proj = facet[ok], candidate[ok], proj[ok]
@@ -187,9 +192,10 @@ def batched_rule(
     tol = _PIECE_TOL * area_F[facet]
     ok = (count >= 3) & (_shoelace(piece) > tol)
     # the window, at the centre of the piece's vertices
-    centre = np.einsum("pvk,pv->pk", piece, np.arange(piece.shape[1])[None] < count[:, None])
+    used = np.arange(piece.shape[1])[None] < count[:, None]
+    centre = np.stack([_dot(piece[..., k], used) for k in range(2)], axis=1)
     centre /= np.maximum(count, 1)[:, None]
-    x = origin[facet] + np.einsum("pk,pkd->pd", centre, frame[facet])
+    x = origin[facet] + _dot(centre[:, None], frame[facet].transpose(0, 2, 1))
     ok &= rays(x, n[facet], master[candidate, 0], master_normals[candidate]) >= -windows[facet]
     facet, candidate, piece, count = facet[ok], candidate[ok], piece[ok], count[ok]
     a, b = _pairs_within(facet)
@@ -219,6 +225,6 @@ def _fan(piece: np.ndarray, count: np.ndarray, facet: np.ndarray, master: np.nda
           + points[None, :, 1:] * c[k, t][:, None])  # (triangles, q, 2)
     q = len(weights)
     f = np.repeat(facet[k], q)
-    x = origin[f] + np.einsum("pk,pkd->pd", xy.reshape(-1, 2), frame[f])
+    x = origin[f] + _dot(xy.reshape(-1, 1, 2), frame[f].transpose(0, 2, 1))
     w = ((2.0 * area[k, t])[:, None] * weights[None]).ravel()
     return MortarRule(f, x, w, np.repeat(master[k], q), np.zeros(0))

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .clipping import batched_rule
-from .mortar import MortarRule, facet_reach, mortar_rule
+from .mortar import MortarRule, _dot, facet_reach, mortar_rule
 
 __all__ = [
     "SEARCH_DEPTH", "candidate_parts", "candidate_rule", "merge_rules",
@@ -182,12 +182,12 @@ def _candidates(
         f += lo
         n = normals[f]
         d = centres[c] - slave_centres[f]
-        along = np.einsum("pd,pd->p", d, n)
+        along = _dot(d, n)
         side = np.linalg.norm(d - along[:, None] * n, axis=1)
         both = reach[c] + slave_reach[f]
-        ok = ((np.einsum("pd,pd->p", master_normals[c], n) < 0.0)
+        ok = ((_dot(master_normals[c], n) < 0.0)
               & (side <= tol * both) & (along >= -(windows[f] + both))
-              & (np.einsum("pd,pd->p", d, d) <= radius[f] ** 2))
+              & (_dot(d, d) <= radius[f] ** 2))
         f, c = f[ok], c[ok]
         order = np.lexsort((keys[c], f))
         facets.append(f[order])
