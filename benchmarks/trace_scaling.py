@@ -16,13 +16,22 @@ the discretisation of the pair (one uniform refinement), per size in one run:
   counts the waits for a core), the ratios of both;
 * ``traces MB``: the resident memory the traces hold (largest over the ranks), ``peak MB``: the
   peak resident memory of a rank after the traces and after the solve (``ru_maxrss``; it only
-  grows over the sizes, so each size's peak shows where it exceeds the smaller sizes').
+  grows over the sizes, so each size's peak shows where it exceeds the smaller sizes');
+* ``trace peak MB``, ``P2 peak MB``: the peak resident memory of a rank while the trace (P2)
+  is built above its resident memory before (the peak reset before each build,
+  ``/proc/self/clear_refs``), the largest over the ranks; and per slave facet, the CPU time
+  ``trace CPU / facet [us]`` and ``trace peak / facet [kB]``.
 
-Beyond ``--solve-up-to`` slave facets only the traces are built (``solve`` empty). The table goes
-to ``benchmarks/results/trace_scaling_np<ranks>.csv``::
+Beyond ``--solve-up-to`` slave facets only the traces are built (``solve`` empty). With
+``--layers 1`` the boxes are thin slabs (one cell across each box's height, before the
+refinement): many contact facets in a small volume, to measure the traces alone toward 1e6
+slave facets. The table goes to ``benchmarks/results/trace_scaling_np<ranks>.csv`` (thin slabs:
+``trace_scaling_thin_np<ranks>.csv``)::
 
-    scripts/fenicsx python3 benchmarks/trace_scaling.py --sizes 10 23 47 95
-    scripts/fenicsx mpirun -n 2 python3 benchmarks/trace_scaling.py --sizes 10 23 47 95
+    scripts/fenicsx python3 benchmarks/trace_scaling.py --sizes 10 23 47
+    scripts/fenicsx mpirun -n 2 python3 benchmarks/trace_scaling.py --sizes 10 23 47
+    scripts/fenicsx python3 benchmarks/trace_scaling.py --layers 1 --solve-up-to 0 \
+        --sizes 47 95 191
 """
 
 from __future__ import annotations
@@ -66,22 +75,48 @@ def peak_mb() -> float:
                           op=MPI.MAX)
 
 
-def measure(n: int, solve: bool) -> dict[str, object]:
+def high_water_mb() -> float:
+    """This process's peak resident memory since the last :func:`reset_peak` [MB]."""
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmHWM")) / 1024.0
+
+
+def reset_peak() -> float:
+    """Reset this process's peak resident memory to the current one; return that [MB]."""
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+    return resident_mb()
+
+
+def peak_of(build) -> tuple[float, float, float, object]:
+    """:func:`timed` ``build()`` and the largest rise of a rank's peak memory over its resident
+    memory before [MB]."""
+    before = reset_peak()
+    t, c, out = timed(build)
+    return t, c, comm.allreduce(high_water_mb() - before, op=MPI.MAX), out
+
+
+def measure(n: int, solve: bool, layers: int) -> dict[str, object]:
     """One row of the table."""
-    disc = discretize(two_boxes(n))
+    disc = discretize(two_boxes(n, layers))
     before = resident_mb()
-    t_trace, c_trace, trace = timed(disc.master_trace)
-    t_p2, c_p2, _ = timed(lambda: disc.master_trace(disc.vector_space(2)))
+    t_trace, c_trace, m_trace, trace = peak_of(disc.master_trace)
+    t_p2, c_p2, m_p2, _ = peak_of(lambda: disc.master_trace(disc.vector_space(2)))
     geometry = trace.geometry
+    slaves = comm.allreduce(len(geometry.vertices), op=MPI.SUM)
     row = {
         "n": n,
-        "slave facets": comm.allreduce(len(geometry.vertices), op=MPI.SUM),
+        "slave facets": slaves,
         "master facets": comm.allreduce(len(geometry.exchanges[0].own.cell), op=MPI.SUM),
         "held": comm.allreduce(len(geometry.master.cell), op=MPI.MAX),
+        "slave facets held": comm.allreduce(len(geometry.vertices), op=MPI.MAX),
         "trace [s]": t_trace, "trace CPU [s]": c_trace,
         "P2 [s]": t_p2, "P2 CPU [s]": c_p2,
         "traces MB": comm.allreduce(resident_mb() - before, op=MPI.MAX),
         "peak MB, traces": peak_mb(),
+        "trace peak MB": m_trace, "P2 peak MB": m_p2,
+        "trace CPU / facet [us]": 1e6 * c_trace / slaves,
+        "trace peak / facet [kB]": 1024.0 * m_trace / slaves,
     }
     if solve:
         t_solve, c_solve, sol = timed(lambda: ds.solve(disc))
@@ -101,9 +136,12 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[10, 23, 47])
     parser.add_argument("--solve-up-to", type=int, default=20_000,
                         help="solve the pair only up to this many slave facets")
+    parser.add_argument("--layers", type=int, default=2,
+                        help="cells across each box's height (1: thin slabs)")
     args = parser.parse_args()
-    rows = [show(measure(n, 8 * (n + 1) ** 2 <= args.solve_up_to)) for n in args.sizes]
-    write_rows(rows, "trace_scaling")
+    rows = [show(measure(n, 8 * (n + 1) ** 2 <= args.solve_up_to, args.layers))
+            for n in args.sizes]
+    write_rows(rows, "trace_scaling" if args.layers == 2 else "trace_scaling_thin")
 
 
 if __name__ == "__main__":

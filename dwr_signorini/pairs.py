@@ -465,8 +465,9 @@ class MasterTrace:
         """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
 
         The points of one facet and one cell are summed into one block (rows of the facet,
-        columns of the cell) before the blocks are expanded per component: the matrix entries
-        grow with the facet-cell pairs, not with the rule's points.
+        columns of the cell), which M_F^{-1} then scales, before the blocks are expanded per
+        component: the work and the matrix entries grow with the facet-cell pairs, not with
+        the rule's points.
 
         Args:
             basis: W's basis on the slave facets.
@@ -477,19 +478,22 @@ class MasterTrace:
         W, V = self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
-        inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
         num = len(basis.mass)
+        # per facet: M_F^{-1}; on a facet the master covers in part, the mean (no polynomial
+        # through the jump at the master's end; its integral against a constant is the same):
+        # every row the integral over the covered part, over |F|
+        scale = np.linalg.inv(basis.mass) if num else basis.mass
+        part = basis.partial
+        scale[part] = np.eye(scale.shape[1])[None] / basis.measure[part, None, None]
         w_dofs = wmap.local_to_global(W.dofmap.list[:num].ravel()).reshape(
             num, W.dofmap.list.shape[1])
         rows, cols, vals = [], [], []
         for facet, weights, theta, phi, dofs, key in terms:
-            # per point: the facet's rows (a) times the cell's columns (j)
-            local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
-            # a facet the master covers in part: the mean (no polynomial through the jump at
-            # the master's end); its integral against a constant is the same
-            part = basis.partial[facet]
-            local[part] = (weights[part] / basis.measure[facet[part]])[:, None]
+            # per point: the facet's rows (a) times the cell's columns (j), summed per facet
+            # and cell, then scaled per facet
+            local = np.where(part[facet][:, None], 1.0, theta) * weights[:, None]
             at, blocks = facet_cell_blocks(facet, key, local, phi)
+            blocks = scale[facet[at]] @ blocks
             r_q, d_q = w_dofs[facet[at]], dofs[at]
             shape = blocks.shape
             rows.append(np.broadcast_to(r_q[:, :, None], shape).ravel())
