@@ -75,6 +75,7 @@ from .pair_facets import (
     check_pair_facets,
     csr_matrix,
     facet_cell_blocks,
+    facet_rows_matrix,
     master_facets,
     slave_facets,
     windows,
@@ -487,22 +488,23 @@ class MasterTrace:
         scale[part] = np.eye(scale.shape[1])[None] / basis.measure[part, None, None]
         w_dofs = wmap.local_to_global(W.dofmap.list[:num].ravel()).reshape(
             num, W.dofmap.list.shape[1])
-        rows, cols, vals = [], [], []
+        facets, cols, vals = [], [], []
         for facet, weights, theta, phi, dofs, key in terms:
             # per point: the facet's rows (a) times the cell's columns (j), summed per facet
             # and cell, then scaled per facet
             local = np.where(part[facet][:, None], 1.0, theta) * weights[:, None]
             at, blocks = facet_cell_blocks(facet, key, local, phi)
-            blocks = scale[facet[at]] @ blocks
-            r_q, d_q = w_dofs[facet[at]], dofs[at]
-            shape = blocks.shape
-            rows.append(np.broadcast_to(r_q[:, :, None], shape).ravel())
-            cols.append(np.broadcast_to(d_q[:, None, :], shape).ravel())
-            vals.append(blocks.ravel())
-        return csr_matrix(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
-                          (wmap.size_local * bs, wmap.size_global * bs),
-                          (vmap.size_local * V.dofmap.index_map_bs,
-                           vmap.size_global * V.dofmap.index_map_bs), bs=bs)
+            facets.append(facet[at])
+            cols.append(dofs[at])
+            vals.append(scale[facet[at]] @ blocks)
+        a, j = scale.shape[1], V.dofmap.dof_layout.num_dofs
+        return facet_rows_matrix(
+            self.disc.comm, w_dofs, np.concatenate(facets) if facets else np.zeros(0, np.int64),
+            np.concatenate(cols) if cols else np.zeros((0, j), np.int64),
+            np.concatenate(vals) if vals else np.zeros((0, a, j)), wmap.local_range[0],
+            (wmap.size_local * bs, wmap.size_global * bs),
+            (vmap.size_local * V.dofmap.index_map_bs, vmap.size_global * V.dofmap.index_map_bs),
+            bs)
 
     def _gap(self, basis: FacetBasis) -> fem.Function:
         """The gap g projected per facet from its covered part (zero elsewhere).
