@@ -264,11 +264,6 @@ def place(
 ) -> MortarRule:
     """The mortar rule of degree ``degree`` on the pieces of a rule of degree None.
 
-    Each simplex (its vertices v_0, ..., v_d: d + 1 consecutive points of ``pieces``) gets
-    the Gauss points x_q = v_0 + sum_k X_qk (v_k - v_0) of :func:`piece_rule` with weights
-    |S| w_q / |S_ref|, and each point its gap along its slave facet's normal. The pieces (the
-    search) do not depend on the degree: one search serves every degree.
-
     Args:
         pieces: The rule of degree None (:func:`mortar_rule`).
         degree: The Gauss rule's degree.
@@ -276,6 +271,15 @@ def place(
         slave_normals: The slave facets' outward unit normals (``pieces.facet`` indexes them).
         master: The master facets' vertices (``pieces.master`` indexes them).
         master_normals: Their outward unit normals.
+
+    Returns:
+        The :class:`MortarRule` of degree ``degree``, its points in the order of the pieces.
+
+    Each simplex S of a piece (its vertices v_0, ..., v_d: d + 1 consecutive points of
+    ``pieces``) gets the Gauss points x_q = v_0 + sum_k X_qk (v_k - v_0) of
+    :func:`piece_rule` with weights meas(S) w_q / meas(S_ref), and each point its gap along its
+    slave facet's normal. The pieces (the search) do not depend on the degree: one search
+    serves every degree.
     """
     gdim = pieces.points.shape[1]
     k = gdim  # vertices per simplex
