@@ -11,6 +11,9 @@ facet of a surface whose projected master facets tile it) the pieces are the rul
 Gauss points (a fan of triangles each) are placed at once; a facet whose pieces overlap (two
 master layers) is left to the per-facet rule. The points, their order and the pieces are the
 per-facet rule's (the same operations in the same order).
+
+:func:`place` puts the Gauss points of any degree on the pieces of a rule of degree None (the
+search once per mesh, each degree's rule from its pieces).
 """
 
 from __future__ import annotations
@@ -19,15 +22,14 @@ import numpy as np
 
 from .mortar import (
     _PIECE_TOL,
+    _REFERENCE_MEASURE,
     MortarRule,
-    _dot,
     bilinear,
     facet_reach,
     piece_rule,
-    rays,
 )
 
-__all__ = ["batched_rule"]
+__all__ = ["batched_rule", "place", "rays"]
 
 
 def _ring(facets: np.ndarray) -> np.ndarray:
@@ -228,3 +230,54 @@ def _fan(piece: np.ndarray, count: np.ndarray, facet: np.ndarray, master: np.nda
     x = origin[f] + _dot(xy.reshape(-1, 1, 2), frame[f].transpose(0, 2, 1))
     w = ((2.0 * area[k, t])[:, None] * weights[None]).ravel()
     return MortarRule(f, x, w, np.repeat(master[k], q), np.zeros(0))
+
+
+def place(
+    pieces: MortarRule, degree: int, quadrilaterals: bool, slave_normals: np.ndarray,
+    master: np.ndarray, master_normals: np.ndarray,
+) -> MortarRule:
+    """The mortar rule of degree ``degree`` on the pieces of a rule of degree None.
+
+    Args:
+        pieces: The rule of degree None (:func:`~dwr_signorini.mortar.mortar_rule`).
+        degree: The Gauss rule's degree.
+        quadrilaterals: Whether a side has quadrilateral facets
+            (:func:`~dwr_signorini.mortar.bilinear`).
+        slave_normals: The slave facets' outward unit normals (``pieces.facet`` indexes them).
+        master: The master facets' vertices (``pieces.master`` indexes them).
+        master_normals: Their outward unit normals.
+
+    Returns:
+        The :class:`~dwr_signorini.mortar.MortarRule` of degree ``degree``, its points in the
+        order of the pieces.
+
+    Each simplex S of a piece (its vertices v_0, ..., v_d: d + 1 consecutive points of
+    ``pieces``) gets the Gauss points x_q = v_0 + sum_k X_qk (v_k - v_0) of
+    :func:`~dwr_signorini.mortar.piece_rule` with weights meas(S) w_q / meas(S_ref), and each
+    point its gap along its slave facet's normal. The pieces (the search) do not depend on the
+    degree: one search serves every degree.
+    """
+    gdim = pieces.points.shape[1]
+    k = gdim  # vertices per simplex
+    X, w = piece_rule(gdim - 1, degree, quadrilaterals)
+    v = pieces.points.reshape(-1, k, gdim)
+    x = (v[:, None, 0] + np.einsum("qj,pjd->pqd", X, v[:, 1:] - v[:, :1])).reshape(-1, gdim)
+    measure = pieces.weights.reshape(-1, k).sum(axis=1)
+    weights = (measure[:, None] * (w / _REFERENCE_MEASURE[gdim - 1])[None]).ravel()
+    facet = np.repeat(pieces.facet[::k], len(w))
+    partner = np.repeat(pieces.master[::k], len(w))
+    gap = rays(x, slave_normals[facet], master[partner, 0], master_normals[partner])
+    return MortarRule(facet, x, weights, partner, gap)
+
+
+def rays(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:
+    """The ray parameters t of x + t n on the planes through p0 with normals nm, row by row."""
+    return _dot(p0 - x, nm) / _dot(n, nm)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """sum_i a[..., i] b[..., i], broadcast (on a few components faster than einsum)."""
+    out = a[..., 0] * b[..., 0]
+    for i in range(1, a.shape[-1]):
+        out = out + a[..., i] * b[..., i]
+    return out

@@ -45,7 +45,7 @@ import numpy as np
 
 __all__ = [
     "FacetBasis", "FacetMap", "MortarRule", "bilinear", "check_planar", "entry", "facet_normals",
-    "facet_reach", "in_shadow", "mortar_rule", "piece_rule", "place", "rays", "tabulate", "warp",
+    "facet_reach", "in_shadow", "mortar_rule", "piece_rule", "tabulate", "warp",
 ]
 
 #: Relative size below which a piece of a slave facet is dropped (a touching corner).
@@ -132,7 +132,7 @@ def mortar_rule(
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
         degree: The polynomial degree integrated exactly on each piece; None: the pieces
-            (:func:`piece_rule`, placed on with :func:`place`).
+            (:func:`piece_rule`, placed on with :func:`~dwr_signorini.clipping.place`).
         window: The penetration window w_F of each slave facet (or one for all), >= 0.
 
     Returns:
@@ -205,19 +205,6 @@ def _ray(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.nda
     return ((p0 - x) @ nm) / (n @ nm)
 
 
-def rays(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:
-    """The ray parameters t of x + t n on the planes through p0 with normals nm, row by row."""
-    return _dot(p0 - x, nm) / _dot(n, nm)
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """sum_i a[..., i] b[..., i], broadcast (on a few components faster than einsum)."""
-    out = a[..., 0] * b[..., 0]
-    for i in range(1, a.shape[-1]):
-        out = out + a[..., i] * b[..., i]
-    return out
-
-
 def bilinear(slave: np.ndarray, master: np.ndarray) -> bool:
     """Whether a side's facets (m, nv, gdim) are quadrilaterals (bilinear maps)."""
     gdim = slave.shape[2]
@@ -234,7 +221,7 @@ def piece_rule(
         degree: The Gauss rule's degree (plus :data:`NONAFFINE_EXTRA_DEGREE` on
             ``quadrilaterals``); None: the simplex's vertices, each with its share of the
             measure. A rule of those is the pieces themselves, independent of any degree, on
-            which :func:`place` puts the Gauss points of each degree.
+            which :func:`~dwr_signorini.clipping.place` puts the Gauss points of each degree.
         quadrilaterals: Whether a side has quadrilateral facets (:func:`bilinear`).
 
     Returns:
@@ -256,42 +243,6 @@ def _reference_rule(fdim: int, degree: int) -> tuple[np.ndarray, np.ndarray]:
 
 #: The measure of the reference interval and triangle.
 _REFERENCE_MEASURE = {1: 1.0, 2: 0.5}
-
-
-def place(
-    pieces: MortarRule, degree: int, quadrilaterals: bool, slave_normals: np.ndarray,
-    master: np.ndarray, master_normals: np.ndarray,
-) -> MortarRule:
-    """The mortar rule of degree ``degree`` on the pieces of a rule of degree None.
-
-    Args:
-        pieces: The rule of degree None (:func:`mortar_rule`).
-        degree: The Gauss rule's degree.
-        quadrilaterals: Whether a side has quadrilateral facets (:func:`bilinear`).
-        slave_normals: The slave facets' outward unit normals (``pieces.facet`` indexes them).
-        master: The master facets' vertices (``pieces.master`` indexes them).
-        master_normals: Their outward unit normals.
-
-    Returns:
-        The :class:`MortarRule` of degree ``degree``, its points in the order of the pieces.
-
-    Each simplex S of a piece (its vertices v_0, ..., v_d: d + 1 consecutive points of
-    ``pieces``) gets the Gauss points x_q = v_0 + sum_k X_qk (v_k - v_0) of
-    :func:`piece_rule` with weights meas(S) w_q / meas(S_ref), and each point its gap along its
-    slave facet's normal. The pieces (the search) do not depend on the degree: one search
-    serves every degree.
-    """
-    gdim = pieces.points.shape[1]
-    k = gdim  # vertices per simplex
-    X, w = piece_rule(gdim - 1, degree, quadrilaterals)
-    v = pieces.points.reshape(-1, k, gdim)
-    x = (v[:, None, 0] + np.einsum("qj,pjd->pqd", X, v[:, 1:] - v[:, :1])).reshape(-1, gdim)
-    measure = pieces.weights.reshape(-1, k).sum(axis=1)
-    weights = (measure[:, None] * (w / _REFERENCE_MEASURE[gdim - 1])[None]).ravel()
-    facet = np.repeat(pieces.facet[::k], len(w))
-    partner = np.repeat(pieces.master[::k], len(w))
-    gap = rays(x, slave_normals[facet], master[partner, 0], master_normals[partner])
-    return MortarRule(facet, x, weights, partner, gap)
 
 
 def _pieces_2d(

@@ -58,6 +58,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from .clipping import place
 from .exchange import MasterExchange
 from .mortar import (
     FacetBasis,
@@ -66,7 +67,6 @@ from .mortar import (
     bilinear,
     facet_reach,
     mortar_rule,
-    place,
 )
 from .pair_facets import (
     Side,
@@ -238,7 +238,7 @@ class TraceGeometry:
 
         The pieces do not depend on the degree (nor does the share): the mortar search runs
         once per mesh, with each pair's penetration window (:func:`windows`), and each degree
-        asked for puts its Gauss points on the pieces (:func:`~dwr_signorini.mortar.place`).
+        asked for puts its Gauss points on the pieces (:func:`~dwr_signorini.clipping.place`).
 
         Args:
             degree: The degree of the displacement space.

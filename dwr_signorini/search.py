@@ -14,8 +14,8 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .clipping import batched_rule
-from .mortar import MortarRule, _dot, facet_reach, mortar_rule
+from .clipping import _dot, batched_rule
+from .mortar import MortarRule, facet_reach, mortar_rule
 
 __all__ = [
     "SEARCH_DEPTH", "candidate_parts", "candidate_rule", "merge_rules",

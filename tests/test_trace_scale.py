@@ -4,7 +4,7 @@
   per-facet rule (mortar.mortar_rule, every master facet): the integrals of polynomials times
   the master facet met, per slave facet, on non-matching, two-layer, steep and partly covered
   masters.
-* The rule of each degree placed on the pieces of one search (mortar.place) against the rule
+* The rule of each degree placed on the pieces of one search (clipping.place) against the rule
   of that degree (2D and 3D).
 * The candidates from balls along each slave facet's normal axis (search._candidates) against
   every master facet tested for the search ball and the shadow, on random facets.
@@ -24,7 +24,8 @@ from dolfinx import fem
 
 import dwr_signorini as ds
 from dwr_signorini import search
-from dwr_signorini.mortar import facet_reach, in_shadow, mortar_rule, place
+from dwr_signorini.clipping import place
+from dwr_signorini.mortar import facet_reach, in_shadow, mortar_rule
 from dwr_signorini.pair_facets import cell_basis
 from dwr_signorini.search import candidate_rule
 from dwr_signorini.spaces import discretize
