@@ -12,8 +12,8 @@ pair (one uniform refinement):
   the batched clipping of :mod:`~dwr_signorini.clipping`), and ``full``: the same with every
   slave facet against the master facets in its shadow, one facet at a time
   (:func:`~dwr_signorini.mortar.mortar_rule`, the per-facet rule);
-* ``P1``, ``P2``: the projections of the P1 and P2 spaces on the geometry (the P2 rule's search
-  included);
+* ``P1``, ``P2``: the projections of the P1 and P2 spaces on the geometry (the P2 rule, placed
+  on the geometry's pieces, included);
 * P2 only up to ``--p2-up-to`` slave facets (its memory, below);
 * the peak resident memory of the process after each size (``ru_maxrss``, it only grows).
 
@@ -68,9 +68,9 @@ def write_rows(rows: list[dict[str, object]], stem: str) -> None:
                   [{k: r.get(k, "") for k in keys} for r in rows])
 
 
-def two_boxes(n: int) -> ds.SignoriniProblem:
-    """The pair of the module docstring."""
-    msh, tags = G.tet_boxes(comm, n)
+def two_boxes(n: int, layers: int = 2) -> ds.SignoriniProblem:
+    """The pair of the module docstring (``layers`` cells across each box's height)."""
+    msh, tags = G.tet_boxes(comm, n, layers=layers)
     return ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=G.TET_SLAVE,
                                                                  master=G.TET_MASTER),
                                E=1.0, nu=0.3, model="3d",
@@ -104,7 +104,7 @@ def measure(n: int, repeat: int, full: bool, p2: bool) -> dict[str, float]:
     t_p1, p1 = _timed(lambda: pairs.MasterTrace(disc, disc.V, geometry), repeat)
 
     def p2_trace() -> pairs.MasterTrace:
-        geometry._rules.pop(2, None)  # its search included
+        geometry._rules.pop(2, None)  # its rule placed on the geometry's pieces included
         return pairs.MasterTrace(disc, disc.vector_space(2), geometry)
 
     t_p2, trace2 = _timed(p2_trace, repeat) if p2 else (float("nan"), None)

@@ -11,6 +11,9 @@ facet of a surface whose projected master facets tile it) the pieces are the rul
 Gauss points (a fan of triangles each) are placed at once; a facet whose pieces overlap (two
 master layers) is left to the per-facet rule. The points, their order and the pieces are the
 per-facet rule's (the same operations in the same order).
+
+:func:`place` puts the Gauss points of any degree on the pieces of a rule of degree None (the
+search once per mesh, each degree's rule from its pieces).
 """
 
 from __future__ import annotations
@@ -19,13 +22,14 @@ import numpy as np
 
 from .mortar import (
     _PIECE_TOL,
-    NONAFFINE_EXTRA_DEGREE,
+    _REFERENCE_MEASURE,
     MortarRule,
-    _reference_rule,
+    bilinear,
     facet_reach,
+    piece_rule,
 )
 
-__all__ = ["batched_rule"]
+__all__ = ["batched_rule", "place", "rays"]
 
 
 def _ring(facets: np.ndarray) -> np.ndarray:
@@ -52,25 +56,30 @@ def _half(poly: np.ndarray, count: np.ndarray, a: np.ndarray, b: np.ndarray):
     """One Sutherland-Hodgman step for all polygons: the part left of the line a -> b.
 
     The vertices kept and the crossings, in the order of the per-facet step
-    (:func:`~dwr_signorini.mortar._half`).
+    (:func:`~dwr_signorini.mortar._half`). The polygons are closed: vertex ``count`` repeats
+    vertex 0 (so each vertex's successor is the next slot), the result's likewise.
     """
-    k, size = poly.shape[:2]
-    valid = np.arange(size)[None] < count[:, None]
+    k, size = poly.shape[0], poly.shape[1] - 1
     e = b - a
     side = e[:, None, 0] * (poly[..., 1] - a[:, None, 1]) - e[:, None, 1] * (
         poly[..., 0] - a[:, None, 0])
-    nxt = np.where(np.arange(size)[None] + 1 < count[:, None], np.arange(size)[None] + 1, 0)
-    q = np.take_along_axis(poly, nxt[..., None], axis=1)
-    sq = np.take_along_axis(side, nxt, axis=1)
-    keep = valid & (side >= 0.0)
-    cross = valid & ((side >= 0.0) != (sq >= 0.0))
+    p, q, sp, sq = poly[:, :-1], poly[:, 1:], side[:, :-1], side[:, 1:]
+    valid = np.arange(size)[None] < count[:, None]
+    inside = sp >= 0.0
+    keep = valid & inside
+    cross = valid & (inside != (sq >= 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(cross, side / np.where(cross, side - sq, 1.0), 0.0)
-    meet = poly + (q - poly) * t[..., None]
-    slots = np.stack([poly, meet], axis=2).reshape(k, 2 * size, 2)
+        t = np.where(cross, sp / np.where(cross, sp - sq, 1.0), 0.0)
+    meet = p + (q - p) * t[..., None]
+    slots = np.stack([p, meet], axis=2).reshape(k, 2 * size, 2)
     used = np.stack([keep, cross], axis=2).reshape(k, 2 * size)
-    order = np.argsort(~used, axis=1, kind="stable")
-    return np.take_along_axis(slots, order[..., None], axis=1), used.sum(axis=1)
+    # the used slots moved to the front, in order, then vertex 0 again (the rest zero)
+    row, col = np.nonzero(used)
+    out = np.zeros((k, 2 * size + 1, 2))
+    out[row, (np.cumsum(used, axis=1) - 1)[row, col]] = slots[row, col]
+    new = used.sum(axis=1)
+    out[np.arange(k), new] = out[:, 0]
+    return out, new
 
 
 def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray):
@@ -80,10 +89,12 @@ def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray):
         The pieces (padded) and their numbers of vertices.
     """
     m, size = clip.shape[1], subject.shape[1]
+    subject = np.concatenate([subject, subject[:, :1]], axis=1)
+    subject[np.arange(len(count)), count] = subject[:, 0]  # closed (:func:`_half`)
     for i in range(m):
         subject, count = _half(subject, count, clip[:, i], clip[:, (i + 1) % m])
-        subject = subject[:, :size + i + 1]  # each half-plane adds at most one vertex
-    return subject, count
+        subject = subject[:, :size + i + 2]  # each half-plane adds at most one vertex
+    return subject[:, :-1], count
 
 
 def _pairs_within(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -101,30 +112,37 @@ def _pairs_within(group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _overlap(poly: np.ndarray, a: np.ndarray, b: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """Whether the padded convex polygons a and b may overlap in more than an edge.
 
-    The separating-axes test of :func:`~dwr_signorini.mortar._overlaps`, pair by pair.
+    The separating-axes test of :func:`~dwr_signorini.mortar._overlaps`, pair by pair; the
+    axes of each polygon and its own extent on them are computed once per polygon.
     """
+    edges = np.roll(poly, -1, axis=1) - poly
+    ax, ay = edges[..., 1], -edges[..., 0]  # (k, a)
+    length = np.hypot(ax, ay)
+    valid = length > 0.0
+    ax, ay = ax / np.where(valid, length, 1.0), ay / np.where(valid, length, 1.0)
+    own = _extent(poly, ax, ay)
+
     def separated(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        edges = np.roll(p, -1, axis=1) - p
-        ax, ay = edges[..., 1], -edges[..., 0]  # (k, a)
-        length = np.hypot(ax, ay)
-        valid = length > 0.0
-        ax, ay = ax / np.where(valid, length, 1.0), ay / np.where(valid, length, 1.0)
-
-        def extent(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            on = ax[:, :, None] * r[:, None, :, 0] + ay[:, :, None] * r[:, None, :, 1]
-            return on.min(axis=2), on.max(axis=2)
-
-        (own_lo, own_hi), (lo, hi) = extent(p), extent(q)
-        apart = ((own_hi <= lo + tol[:, None]) | (hi <= own_lo + tol[:, None])) & valid
+        lo, hi = _extent(poly[q], ax[p], ay[p])
+        own_lo, own_hi = own[0][p], own[1][p]
+        apart = ((own_hi <= lo + tol[:, None]) | (hi <= own_lo + tol[:, None])) & valid[p]
         return apart.any(axis=1)
 
-    p, q = poly[a], poly[b]
-    return ~(separated(p, q) | separated(q, p))
+    return ~(separated(a, b) | separated(b, a))
+
+
+def _extent(r: np.ndarray, ax: np.ndarray, ay: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least and largest projections of the vertices of polygons r (k, v, 2) on axes (k, a)."""
+    lo = hi = ax * r[:, None, 0, 0] + ay * r[:, None, 0, 1]
+    for v in range(1, r.shape[1]):
+        on = ax * r[:, None, v, 0] + ay * r[:, None, v, 1]
+        lo, hi = np.minimum(lo, on), np.maximum(hi, on)
+    return lo, hi
 
 
 def batched_rule(
     slave: np.ndarray, slave_normals: np.ndarray, master: np.ndarray,
-    master_normals: np.ndarray, degree: int, windows: np.ndarray, facet: np.ndarray,
+    master_normals: np.ndarray, degree: int | None, windows: np.ndarray, facet: np.ndarray,
     candidate: np.ndarray,
 ) -> tuple[MortarRule, np.ndarray]:
     """The 3D mortar rule of every slave facet against its candidates (module docstring).
@@ -134,7 +152,8 @@ def batched_rule(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, 3).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece (None: the pieces,
+            :func:`~dwr_signorini.mortar.piece_rule`).
         windows: The penetration window of each slave facet.
         facet: The slave facet of each candidate pair, sorted.
         candidate: The master facet of each pair, each facet's in the order it meets them.
@@ -144,8 +163,7 @@ def batched_rule(
         ``master`` indexing ``master``, in the order of the pairs), and the facets whose pieces
         overlap (to the per-facet rule).
     """
-    bilinear = slave.shape[1] != 3 or master.shape[1] != 3
-    points, weights = _reference_rule(2, degree + (NONAFFINE_EXTRA_DEGREE if bilinear else 0))
+    points, weights = piece_rule(2, degree, bilinear(slave, master))
     n = slave_normals
     e1 = slave[:, 1] - slave[:, 0]
     e1 /= np.linalg.norm(e1, axis=1)[:, None]
@@ -159,14 +177,14 @@ def batched_rule(
     slave_centres, slave_reach = facet_reach(slave)
     nf = n[facet]
     d = centres[candidate] - slave_centres[facet]
-    along = np.einsum("pd,pd->p", d, nf)
+    along = _dot(d, nf)
     lateral = np.linalg.norm(d - along[:, None] * nf, axis=1)
     s_reach = reach[candidate] + slave_reach[facet]
-    facing = np.einsum("pd,pd->p", master_normals[candidate], nf) < 0.0
+    facing = _dot(master_normals[candidate], nf) < 0.0
     ok = facing & (lateral <= (1.0 + 1e-9) * s_reach) & (along >= -(windows[facet] + s_reach))
     facet, candidate = facet[ok], candidate[ok]
-    proj = np.einsum("pvd,pkd->pvk", _ring(master[candidate]) - origin[facet][:, None],
-                     frame[facet])
+    relative, axes = _ring(master[candidate]) - origin[facet][:, None], frame[facet]
+    proj = np.stack([_dot(relative, axes[:, None, k]) for k in range(2)], axis=2)
     lo, hi = ring.min(axis=1)[facet], ring.max(axis=1)[facet]
     ok = np.all(proj.max(axis=1) > lo, axis=1) & np.all(proj.min(axis=1) < hi, axis=1)
     facet, candidate, proj = facet[ok], candidate[ok], proj[ok]
@@ -176,10 +194,11 @@ def batched_rule(
     tol = _PIECE_TOL * area_F[facet]
     ok = (count >= 3) & (_shoelace(piece) > tol)
     # the window, at the centre of the piece's vertices
-    centre = np.einsum("pvk,pv->pk", piece, np.arange(piece.shape[1])[None] < count[:, None])
+    used = np.arange(piece.shape[1])[None] < count[:, None]
+    centre = np.stack([_dot(piece[..., k], used) for k in range(2)], axis=1)
     centre /= np.maximum(count, 1)[:, None]
-    x = origin[facet] + np.einsum("pk,pkd->pd", centre, frame[facet])
-    ok &= _ray(x, n[facet], master[candidate, 0], master_normals[candidate]) >= -windows[facet]
+    x = origin[facet] + _dot(centre[:, None], frame[facet].transpose(0, 2, 1))
+    ok &= rays(x, n[facet], master[candidate, 0], master_normals[candidate]) >= -windows[facet]
     facet, candidate, piece, count = facet[ok], candidate[ok], piece[ok], count[ok]
     a, b = _pairs_within(facet)
     clash = _overlap(piece, a, b, 1e-9 * np.sqrt(area_F[facet[a]]))
@@ -187,7 +206,7 @@ def batched_rule(
     fast = ~np.isin(facet, overlapping)
     rule = _fan(piece[fast], count[fast], facet[fast], candidate[fast], origin, frame,
                 (points, weights), area_F)
-    gap = _ray(rule.points, n[rule.facet], master[rule.master, 0], master_normals[rule.master])
+    gap = rays(rule.points, n[rule.facet], master[rule.master, 0], master_normals[rule.master])
     return MortarRule(rule.facet, rule.points, rule.weights, rule.master, gap), overlapping
 
 
@@ -208,11 +227,57 @@ def _fan(piece: np.ndarray, count: np.ndarray, facet: np.ndarray, master: np.nda
           + points[None, :, 1:] * c[k, t][:, None])  # (triangles, q, 2)
     q = len(weights)
     f = np.repeat(facet[k], q)
-    x = origin[f] + np.einsum("pk,pkd->pd", xy.reshape(-1, 2), frame[f])
+    x = origin[f] + _dot(xy.reshape(-1, 1, 2), frame[f].transpose(0, 2, 1))
     w = ((2.0 * area[k, t])[:, None] * weights[None]).ravel()
     return MortarRule(f, x, w, np.repeat(master[k], q), np.zeros(0))
 
 
-def _ray(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:
+def place(
+    pieces: MortarRule, degree: int, quadrilaterals: bool, slave_normals: np.ndarray,
+    master: np.ndarray, master_normals: np.ndarray,
+) -> MortarRule:
+    """The mortar rule of degree ``degree`` on the pieces of a rule of degree None.
+
+    Args:
+        pieces: The rule of degree None (:func:`~dwr_signorini.mortar.mortar_rule`).
+        degree: The Gauss rule's degree.
+        quadrilaterals: Whether a side has quadrilateral facets
+            (:func:`~dwr_signorini.mortar.bilinear`).
+        slave_normals: The slave facets' outward unit normals (``pieces.facet`` indexes them).
+        master: The master facets' vertices (``pieces.master`` indexes them).
+        master_normals: Their outward unit normals.
+
+    Returns:
+        The :class:`~dwr_signorini.mortar.MortarRule` of degree ``degree``, its points in the
+        order of the pieces.
+
+    Each simplex S of a piece (its vertices v_0, ..., v_d: d + 1 consecutive points of
+    ``pieces``) gets the Gauss points x_q = v_0 + sum_k X_qk (v_k - v_0) of
+    :func:`~dwr_signorini.mortar.piece_rule` with weights meas(S) w_q / meas(S_ref), and each
+    point its gap along its slave facet's normal. The pieces (the search) do not depend on the
+    degree: one search serves every degree.
+    """
+    gdim = pieces.points.shape[1]
+    k = gdim  # vertices per simplex
+    X, w = piece_rule(gdim - 1, degree, quadrilaterals)
+    v = pieces.points.reshape(-1, k, gdim)
+    x = (v[:, None, 0] + np.einsum("qj,pjd->pqd", X, v[:, 1:] - v[:, :1])).reshape(-1, gdim)
+    measure = pieces.weights.reshape(-1, k).sum(axis=1)
+    weights = (measure[:, None] * (w / _REFERENCE_MEASURE[gdim - 1])[None]).ravel()
+    facet = np.repeat(pieces.facet[::k], len(w))
+    partner = np.repeat(pieces.master[::k], len(w))
+    gap = rays(x, slave_normals[facet], master[partner, 0], master_normals[partner])
+    return MortarRule(facet, x, weights, partner, gap)
+
+
+def rays(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.ndarray:
     """The ray parameters t of x + t n on the planes through p0 with normals nm, row by row."""
-    return np.einsum("pd,pd->p", p0 - x, nm) / np.einsum("pd,pd->p", n, nm)
+    return _dot(p0 - x, nm) / _dot(n, nm)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """sum_i a[..., i] b[..., i], broadcast (on a few components faster than einsum)."""
+    out = a[..., 0] * b[..., 0]
+    for i in range(1, a.shape[-1]):
+        out = out + a[..., i] * b[..., i]
+    return out

@@ -44,10 +44,8 @@ import basix
 import numpy as np
 
 __all__ = [
-    "FacetBasis", "FacetMap", "MortarRule", "check_planar", "entry", "facet_normals", "facet_reach",
-    "in_shadow",
-    "mortar_rule",
-    "tabulate", "warp",
+    "FacetBasis", "FacetMap", "MortarRule", "bilinear", "check_planar", "entry", "facet_normals",
+    "facet_reach", "in_shadow", "mortar_rule", "piece_rule", "tabulate", "warp",
 ]
 
 #: Relative size below which a piece of a slave facet is dropped (a touching corner).
@@ -123,7 +121,7 @@ def mortar_rule(
     slave_normals: np.ndarray,
     master: np.ndarray,
     master_normals: np.ndarray,
-    degree: int,
+    degree: int | None,
     window: np.ndarray | float,
 ) -> MortarRule:
     """The mortar rule of degree ``degree`` on the slave facets (module docstring).
@@ -133,7 +131,8 @@ def mortar_rule(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece; None: the pieces
+            (:func:`piece_rule`, placed on with :func:`~dwr_signorini.clipping.place`).
         window: The penetration window w_F of each slave facet (or one for all), >= 0.
 
     Returns:
@@ -145,8 +144,7 @@ def mortar_rule(
     gdim = slave.shape[2]
     check_planar(max(warp(slave), warp(master)))
     pieces = _pieces_2d if gdim == 2 else _pieces_3d
-    bilinear = slave.shape[1] != gdim or master.shape[1] != gdim  # quadrilaterals
-    rule = _reference_rule(gdim - 1, degree + (NONAFFINE_EXTRA_DEGREE if bilinear else 0))
+    rule = piece_rule(gdim - 1, degree, bilinear(slave, master))
     windows = np.broadcast_to(np.asarray(window, dtype=float), (len(slave),))
     out: list[list[np.ndarray]] = [[], [], [], [], []]
     # bounding spheres: a master facet whose sphere's shadow along n misses F's cannot meet F
@@ -207,11 +205,44 @@ def _ray(x: np.ndarray, n: np.ndarray, p0: np.ndarray, nm: np.ndarray) -> np.nda
     return ((p0 - x) @ nm) / (n @ nm)
 
 
+def bilinear(slave: np.ndarray, master: np.ndarray) -> bool:
+    """Whether a side's facets (m, nv, gdim) are quadrilaterals (bilinear maps)."""
+    gdim = slave.shape[2]
+    return slave.shape[1] != gdim or master.shape[1] != gdim
+
+
+def piece_rule(
+    fdim: int, degree: int | None, quadrilaterals: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The reference rule put on each simplex of a piece (a triangle of its fan, 2D: a segment).
+
+    Args:
+        fdim: The facets' dimension.
+        degree: The Gauss rule's degree (plus :data:`NONAFFINE_EXTRA_DEGREE` on
+            ``quadrilaterals``); None: the simplex's vertices, each with its share of the
+            measure. A rule of those is the pieces themselves, independent of any degree, on
+            which :func:`~dwr_signorini.clipping.place` puts the Gauss points of each degree.
+        quadrilaterals: Whether a side has quadrilateral facets (:func:`bilinear`).
+
+    Returns:
+        The reference points and weights.
+    """
+    if degree is None:
+        cell = basix.CellType.interval if fdim == 1 else basix.CellType.triangle
+        vertices = basix.geometry(cell)
+        return vertices, np.full(len(vertices), _REFERENCE_MEASURE[fdim] / len(vertices))
+    return _reference_rule(fdim, degree + (NONAFFINE_EXTRA_DEGREE if quadrilaterals else 0))
+
+
 def _reference_rule(fdim: int, degree: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss points and weights of degree ``degree`` on [0, 1] (fdim 1) or the triangle."""
     cell = basix.CellType.interval if fdim == 1 else basix.CellType.triangle
     points, weights = basix.make_quadrature(cell, max(degree, 1))
     return points, weights
+
+
+#: The measure of the reference interval and triangle.
+_REFERENCE_MEASURE = {1: 1.0, 2: 0.5}
 
 
 def _pieces_2d(
@@ -476,6 +507,7 @@ class FacetMap:
         self.element = basix.create_element(basix.ElementFamily.P, cell, 1,
                                             basix.LagrangeVariant.equispaced)
         self.affine = nv == gdim
+        self._inverse: np.ndarray | None = None  # (A^T A)^{-1} A^T per affine facet, once
         check_planar(warp(vertices))
 
     def push(self, facet: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -491,15 +523,26 @@ class FacetMap:
         return x, J
 
     def pull(self, facet: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """The reference points X with x(X) = x on ``facet`` (x on the facets' planes)."""
-        fdim = self.vertices.shape[1] - 1 if self.affine else 2
+        """The reference points X with x(X) = x on ``facet`` (x on the facets' planes).
+
+        An affine facet: X = (A^T A)^{-1} A^T (x - x_0), A's columns x_k - x_0 (vertex k at
+        e_k on the reference facet), the matrix formed once per facet; a quadrilateral:
+        Newton's method.
+        """
+        if self.affine:
+            if self._inverse is None:
+                A = np.swapaxes(self.vertices[:, 1:] - self.vertices[:, :1], 1, 2)
+                At = np.swapaxes(A, 1, 2)
+                self._inverse = np.linalg.solve(At @ A, At) if len(A) else At
+            return np.einsum("qkd,qd->qk", self._inverse[facet], x - self.vertices[facet, 0])
+        fdim = 2
         X = np.full((len(x), fdim), 1.0 / (fdim + 1.0))
-        for _ in range(1 if self.affine else 20):
+        for _ in range(20):
             y, J = self.push(facet, X)
             step = np.linalg.solve(np.einsum("qdk,qdl->qkl", J, J),
                                    np.einsum("qdk,qd->qk", J, x - y)[..., None])[..., 0]
             X = X + step
-            if not self.affine and np.max(np.abs(step), initial=0.0) < 1e-14:
+            if np.max(np.abs(step), initial=0.0) < 1e-14:
                 break
         return X
 

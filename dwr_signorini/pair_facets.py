@@ -34,6 +34,7 @@ __all__ = [
     "csr_matrix",
     "entity_points",
     "facet_cell_blocks",
+    "facet_rows_matrix",
     "facet_tag",
     "master_facets",
     "side_cells",
@@ -131,8 +132,11 @@ def cell_basis(
         raise NotImplementedError(
             "contact pairs need an element without dof transformations (Lagrange of degree <= 2)"
         )
-    cmap = compat.geometry_cmap(mesh)
     gdim = mesh.geometry.dim
+    tdim = mesh.topology.dim
+    if len(y) and geometry.shape[1] == tdim + 1 and gdim == tdim:  # affine simplices
+        return tabulate(element, _affine_pull_back(geometry, which, y[:, :gdim]))
+    cmap = compat.geometry_cmap(mesh)
     out = np.zeros((len(y), element.dim))
     order = np.argsort(which, kind="stable")  # the points of each cell, in one pass
     cuts = np.flatnonzero(np.diff(which[order])) + 1
@@ -140,6 +144,19 @@ def cell_basis(
         X = cmap.pull_back(np.ascontiguousarray(y[at, :gdim]), geometry[which[at[0]]])
         out[at] = tabulate(element, X)
     return out
+
+
+def _affine_pull_back(geometry: np.ndarray, which: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The reference points X of y_q in the affine simplices ``geometry[which[q]]``.
+
+    x(X) = x_0 + sum_k X_k (x_k - x_0) on basix's reference simplex (vertex k at e_k), so
+    X = A^{-1} (y - x_0) with A's columns x_k - x_0, inverted once per cell.
+    """
+    cells, at = np.unique(which, return_inverse=True)
+    nodes = geometry[cells]
+    origin = nodes[:, 0]
+    inverse = np.linalg.inv(np.swapaxes(nodes[:, 1:] - origin[:, None], 1, 2))
+    return np.einsum("qkd,qd->qk", inverse[at], y - origin[at])
 
 
 def entity_points(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
@@ -161,8 +178,9 @@ def facet_tag(tags: dmesh.MeshTags, facets: np.ndarray) -> np.ndarray:
     return np.array([lookup.get(int(f), -1) for f in facets], dtype=np.int64)
 
 
-#: How many points :func:`facet_cell_blocks` expands at once (bounds its temporary memory).
-BLOCK_CHUNK = 1 << 16
+#: How many points :func:`facet_cell_blocks` expands at once, and about how many entries
+#: :func:`facet_rows_matrix` writes at once (bounds their temporary memory).
+BLOCK_CHUNK = 1 << 13
 
 
 def facet_cell_blocks(
@@ -226,6 +244,61 @@ def csr_matrix(
         csr=(indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType), data),
         comm=comm,
     )
+
+
+def facet_rows_matrix(
+    comm: MPI.Comm, rows: np.ndarray, facet: np.ndarray, cols: np.ndarray, blocks: np.ndarray,
+    first: int, row_sizes: tuple, col_sizes: tuple, bs: int,
+) -> PETSc.Mat:
+    """An AIJ matrix of dense blocks whose rows are those of one facet (duplicates summed).
+
+    The rows of a facet (a DG space's dofs on it) all see the same columns, the union of its
+    blocks': the blocks are summed per (facet, column) once, and the CSR arrays of
+    block (x) I_bs (entry (r, c) at (r bs + k, c bs + k), k < bs) are written from those
+    sums directly, without a coordinate list per entry.
+
+    Args:
+        comm: The communicator.
+        rows: The global block rows of each facet, shape (m, a) (each owned row once).
+        facet: The facet of each block, shape (p,).
+        cols: The global block columns of each block, shape (p, j).
+        blocks: The blocks, shape (p, a, j).
+        first: The first owned block row.
+        row_sizes: (owned, global) rows, expanded.
+        col_sizes: (owned, global) columns, expanded.
+        bs: The block size.
+    """
+    m, a = rows.shape
+    width = np.int64(max(col_sizes[1] // bs, 1))
+    key, at = np.unique(facet[:, None] * width + cols, return_inverse=True)
+    at = at.ravel()
+    sums = np.stack([np.bincount(at, weights=blocks[:, k].ravel(), minlength=len(key))
+                     for k in range(a)], axis=1) if len(key) else np.zeros((0, a))
+    owner, column = key // width, key % width  # sorted by facet, then column
+    count = np.bincount(owner, minlength=m)
+    start = np.cumsum(count) - count
+    n = row_sizes[0] // bs
+    row_facet, row_k = np.zeros(n, np.int64), np.zeros(n, np.int64)
+    local = (rows - first).ravel()
+    row_facet[local] = np.repeat(np.arange(m), a)
+    row_k[local] = np.tile(np.arange(a), m)
+    # the expanded rows R bs + c (c < bs) of block row R, written a chunk of rows at a time
+    sizes = np.repeat(count[row_facet], bs)
+    indptr = np.zeros(n * bs + 1, np.int64)
+    np.cumsum(sizes, out=indptr[1:])
+    indices = np.empty(indptr[-1], PETSc.IntType)
+    data = np.empty(indptr[-1])
+    step = max(1, BLOCK_CHUNK // max(int(count.max(initial=1)), 1))
+    for lo in range(0, n * bs, step):
+        r = np.arange(lo, min(lo + step, n * bs))
+        size = sizes[r]
+        entry = np.repeat(start[row_facet[r // bs]] - indptr[r], size) + np.arange(
+            indptr[r[0]], indptr[r[-1] + 1])
+        out = slice(indptr[r[0]], indptr[r[-1] + 1])
+        indices[out] = column[entry] * bs + np.repeat(r % bs, size)
+        data[out] = sums[entry, np.repeat(row_k[r // bs], size)]
+    return PETSc.Mat().createAIJ(size=(row_sizes, col_sizes),
+                                 csr=(indptr.astype(PETSc.IntType), indices, data), comm=comm)
 
 
 def _expand(block: scipy.sparse.csr_matrix, bs: int) -> tuple[np.ndarray, ...]:

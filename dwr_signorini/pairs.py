@@ -58,11 +58,13 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from .clipping import place
 from .exchange import MasterExchange
 from .mortar import (
     FacetBasis,
     FacetMap,
     MortarRule,
+    bilinear,
     facet_reach,
     mortar_rule,
 )
@@ -73,6 +75,7 @@ from .pair_facets import (
     check_pair_facets,
     csr_matrix,
     facet_cell_blocks,
+    facet_rows_matrix,
     master_facets,
     slave_facets,
     windows,
@@ -162,6 +165,8 @@ class TraceGeometry:
         exchanges: Per pair, the :class:`~dwr_signorini.exchange.MasterExchange` of its master
             facets (this rank's own, and those it holds).
         facets: The slave facets' coordinate map (:class:`~dwr_signorini.mortar.FacetMap`).
+        pieces: The pieces of the mortar rule, found once (:meth:`_search`); the rule of each
+            degree is placed on them (:meth:`rule`).
         measure, covered: The measure of each slave facet and of its covered part.
         frame: The normal of the contact frame on the fine slave facets (vector DG0,
             :meth:`_frame`), in which the tangential slip is measured.
@@ -194,7 +199,8 @@ class TraceGeometry:
             slave, _, w = self._pair_slaves(pair)
             exchange.boxes(facet_reach(slave)[0], search_radius(slave, w, exchange.reach))
             self.exchanges.append(exchange)
-        self._rules: dict[int, list[MortarRule]] = {}
+        self.pieces = self._search()
+        self._rules: dict[int, MortarRule] = {}
         rule = self.rule(1)
         f, _, _, w = self.facets.quadrature(1)
         num = len(self.vertices)
@@ -213,12 +219,26 @@ class TraceGeometry:
         """V's global block dofs of the cells of :attr:`master` (collective)."""
         return np.concatenate([x.dofs(V) for x in self.exchanges])
 
+    def _search(self) -> MortarRule:
+        """The pieces of the mortar rule of every pair (the search; collective).
+
+        Returns:
+            The rule of degree None (:func:`~dwr_signorini.mortar.piece_rule`) of this
+            rank's slave facets, its ``master`` an index into :attr:`master`.
+        """
+        rules = [self._pair_rule(pair, x) for pair, x in zip(
+            self.disc.problem.pairs, self.exchanges, strict=True)]
+        offsets = np.cumsum([0] + [len(x.number) for x in self.exchanges])
+        rules = [MortarRule(r.facet, r.points, r.weights, r.master + offset, r.gap)
+                 for r, offset in zip(rules, offsets, strict=False)]
+        return merge_rules(rules, self.vertices.shape[2])
+
     def rule(self, degree: int) -> MortarRule:
         """The mortar rule for a space of ``degree`` (exact to degree 2 ``degree``), kept.
 
-        The pieces do not depend on the degree (the share is the same from any rule); the
-        Gauss points on them do. Each degree asked for runs the mortar search once per mesh,
-        with each pair's penetration window (:func:`windows`). Collective the first time.
+        The pieces do not depend on the degree (nor does the share): the mortar search runs
+        once per mesh, with each pair's penetration window (:func:`windows`), and each degree
+        asked for puts its Gauss points on the pieces (:func:`~dwr_signorini.clipping.place`).
 
         Args:
             degree: The degree of the displacement space.
@@ -228,12 +248,11 @@ class TraceGeometry:
             ``master`` an index into :attr:`master`.
         """
         if degree not in self._rules:
-            self._rules[degree] = [self._pair_rule(pair, x, degree) for pair, x in zip(
-                self.disc.problem.pairs, self.exchanges, strict=True)]
-        offsets = np.cumsum([0] + [len(x.number) for x in self.exchanges])
-        rules = [MortarRule(r.facet, r.points, r.weights, r.master + offset, r.gap)
-                 for r, offset in zip(self._rules[degree], offsets, strict=False)]
-        return merge_rules(rules, self.vertices.shape[2])
+            master = self.master
+            self._rules[degree] = place(
+                self.pieces, 2 * degree, bilinear(self.vertices, master.vertices),
+                self.normals, master.vertices, master.normals)
+        return self._rules[degree]
 
     def _pair_slaves(self, pair: ContactPair) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """This rank's slave facets of ``pair``: vertices, indices, penetration windows."""
@@ -242,8 +261,8 @@ class TraceGeometry:
         w = np.broadcast_to(np.asarray(windows(pair, slave), dtype=float), (len(on),))
         return slave, on, w
 
-    def _pair_rule(self, pair: ContactPair, exchange: MasterExchange, degree: int) -> MortarRule:
-        """One pair's rule: the candidate search, then the facets it leaves against their shadow.
+    def _pair_rule(self, pair: ContactPair, exchange: MasterExchange) -> MortarRule:
+        """One pair's pieces: the candidate search, then the facets it leaves against their shadow.
 
         Collective (the facets left over ask every rank for the master facets in their
         shadow, :meth:`~dwr_signorini.exchange.MasterExchange.shadows`).
@@ -251,12 +270,12 @@ class TraceGeometry:
         slave, on, w = self._pair_slaves(pair)
         normals = self.normals[on]
         held = exchange.side
-        parts, full = candidate_parts(slave, normals, held.vertices, held.normals, 2 * degree,
-                                      w, exchange.reach, exchange.number)
+        parts, full = candidate_parts(slave, normals, held.vertices, held.normals, None, w,
+                                      exchange.reach, exchange.number)
         exchange.shadows(slave[full], normals[full], w[full])
         held, order = exchange.side, np.argsort(exchange.number, kind="stable")
         r = mortar_rule(slave[full], normals[full], held.vertices[order], held.normals[order],
-                        2 * degree, w[full])
+                        None, w[full])
         parts.append(MortarRule(full[r.facet], r.points, r.weights, order[r.master], r.gap))
         r = merge_rules(parts, slave.shape[2])
         return MortarRule(on[r.facet], r.points, r.weights, r.master, r.gap)
@@ -447,8 +466,9 @@ class MasterTrace:
         """P = M_F^{-1} sum_q w_q theta(x_q) phi(y_q)^T per facet and component.
 
         The points of one facet and one cell are summed into one block (rows of the facet,
-        columns of the cell) before the blocks are expanded per component: the matrix entries
-        grow with the facet-cell pairs, not with the rule's points.
+        columns of the cell), which M_F^{-1} then scales, before the blocks are expanded per
+        component: the work and the matrix entries grow with the facet-cell pairs, not with
+        the rule's points.
 
         Args:
             basis: W's basis on the slave facets.
@@ -459,28 +479,32 @@ class MasterTrace:
         W, V = self.W, self.V
         bs = W.dofmap.index_map_bs
         wmap, vmap = W.dofmap.index_map, V.dofmap.index_map
-        inv = np.linalg.inv(basis.mass) if len(basis.mass) else basis.mass
         num = len(basis.mass)
+        # per facet: M_F^{-1}; on a facet the master covers in part, the mean (no polynomial
+        # through the jump at the master's end; its integral against a constant is the same):
+        # every row the integral over the covered part, over |F|
+        scale = np.linalg.inv(basis.mass) if num else basis.mass
+        part = basis.partial
+        scale[part] = np.eye(scale.shape[1])[None] / basis.measure[part, None, None]
         w_dofs = wmap.local_to_global(W.dofmap.list[:num].ravel()).reshape(
             num, W.dofmap.list.shape[1])
-        rows, cols, vals = [], [], []
+        facets, cols, vals = [], [], []
         for facet, weights, theta, phi, dofs, key in terms:
-            # per point: the facet's rows (a) times the cell's columns (j)
-            local = np.einsum("qab,qb->qa", inv[facet], theta) * weights[:, None]
-            # a facet the master covers in part: the mean (no polynomial through the jump at
-            # the master's end); its integral against a constant is the same
-            part = basis.partial[facet]
-            local[part] = (weights[part] / basis.measure[facet[part]])[:, None]
+            # per point: the facet's rows (a) times the cell's columns (j), summed per facet
+            # and cell, then scaled per facet
+            local = np.where(part[facet][:, None], 1.0, theta) * weights[:, None]
             at, blocks = facet_cell_blocks(facet, key, local, phi)
-            r_q, d_q = w_dofs[facet[at]], dofs[at]
-            shape = blocks.shape
-            rows.append(np.broadcast_to(r_q[:, :, None], shape).ravel())
-            cols.append(np.broadcast_to(d_q[:, None, :], shape).ravel())
-            vals.append(blocks.ravel())
-        return csr_matrix(self.disc.comm, rows, cols, vals, wmap.local_range[0] * bs,
-                          (wmap.size_local * bs, wmap.size_global * bs),
-                          (vmap.size_local * V.dofmap.index_map_bs,
-                           vmap.size_global * V.dofmap.index_map_bs), bs=bs)
+            facets.append(facet[at])
+            cols.append(dofs[at])
+            vals.append(scale[facet[at]] @ blocks)
+        a, j = scale.shape[1], V.dofmap.dof_layout.num_dofs
+        return facet_rows_matrix(
+            self.disc.comm, w_dofs, np.concatenate(facets) if facets else np.zeros(0, np.int64),
+            np.concatenate(cols) if cols else np.zeros((0, j), np.int64),
+            np.concatenate(vals) if vals else np.zeros((0, a, j)), wmap.local_range[0],
+            (wmap.size_local * bs, wmap.size_global * bs),
+            (vmap.size_local * V.dofmap.index_map_bs, vmap.size_global * V.dofmap.index_map_bs),
+            bs)
 
     def _gap(self, basis: FacetBasis) -> fem.Function:
         """The gap g projected per facet from its covered part (zero elsewhere).

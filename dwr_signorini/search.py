@@ -9,10 +9,12 @@ within the searched depth is searched against all master facets, so the rule is 
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .clipping import batched_rule
+from .clipping import _dot, batched_rule
 from .mortar import MortarRule, facet_reach, mortar_rule
 
 __all__ = [
@@ -32,7 +34,7 @@ def candidate_rule(
     slave_normals: np.ndarray,
     master: np.ndarray,
     master_normals: np.ndarray,
-    degree: int,
+    degree: int | None,
     window: np.ndarray | float,
 ) -> MortarRule:
     """The mortar rule of each slave facet against its candidate master facets only.
@@ -48,7 +50,7 @@ def candidate_rule(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece (None: the pieces).
         window: The penetration window w_F of each slave facet (or one for all), >= 0
             (:func:`~dwr_signorini.mortar.mortar_rule`).
 
@@ -84,7 +86,7 @@ def candidate_parts(
     slave_normals: np.ndarray,
     master: np.ndarray,
     master_normals: np.ndarray,
-    degree: int,
+    degree: int | None,
     windows: np.ndarray,
     master_reach: float | None = None,
     keys: np.ndarray | None = None,
@@ -104,7 +106,8 @@ def candidate_parts(
         slave_normals: Their outward unit normals.
         master: The master facets' vertices, shape (m_m, nv, gdim).
         master_normals: Their outward unit normals.
-        degree: The polynomial degree integrated exactly on each piece.
+        degree: The polynomial degree integrated exactly on each piece (None: the pieces,
+            :func:`~dwr_signorini.mortar.piece_rule`).
         windows: The penetration window of each slave facet.
         master_reach: The largest reach of a master facet (default: of those given; the
             largest over all ranks where the masters are distributed).
@@ -151,9 +154,12 @@ def _candidates(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The (slave facet, master facet) pairs that the rule reads, each facet's sorted by keys.
 
-    The master facets whose centres the KD-tree finds within ``radius`` of each slave facet's
-    centre, of which those in its shadow (:func:`~dwr_signorini.mortar.in_shadow`: the
-    rule looks at no others).
+    The master facets whose centres lie within ``radius`` of each slave facet's centre, of
+    which those in its shadow (:func:`~dwr_signorini.mortar.in_shadow`: the rule looks at no
+    others). Those lie in a cylinder around the facet's normal axis (:func:`_axis_balls`), which
+    the KD-tree is asked for instead of the whole ball: a few small balls along the axis meet
+    far fewer master facets than the ball of the search radius (which reaches D along the
+    master surface too), and the tests below keep the same pairs.
 
     Args:
         tree: The KD-tree of the master facets' centres.
@@ -165,26 +171,67 @@ def _candidates(
     """
     centres, reach, master_normals, keys = masters
     slave_centres, slave_reach = facet_reach(slave)
+    tol = 1.0 + 1e-9
+    lateral = tol * (reach.max(initial=0.0) + slave_reach)  # the shadow's largest radius
+    behind = windows + reach.max(initial=0.0) + slave_reach
     facets, found = [], []
     for lo in range(0, len(slave), _QUERY_CHUNK):
-        near = tree.query_ball_point(slave_centres[lo:lo + _QUERY_CHUNK],
-                                     radius[lo:lo + _QUERY_CHUNK])
-        sizes = np.array([len(c) for c in near], dtype=np.int64)
-        c = np.concatenate([np.asarray(x, dtype=np.int64) for x in near]) if len(near) else (
-            np.zeros(0, np.int64))
-        f = np.repeat(np.arange(lo, lo + len(near)), sizes)
+        at = slice(lo, lo + _QUERY_CHUNK)
+        f, c = _axis_balls(tree, slave_centres[at], normals[at], lateral[at], -behind[at],
+                           radius[at])
+        f += lo
         n = normals[f]
         d = centres[c] - slave_centres[f]
-        along = np.einsum("pd,pd->p", d, n)
-        lateral = np.linalg.norm(d - along[:, None] * n, axis=1)
+        along = _dot(d, n)
+        side = np.linalg.norm(d - along[:, None] * n, axis=1)
         both = reach[c] + slave_reach[f]
-        ok = ((np.einsum("pd,pd->p", master_normals[c], n) < 0.0)
-              & (lateral <= (1.0 + 1e-9) * both) & (along >= -(windows[f] + both)))
+        ok = ((_dot(master_normals[c], n) < 0.0)
+              & (side <= tol * both) & (along >= -(windows[f] + both))
+              & (_dot(d, d) <= radius[f] ** 2))
         f, c = f[ok], c[ok]
         order = np.lexsort((keys[c], f))
         facets.append(f[order])
         found.append(c[order])
+    if not facets:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     return np.concatenate(facets), np.concatenate(found)
+
+
+def _axis_balls(
+    tree: cKDTree, centres: np.ndarray, normals: np.ndarray, lateral: np.ndarray,
+    near: np.ndarray, far: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The points of ``tree`` in cylinders around axes (and some around them), once per pair.
+
+    The cylinder of an axis x + t n holds the points within ``lateral`` of it with
+    near <= t <= far. It is covered by k = ceil((far - near) / lateral) balls centred on the
+    axis at spacing h = (far - near) / k, of radius sqrt(lateral^2 + h^2 / 4): a point of the
+    cylinder lies within h / 2 of a ball's centre along the axis.
+
+    Args:
+        tree: A KD-tree of points.
+        centres: A point of each axis, shape (m, gdim).
+        normals: The axes' unit directions.
+        lateral: The cylinders' radii (> 0).
+        near: Where each cylinder begins along its axis.
+        far: Where each ends.
+
+    Returns:
+        The (cylinder, point) pairs, sorted.
+    """
+    m = len(centres)
+    if m == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    k = np.maximum(np.ceil((far - near) / lateral), 1.0).astype(np.int64)
+    f = np.repeat(np.arange(m), k)
+    j = np.arange(len(f)) - np.repeat(np.cumsum(k) - k, k)
+    h = ((far - near) / k)[f]
+    points = centres[f] + (near[f] + (j + 0.5) * h)[:, None] * normals[f]
+    hits = tree.query_ball_point(points, (1.0 + 1e-9) * np.sqrt(lateral[f] ** 2 + 0.25 * h**2))
+    sizes = np.fromiter(map(len, hits), dtype=np.int64, count=len(hits))
+    c = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64, count=int(sizes.sum()))
+    key = np.unique(np.repeat(f, sizes) * tree.n + c)
+    return key // tree.n, key % tree.n
 
 
 def _one(args: tuple, i: int, c: np.ndarray) -> MortarRule:

@@ -162,23 +162,25 @@ def hex_blocks(comm, n_lower=3, n_upper=4, jitter=0.3, seed=7):
 TET_BOTTOM, TET_TOP, TET_MASTER, TET_SLAVE = 1, 2, 3, 4
 
 
-def _tet_box(n: int, z0: float, height: float):
-    """Nodes and tetrahedra of [0, 1]^2 x [z0, z0 + height], n x n x 2 cells of 6."""
+def _tet_box(n: int, z0: float, height: float, layers: int = 2):
+    """Nodes and tetrahedra of [0, 1]^2 x [z0, z0 + height], n x n x ``layers`` cells of 6."""
     from mpi4py import MPI
 
     from dolfinx import mesh as dmesh
 
     from dwr_signorini import compat
 
-    box = dmesh.create_box(MPI.COMM_SELF, [[0.0, 0.0, z0], [1.0, 1.0, z0 + height]], [n, n, 2])
+    box = dmesh.create_box(MPI.COMM_SELF, [[0.0, 0.0, z0], [1.0, 1.0, z0 + height]],
+                           [n, n, layers])
     return box.geometry.x.copy(), compat.geometry_dofmap(box).astype(np.int64)
 
 
-def tet_boxes(comm, n: int, gap: float = 0.0):
+def tet_boxes(comm, n: int, gap: float = 0.0, layers: int = 2):
     """[0, 1]^2 x [0, 1] (n x n x 2 cells of 6 tetrahedra) under [0, 1]^2 x [1 + gap, 1.5 + gap]
     ((n + 1) x (n + 1) x 2), one mesh whose bodies share no vertex: the contact facets do not
     match. Returns (mesh, facet tags): TET_SLAVE the upper box's bottom, TET_MASTER the
-    lower box's top, TET_BOTTOM and TET_TOP the outer faces."""
+    lower box's top, TET_BOTTOM and TET_TOP the outer faces. ``layers``: the cells across each
+    box's height (thin slabs with 1: many contact facets, a small volume)."""
     from mpi4py import MPI
 
     import ufl
@@ -186,7 +188,7 @@ def tet_boxes(comm, n: int, gap: float = 0.0):
 
     from dwr_signorini import compat
 
-    lower, upper = _tet_box(n, 0.0, 1.0), _tet_box(n + 1, 1.0 + gap, 0.5)
+    lower, upper = _tet_box(n, 0.0, 1.0, layers), _tet_box(n + 1, 1.0 + gap, 0.5, layers)
     if comm.rank == 0:
         x = np.concatenate([lower[0], upper[0]])
         cells = np.concatenate([lower[1], upper[1] + len(lower[0])])

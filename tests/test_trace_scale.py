@@ -4,6 +4,11 @@
   per-facet rule (mortar.mortar_rule, every master facet): the integrals of polynomials times
   the master facet met, per slave facet, on non-matching, two-layer, steep and partly covered
   masters.
+* The rule of each degree placed on the pieces of one search (clipping.place) against the rule
+  of that degree (2D and 3D).
+* The candidates from balls along each slave facet's normal axis (search._candidates) against
+  every master facet tested for the search ball and the shadow, on random facets.
+* The basis values in affine simplices (pair_facets.cell_basis) reproduce quadratics.
 * The master trace on 2 ranks is the serial one: each rank holds only the master facets its
   slave facets need (dwr_signorini.exchange), and the trace does not depend on the partition.
 """
@@ -18,11 +23,14 @@ import ufl
 from dolfinx import fem
 
 import dwr_signorini as ds
-from dwr_signorini.mortar import mortar_rule
+from dwr_signorini import search
+from dwr_signorini.clipping import place
+from dwr_signorini.mortar import facet_reach, in_shadow, mortar_rule
+from dwr_signorini.pair_facets import cell_basis
 from dwr_signorini.search import candidate_rule
 from dwr_signorini.spaces import discretize
 from tests import pair_geometries as G
-from tests.test_mortar import _normals, _triangles
+from tests.test_mortar import _normals, _polyline, _random_breaks, _triangles
 
 COMM = MPI.COMM_WORLD
 
@@ -71,6 +79,89 @@ def test_batched_rule_is_the_per_facet_rule(kind, degree):
     assert np.abs(b).max() > 0.0
     scale = (1.0 + len(master)) * (1.0 / len(slave))
     assert np.abs(a - b).max() < 1e-12 * scale
+
+
+@pytest.mark.parametrize("kind", ["flat", "partly covered", "two layers", "steep", "2d"])
+@pytest.mark.parametrize("degree", [2, 4])
+def test_rule_placed_on_the_pieces_is_the_rule_of_the_degree(kind, degree):
+    """One search (degree None: the pieces) serves every degree: the Gauss points placed on
+    its pieces integrate as the rule of that degree, per slave facet and master facet, to
+    1e-12 (x, y^2, x y z, the gap: degree <= 3)."""
+    if kind == "2d":
+        slave = _polyline(_random_breaks(7), 0.0)
+        master = _polyline(_random_breaks(9, -0.1, 1.1), 0.05)
+        master_normals = _normals(master, -1.0)
+        pieces = mortar_rule(slave, _normals(slave, 1.0), master, master_normals, None, 0.1)
+        direct = mortar_rule(slave, _normals(slave, 1.0), master, master_normals, degree, 0.1)
+        x = np.c_[direct.points, np.zeros(len(direct.points))]  # (as 3D points for _moments)
+        direct = type(direct)(direct.facet, x, direct.weights, direct.master, direct.gap)
+    else:
+        slave, master, master_normals = _layers(kind)
+        pieces = candidate_rule(slave, _normals(slave, 1.0), master, master_normals, None, 0.1)
+        direct = mortar_rule(slave, _normals(slave, 1.0), master, master_normals, degree, 0.1)
+    placed = place(pieces, degree, False, _normals(slave, 1.0), master, master_normals)
+    if kind == "2d":
+        x = np.c_[placed.points, np.zeros(len(placed.points))]
+        placed = type(placed)(placed.facet, x, placed.weights, placed.master, placed.gap)
+    assert len(pieces.facet) % slave.shape[2] == 0
+    a, b = _moments(placed, len(slave)), _moments(direct, len(slave))
+    assert np.abs(b).max() > 0.0
+    assert np.abs(a - b).max() < 1e-12 * (1.0 + len(master))
+
+
+def test_candidates_are_every_master_in_the_ball_and_the_shadow():
+    """The candidates found with balls along each slave facet's normal axis are exactly the
+    master facets within the search radius that pass the shadow test, on random facets with
+    random normals, sizes and windows."""
+    rng = np.random.default_rng(57)
+
+    def facets(m: int) -> tuple[np.ndarray, np.ndarray]:
+        centre = rng.uniform(0.0, 1.0, (m, 1, 3))
+        tri = centre + rng.uniform(0.01, 0.08, (m, 1, 1)) * rng.normal(size=(m, 3, 3))
+        n = rng.normal(size=(m, 3))
+        return tri, n / np.linalg.norm(n, axis=1)[:, None]
+
+    slave, normals = facets(300)
+    master, master_normals = facets(2000)
+    windows = rng.uniform(0.0, 0.2, len(slave))
+    centres, reach = facet_reach(master)
+    radius = search.search_radius(slave, windows, reach.max())
+    keys = rng.permutation(len(master))
+    f, c = search._candidates(search.cKDTree(centres), slave, normals, windows, radius,
+                              (centres, reach, master_normals, keys))
+    slave_centres, slave_reach = facet_reach(slave)
+    expected = []
+    for i in range(len(slave)):
+        near = np.linalg.norm(centres - slave_centres[i], axis=1) <= radius[i]
+        near &= in_shadow(centres, reach, master_normals, slave_centres[i], normals[i],
+                          slave_reach[i], windows[i])
+        expected += [(i, j) for j in np.flatnonzero(near)[np.argsort(keys[near])]]
+    assert len(expected) > 3 * len(slave)  # the random facets do meet
+    assert list(zip(f.tolist(), c.tolist(), strict=True)) == expected
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_cell_basis_in_affine_simplices_reproduces_quadratics(degree):
+    """sum_j phi_j(y) f(x_j) = f(y) at random points y of random cells of a tetrahedral mesh,
+    f of degree <= ``degree`` (x_j the dofs' coordinates)."""
+    from dolfinx import mesh as dmesh
+
+    msh = dmesh.create_unit_cube(MPI.COMM_SELF, 2, 3, 2, dmesh.CellType.tetrahedron)
+    msh.geometry.x[:, 0] += 0.2 * msh.geometry.x[:, 1] ** 2  # cells of different shapes
+    V = fem.functionspace(msh, ("Lagrange", degree, (3,)))  # (a displacement space)
+    rng = np.random.default_rng(3)
+    geometry = msh.geometry.x[msh.geometry.dofmap][:, :, :3]
+    which = rng.integers(0, len(geometry), 200)
+    bary = rng.dirichlet(np.ones(4), len(which))
+    y = np.einsum("qv,qvd->qd", bary, geometry[which])
+    phi = cell_basis(msh, V, geometry, which, y)
+
+    def f(x):
+        return 1.0 + x[0] - 2.0 * x[1] + 0.5 * x[2] + (degree - 1) * (x[0] * x[2] - x[1] ** 2)
+
+    values = V.tabulate_dof_coordinates()[V.dofmap.list[which]]  # (q, nodes, 3)
+    interpolated = np.einsum("qj,qj->q", phi, f(values.transpose(2, 0, 1)))
+    assert interpolated == pytest.approx(f(y.T), abs=1e-12)
 
 
 def _field(x):
