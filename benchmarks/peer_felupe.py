@@ -44,7 +44,7 @@ import numpy as np
 from dolfinx import mesh as dmesh
 
 import dwr_signorini as ds
-from dwr_signorini import cases
+from dwr_signorini import cases, compat
 from dwr_signorini.io import write_csv, write_json
 from dwr_signorini.spaces import discretize
 
@@ -88,7 +88,7 @@ def fine_mesh(h_contact: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     disc = discretize(cases.rubber_cylinder_problems(mesh)[0])
     msh = disc.mesh
     points = msh.geometry.x[:, :2].copy()
-    cells = np.asarray(msh.geometry.dofmap).copy()
+    cells = np.asarray(compat.geometry_dofmap(msh)).copy()
     a, b, c = (points[cells[:, k]] for k in range(3))
     clockwise = np.cross(b - a, c - a) < 0.0
     cells[clockwise] = cells[clockwise][:, [0, 2, 1]]

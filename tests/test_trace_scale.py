@@ -23,7 +23,7 @@ import ufl
 from dolfinx import fem
 
 import dwr_signorini as ds
-from dwr_signorini import search
+from dwr_signorini import compat, search
 from dwr_signorini.clipping import place
 from dwr_signorini.mortar import facet_reach, in_shadow, mortar_rule
 from dwr_signorini.pair_facets import cell_basis
@@ -150,7 +150,7 @@ def test_cell_basis_in_affine_simplices_reproduces_quadratics(degree):
     msh.geometry.x[:, 0] += 0.2 * msh.geometry.x[:, 1] ** 2  # cells of different shapes
     V = fem.functionspace(msh, ("Lagrange", degree, (3,)))  # (a displacement space)
     rng = np.random.default_rng(3)
-    geometry = msh.geometry.x[msh.geometry.dofmap][:, :, :3]
+    geometry = msh.geometry.x[compat.geometry_dofmap(msh)][:, :, :3]
     which = rng.integers(0, len(geometry), 200)
     bary = rng.dirichlet(np.ones(4), len(which))
     y = np.einsum("qv,qvd->qd", bary, geometry[which])
