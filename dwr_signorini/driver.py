@@ -94,6 +94,8 @@ class LevelSettings:
     def solve_and_estimate(
         self, disc: Discretization, guess: tuple[Any, ...] | None, goal: Goal,
         keep_parts: SolverBudget | None = None,
+        earlier: tuple[Solution, ...] | None = None,
+        richer: Any = None,
     ) -> tuple[Solution, Estimate, float]:
         """Solve the level from ``guess`` and estimate ``goal`` (collective).
 
@@ -104,6 +106,10 @@ class LevelSettings:
             keep_parts: Keep the estimate's goal-independent parts with the solution, for
                 estimates of other goals at it (:mod:`~dwr_signorini.estimate_parts`), its P2
                 solvers within this budget; None: not kept.
+            earlier: The earlier steps of a load path the solution lists
+                (:attr:`~dwr_signorini.Solution.earlier`), or None.
+            richer: The richer model of the estimate's model error, in place of
+                :meth:`richer` (e.g. a richer path's problems, eq. (M7)), or None.
 
         Returns:
             The solution, its estimate and the seconds of the solve. On a failure of the
@@ -112,12 +118,14 @@ class LevelSettings:
         tic = time.perf_counter()
         sol = solve(disc, initial_guess=guess, options=self.solver)
         t_solve = time.perf_counter() - tic
+        if earlier is not None:
+            sol.earlier = earlier
+        if richer is None:
+            richer = self.richer(disc.problem)
         try:
             if keep_parts is not None:
                 keep_estimate_parts(sol, keep_parts)
-            est = estimate(
-                sol, goal, options=self.estimate, model_error=self.richer(disc.problem)
-            )
+            est = estimate(sol, goal, options=self.estimate, model_error=richer)
         except BaseException:
             sol.destroy()
             raise

@@ -198,7 +198,7 @@ def slip_offset_goal(system: NewtonLinearSystem, xi: np.ndarray) -> Goal:
 
     With the sets of the system's last Newton step and its dual solution (``xi`` the owned
     multiplier rows as :func:`solve_dual` returns them), L(v) = J(w(u_old + v)) -
-    J(w(u_old)) = - sum_l (w_l, v . e_l)_GC (:func:`~dwr_signorini.path.history_goal`).
+    J(w(u_old)) = - sum_l (w_l, v . e_l)_GC (:func:`~dwr_signorini.path_history.history_goal`).
 
     Args:
         system: The solved Newton system of the step (its sets, couplings and c_n).

@@ -18,7 +18,7 @@ made from it depend on J; these do not:
   R_A and rho* without its J' term are compiled once with slot functions for z_h and its
   weights, into which each goal's values are copied before the assembly.
 
-A load path's history (:func:`~dwr_signorini.path.history_estimates`) estimates, at every
+A load path's history (:func:`~dwr_signorini.path_history.history_estimates`) estimates, at every
 kept step, another goal at the solution that the step's own estimate judged: the path gives
 each kept :class:`~dwr_signorini.Solution` an :class:`EstimateParts`
 (:attr:`~dwr_signorini.Solution.estimate_parts`) before its own estimate, and every later

@@ -11,8 +11,9 @@ one of its points by t_k, so the slip increment of step k is
 the tangential offsets g_l = B_l (u_old + t_k) (:meth:`~dwr_signorini.spaces.Discretization.
 slip_origin`). Moving the obstacle by t_k or the body by -t_k (its prescribed displacements)
 then gives the same tractions: a change of frame. t_k is data, a constant offset: the Newton
-matrix, the dual problem and the history's goal (:func:`~dwr_signorini.path.history_goal`, the
-derivative in u_old) are unchanged, and the estimator's residuals take the same offsets.
+matrix, the dual problem and the history's goal
+(:func:`~dwr_signorini.path_history.history_goal`, the derivative in u_old) are unchanged,
+and the estimator's residuals take the same offsets.
 
 Where the obstacle changes between frictional steps in any other way, the slip relative to it
 is not defined and :func:`path_translations` refuses the path, except where the change leaves

@@ -11,11 +11,13 @@ translated from one step to the next carries its translation into the slip
 
 **The error the history carries.** The estimate of a step's own residuals is that of its
 discrete problem for the given u^old; the error of u^old enters its J to first order as
-L(u_old - u_old,h), L the sensitivity of J to u^old (:func:`history_goal`, exact for the discrete
-problem). L is a goal of the previous step, estimated there with its own dual solution, whose
-sensitivity is a goal of the step before, back to the first step (:func:`history_estimates`):
-a backward chain of dual problems, as a space-time dual would be solved backwards in time. The
-chain's estimates are added to the step's estimate and its interval (the intervals summed).
+L(u_old - u_old,h), L the sensitivity of J to u^old
+(:func:`~dwr_signorini.path_history.history_goal`, exact for the discrete problem). L is a goal
+of the previous step, estimated there with its own dual solution, whose sensitivity is a goal
+of the step before, back to the first step
+(:func:`~dwr_signorini.path_history.history_estimates`): a backward chain of dual problems, as
+a space-time dual would be solved backwards in time. The chain's estimates are added to the
+step's estimate and its interval (the intervals summed).
 
 **One backward sweep.** The chain of step k is a sweep back over the k earlier steps, one
 estimate (one transposed solve with that step's stored last Newton factors) per step, and its
@@ -60,13 +62,14 @@ from dolfinx import fem
 from . import finite_strain_path
 from .agreement import check_same_on_ranks
 from .driver import LevelSettings, check_simplex
-from .dual import slip_offset_goal
 from .estimate_parts import SolverBudget, release_estimate_parts
-from .estimator import Estimate, estimate
+from .estimator import Estimate
 from .goal import Goal
 from .marking import MarkingRule, marking_defaults
+from .model_error import check_richer
 from .newton import Solution
 from .obstacle_motion import path_translations
+from .path_history import add_history, history_estimates, history_goal, history_mode
 from .problem import SignoriniProblem
 from .report import AdaptiveResult, LevelRecord, Reporter
 from .settings import EstimateOptions, SolverOptions
@@ -197,6 +200,7 @@ def solve_path(
     *,
     load_factors: Sequence[float] | None = None,
     keep_steps: bool = False,
+    model_error: Sequence[SignoriniProblem] | None = None,
 ) -> PathResult:
     """Solve a quasi-static load path step by step, each step from the last (module docstring).
 
@@ -248,6 +252,12 @@ def solve_path(
             ``estimate(sol, goal, model_error=richer_steps)`` estimates the model error along
             the path (:mod:`~dwr_signorini.path_model_error`, eq. (M7)). Not with
             ``adaptive``.
+        model_error: The richer path's problems, one per step (the same data with a richer
+            contact law, e.g. ``Coulomb(mu)`` in place of frictionless): every step reports the
+            model error of its law, eq. (M7) over the steps so far, in its record
+            (``model_error``, ``model_error_low``, ``model_error_high``) and progress line.
+            Keeps every step (as ``keep_steps``); step k costs k + 1 model error estimates.
+            Not with ``adaptive``.
 
     Returns:
         The :class:`PathResult`, one :class:`StepRecord` per step (collective; release it
@@ -273,14 +283,16 @@ def solve_path(
             "growth": growth, "output_dir": None if output_dir is None else str(output_dir),
             "callback": callback is None, "petsc_options": petsc_options, "method": method,
             "ncp_scale": ncp_scale, "initial_guess": initial_guess is None, "history": history,
-            "keep_steps": keep_steps,
+            "keep_steps": keep_steps, "model_error": model_error is None,
         },
     )
     goals = _goals(goal, len(problems))
     settings = _path_settings(problems[0], adaptive, fraction, growth, estimator, weights,
                               petsc_options, method, ncp_scale)
-    history = _history_mode(history, adaptive, problems[0].law.frictional)
+    history = history_mode(history, adaptive, problems[0].law.frictional)
     _check_keep_steps(keep_steps, adaptive)
+    richer = _check_richer_path(model_error, problems, adaptive)
+    keep_steps = keep_steps or richer is not None
     translations = path_translations(problems)
     comm = problems[0].mesh.comm
     marking = settings.marking if adaptive else None
@@ -292,8 +304,38 @@ def solve_path(
             "num_processes": comm.size, "law": repr(problems[0].law)}
     reporter = Reporter(comm, "path", meta, output_dir, callback, verbose, series=True)
     state = _PathState(first_guess=initial_guess, keep=history is not None or keep_steps,
-                       parts=history is not None, link=keep_steps, translations=translations)
+                       parts=history is not None, link=keep_steps, translations=translations,
+                       richer=richer)
     return _steps(problems, goals, settings, adaptive, history, state, reporter)
+
+
+def _check_richer_path(
+    model_error: Any, problems: list[SignoriniProblem], adaptive: bool
+) -> list[SignoriniProblem] | None:
+    """``model_error`` of :func:`solve_path`: a richer problem per step (TypeError, ValueError)."""
+    if model_error is None:
+        return None
+    if isinstance(model_error, SignoriniProblem) or not isinstance(model_error, Sequence):
+        raise TypeError(
+            "model_error of solve_path must be the richer path's problems, one per step, got "
+            f"{type(model_error).__name__}"
+        )
+    if adaptive:
+        raise ValueError(
+            "model_error needs every step on one mesh: the steps of an adaptive path live on "
+            "different meshes (use adaptive=False)"
+        )
+    if len(model_error) != len(problems):
+        raise ValueError(
+            f"model_error: {len(model_error)} richer problems for {len(problems)} steps: give "
+            "one per step, the first first"
+        )
+    for k, (simple, rich) in enumerate(zip(problems, model_error, strict=True)):
+        try:
+            check_richer(simple, rich)
+        except (TypeError, ValueError) as err:
+            raise type(err)(f"step {k}: {err}") from None
+    return list(model_error)
 
 
 def _check_keep_steps(keep_steps: Any, adaptive: bool) -> None:
@@ -305,31 +347,6 @@ def _check_keep_steps(keep_steps: Any, adaptive: bool) -> None:
             "keep_steps=True needs every step on one mesh: the steps of an adaptive path live "
             "on different meshes (use adaptive=False)"
         )
-
-
-HISTORY_MODES = ("last", "every")
-
-
-def _history_mode(history: Any, adaptive: bool, frictional: bool) -> str | None:
-    """``history`` of :func:`solve_path` as ``"last"``, ``"every"`` or None (not estimated)."""
-    if history is None:  # a frictionless law carries no history (no slip offsets)
-        return "last" if frictional and not adaptive else None
-    if history is True:
-        history = "every"
-    if history is False:
-        return None
-    if not isinstance(history, str):
-        raise TypeError(
-            f"history must be None, True, False, 'last' or 'every', got {history!r}"
-        )
-    if history not in HISTORY_MODES:
-        raise ValueError(f"history must be None, True, False, 'last' or 'every', got {history!r}")
-    if adaptive:
-        raise ValueError(
-            f"history={history!r} needs every step on one mesh: the history's error is not "
-            "estimated on an adaptive path (use history=False or adaptive=False)"
-        )
-    return history
 
 
 def _path_settings(
@@ -417,6 +434,8 @@ class _PathState:
     first_guess: tuple[Any, ...] | None = None
     #: Each step's obstacle translation from the step before (:mod:`.obstacle_motion`).
     translations: list[Any] = field(default_factory=list, repr=False)
+    #: The richer path's problems of ``model_error`` (one per step), or None.
+    richer: list[SignoriniProblem] | None = field(default=None, repr=False)
 
     def retire(self) -> None:
         """Release the last step's estimate; its solution too unless the history needs it."""
@@ -464,10 +483,10 @@ def _step(
     state.retire()
     t_setup = time.perf_counter() - t_start
     sol, est, t_solve = settings.solve_and_estimate(
-        disc, guess, goal, keep_parts=state.budget if state.parts else None
+        disc, guess, goal, keep_parts=state.budget if state.parts else None,
+        earlier=tuple(state.kept) if state.link else None,
+        richer=None if state.richer is None else state.richer[: k + 1],
     )
-    if state.link:
-        sol.earlier = tuple(state.kept)
     state.solution, state.estimate = sol, est
     tic = time.perf_counter()
     history = history_estimates(state.kept, sol, est, settings.estimate) if sweep else []
@@ -484,89 +503,9 @@ def _step(
     step = StepRecord(**record.as_dict(), step=k)
     step.time["history"] = t_history
     if sweep:
-        _add_history(step, history)
+        add_history(step, history)
     step.time["total"] = time.perf_counter() - t_start
     return step
-
-
-def history_goal(sol: Solution, est: Estimate) -> Goal:
-    """The sensitivity of a step's goal to its history, as a goal of the step before.
-
-    Args:
-        sol: The step's solution (its discretisation's meshes are the previous step's).
-        est: The estimate of the step's goal (its dual solution).
-
-    Returns:
-        ``goal(u, lam, m, lam_t) -> ufl.Form``, L(u).
-
-    A step's tangential offsets are g_l = B_l u_old (the slip increment u - u_old,
-    :class:`~dwr_signorini.laws.Coulomb`), so the step's J depends on the previous step's
-    displacement. With the step's final sets, the derivative of its right-hand side in g_l is
-    -1 on a constrained (sticking) row and -c_f J_kl on the rows k of a coupled (slipping)
-    facet, so with the dual solution z (A^T z = J', :func:`~dwr_signorini.dual.solve_dual`)
-
-        J(w(u_old + v)) - J(w(u_old)) = L(v) = - sum_l (w_l, v . e_l)_GC,
-        w_l = z_l on the constrained rows, c_f sum_k z_k J_kl on the coupled ones,
-
-    (with contact pairs, v is the relative displacement v - P v of :mod:`~dwr_signorini.pairs`,
-    and :class:`~dwr_signorini.goal.GoalForms` adds the master trace's part -P^T to L')
-
-    exactly for the discrete problem while the sets hold (w_l is P0 on the macro facets). Its
-    error at the previous step, L(u - u_h), is the part of the step's error that the history
-    carries (module docstring).
-    """
-    return slip_offset_goal(sol.system, sol.stacked(est.dual.multipliers))
-
-
-def history_estimates(
-    kept: list[Solution],
-    sol: Solution,
-    est: Estimate,
-    options: EstimateOptions | dict[str, Any],
-) -> list[tuple[float, float, float]]:
-    """The error that each earlier step carries into this step's goal, by a backward chain.
-
-    Args:
-        kept: The earlier steps' solutions, first step first (on the same meshes).
-        sol: This step's solution.
-        est: Its estimate.
-        options: The options of :func:`~dwr_signorini.estimate`: an
-            :class:`~dwr_signorini.settings.EstimateOptions` or its keyword arguments.
-
-    Returns:
-        One ``(estimate, low, high)`` per earlier step (last first): the estimated error of the
-        history goal and its interval's ends relative to the goal's value.
-
-    From the last step back to the first: the history goal of the later step
-    (:func:`history_goal`) is estimated at the earlier one (its own residuals, weighted by the
-    dual solution of that goal), and that estimate's dual gives the next goal back. Costs one
-    estimate per earlier step (with the earlier step's factorisation), each reusing the parts
-    of the step's own estimate that the path kept with its solution
-    (:mod:`~dwr_signorini.estimate_parts`).
-    """
-    if not isinstance(options, EstimateOptions):
-        options = EstimateOptions(**options)
-    out = []
-    later_sol, later_est, owned = sol, est, None
-    for earlier in reversed(kept):
-        e = estimate(earlier, history_goal(later_sol, later_est), options=options)
-        if owned is not None:
-            owned.destroy()
-        low, high = e.interval
-        out.append((e.value, low - e.J_h, high - e.J_h))
-        later_sol, later_est, owned = earlier, e, e
-    if owned is not None:
-        owned.destroy()
-    return out
-
-
-def _add_history(step: StepRecord, history: list[tuple[float, float, float]]) -> None:
-    """The history's estimated error added to the step's estimate and interval."""
-    step.eta_history = sum(h[0] for h in history)
-    step.estimate += step.eta_history
-    step.J_low += sum(h[1] for h in history)
-    step.J_high += sum(h[2] for h in history)
-    step.J_best += sum(0.5 * (h[1] + h[2]) for h in history)
 
 
 def _on_mesh(problem: SignoriniProblem, current: SignoriniProblem) -> SignoriniProblem:

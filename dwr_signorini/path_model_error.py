@@ -18,7 +18,7 @@ A_k^T z_k = J_k' (:func:`~dwr_signorini.dual.slip_offset_goal`, the history goal
 eta_M,k(J_k) the model error (M1) of step k for the goal J_k, with the richer step's slip
 measured from u_s^(k-1): the richer residual of each simpler step weighted by the chain of
 duals solved backward from the last step, as the history's error of a path is
-(:func:`~dwr_signorini.path.history_estimates`). The goals J_k, k < K, are linear in u, so
+(:func:`~dwr_signorini.path_history.history_estimates`). The goals J_k, k < K, are linear in u, so
 their (M1) are their Newton steps; the interval is the sum of the steps' intervals of (M1)
 (``value +- r`` where the richer sets settle after the step, ``hull(0, 2 value) +- r`` where
 not), and the indicators (per cell and per macro contact facet) the sums of the steps'.

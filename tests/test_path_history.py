@@ -21,9 +21,9 @@ from dolfinx import fem
 import dwr_signorini as ds
 from dwr_signorini import estimate_parts
 from dwr_signorini import examples as ex
-from dwr_signorini import path as path_module
+from dwr_signorini import path_history as path_module
 from dwr_signorini.linalg import memory
-from dwr_signorini.path import history_goal
+from dwr_signorini.path_history import history_goal
 
 COMM = MPI.COMM_WORLD
 TOPS = [(0.0, -0.02), (0.004, -0.02), (0.008, -0.02), (0.012, -0.021)]
