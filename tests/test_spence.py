@@ -7,7 +7,10 @@ by a block 40 x 20 with facets of 0.005 where a rigid cylinder of radius R = 10 
 
 * self-similarity, eq. (S2): under the monotone press c / a stays constant;
 * c / a depends on beta / mu only: two materials and friction coefficients with one beta / mu
-  give one c / a.
+  give one c / a (to 0.036 in the half-plane theory itself, which couples the normal problem
+  through beta mu: ``tests/test_halfplane_contact.py``);
+* c / a is the half-plane theory's, computed in the test by the boundary elements of
+  ``tests/halfplane_contact.py`` (the same theory solved by another method).
 
 Measured (``scripts/fenicsx python3 -m pytest -s tests/test_spence.py`` prints the rows):
 see the tests' docstrings.
