@@ -19,7 +19,10 @@ by (0.02, -0.01) on a rigid plane, mu = 0.5 (friction changes int u_x on the bas
 0.040) and mu = 0.0001 (by about 7e-6); the 2D Hertz press of ``meshes/hertz_2d.py`` with
 mu = 0.3, whose contact force friction changes by about 1 %; and the thin block (0, 4) x (0, 0.5)
 of ``tests/test_model_regions.py``, mu = 0.2, goal the slide of the base under x < 0.5: friction
-changes J by -1.6e-3 of 3.8e-3, and its model indicators fall to 0.3 % towards the far end.
+changes J by -1.6e-3 of 3.8e-3, and its model indicators fall to 0.3 % towards the far end; the
+long block (0, 16) x (0, 0.5) with the same load and goal, mu = 0.5 (friction changes J by
+-3.7e-3), per region: most of its Gamma_C is far from the goal, where the per-region run leaves
+friction out and Coulomb alone solves and estimates it.
 """
 
 from __future__ import annotations
@@ -83,6 +86,15 @@ def thin_scene(tol: float, regions: bool) -> dict:
     return {"name": f"thin block, mu = {MU:g}, {how}", "goal": near_end, "tol": tol,
             "models": [thin(msh, tags, None), thin(msh, tags, ds.Coulomb(MU))],
             "regions": regions}
+
+
+def long_scene(tol: float, mu: float = 0.5) -> dict:
+    """The long block (0, 16) x (0, 0.5) (64 x 4) with models [frictionless, Coulomb(mu)] per
+    region: the goal's end is 1/32 of Gamma_C, the rest is Coulomb's work the goal hardly feels."""
+    msh, tags = block(COMM, 64, 4, lx=16.0, ly=0.5)
+    return {"name": f"long block, mu = {mu:g}, per region", "goal": near_end, "tol": tol,
+            "models": [thin(msh, tags, None), thin(msh, tags, ds.Coulomb(mu))],
+            "regions": True}
 
 
 def alone_on(levels: list, law, goal) -> tuple[list[float], float, int]:
@@ -199,7 +211,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
     scenes = [block_scene(0.5, 2e-4), block_scene(0.0001, 2e-5), hertz_scene(0.05),
-              thin_scene(2e-5, False), thin_scene(2e-5, True)]
+              thin_scene(2e-5, False), thin_scene(2e-5, True), long_scene(2e-5)]
     rows = [run(scene, args.max_levels, args.repeat) for scene in scenes]
     if COMM.rank == 0:
         print_table(rows)
