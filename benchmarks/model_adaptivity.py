@@ -97,19 +97,21 @@ def long_scene(tol: float, mu: float = 0.5) -> dict:
             "regions": True}
 
 
-def alone_on(levels: list, law, goal) -> tuple[list[float], float, int]:
-    """J_h of ``law`` on each mesh of ``levels``, the seconds of its solves+estimates and its
-    Newton steps (cold starts)."""
-    out, seconds, steps = [], 0.0, 0
+def alone_on(levels: list, law, goal) -> tuple[list[float], float, int, float]:
+    """J_h of ``law`` on each mesh of ``levels``, the seconds of its solves+estimates, its
+    Newton steps (cold starts) and the seconds of the solves alone."""
+    out, seconds, steps, solving = [], 0.0, 0, 0.0
     for problem in levels:
         one = on_law(problem, law)
         COMM.Barrier()
         tic = time.perf_counter()
-        with ds.solve(one) as r, ds.estimate(r, goal) as est:
-            out.append(est.J_h)
-            steps += r.newton_iterations
+        with ds.solve(one) as r:
+            solving += time.perf_counter() - tic
+            with ds.estimate(r, goal) as est:
+                out.append(est.J_h)
+                steps += r.newton_iterations
         seconds += time.perf_counter() - tic
-    return out, seconds, steps
+    return out, seconds, steps, solving
 
 
 def run(scene: dict, max_levels: int, repeat: int) -> dict:
@@ -118,7 +120,7 @@ def run(scene: dict, max_levels: int, repeat: int) -> dict:
     rows = [run_once(scene, max_levels) for _ in range(repeat)]
     best = rows[-1]
     for key in ("time", "time_simple", "time_rich", "time_rich_run", "time_cold_own",
-                "time_cold_rich"):
+                "time_cold_rich", *PHASES):
         best[key] = min(r[key] for r in rows)
     return best
 
@@ -150,12 +152,29 @@ def adaptive_seconds(levels: list) -> float:
     return sum(r.time["total"] - r.time["refine"] for r in levels)
 
 
+#: Where a run's seconds go (:func:`phases`), and the rich model's on the same meshes.
+PHASES = ("t_solve", "t_estimate", "t_model", "t_rich_solve", "t_rich_estimate")
+
+
+def phases(levels: list, model_seconds: float, rich_seconds: float, rich_solving: float
+           ) -> dict[str, float]:
+    """The run's seconds of its solves, its estimates of the discretisation error (with the dual
+    solve) and its model error estimates; the rich model's solves and estimates on its meshes."""
+    return {
+        "t_solve": sum(r.time["solve"] for r in levels),
+        "t_estimate": sum(r.time["dual"] + r.time["estimate"] for r in levels),
+        "t_model": model_seconds, "t_rich_solve": rich_solving,
+        "t_rich_estimate": rich_seconds - rich_solving,
+    }
+
+
 def run_once(scene: dict, max_levels: int) -> dict:
     """One adaptive-model run of ``scene``, the models alone on its meshes, the rich run."""
-    meshes, cold = [], {"own": [0, 0.0], "rich": [0, 0.0]}
+    meshes, cold = [], {"own": [0, 0.0], "rich": [0, 0.0], "model": [0, 0.0]}
 
     def keep(record, sol, est):
         meshes.append(sol.disc.problem)
+        cold["model"][1] += est.timings.get("model_error", 0.0)
         own = sol.disc.problem
         for key, problem in (("own", own), ("rich", on_law(own, rich.law))):
             steps, seconds = cold_solve(sol.disc.for_problem(problem))
@@ -169,8 +188,8 @@ def run_once(scene: dict, max_levels: int) -> dict:
         levels, converged = res.levels, res.converged
     with ds.solve_adaptive(rich, scene["goal"], **options) as res:
         rich_run = res.levels
-    rich_J, rich_seconds, rich_steps = alone_on(meshes, rich.law, scene["goal"])
-    _, simple_seconds, _ = alone_on(meshes, simple.law, scene["goal"])
+    rich_J, rich_seconds, rich_steps, rich_solving = alone_on(meshes, rich.law, scene["goal"])
+    simple_seconds = alone_on(meshes, simple.law, scene["goal"])[1]
     true, est = first_level(scene)
     return {
         "problem": scene["name"], "tol": scene["tol"], "true": true, "estimate": est,
@@ -184,6 +203,7 @@ def run_once(scene: dict, max_levels: int) -> dict:
         "time_rich_run": adaptive_seconds(rich_run), "levels_rich_run": len(rich_run),
         "newton_cold_own": cold["own"][0], "newton_cold_rich": cold["rich"][0],
         "time_cold_own": cold["own"][1], "time_cold_rich": cold["rich"][1],
+        **phases(levels, cold["model"][1], rich_seconds, rich_solving),
     }
 
 
@@ -202,6 +222,9 @@ def print_table(rows: list[dict]) -> None:
               f"{r['time_simple']:6.2f} {r['time_rich']:6.2f} {r['time_rich_run']:8.2f} "
               f"{r['newton']:6d} {r['newton_rich']:4d} {r['newton_cold_own']:9d} "
               f"{r['newton_cold_rich']:4d} {r['time_cold_own']:6.2f} {r['time_cold_rich']:6.2f}")
+    print(f"\n{'seconds: run (solve, estimate, model error), rich (solve, estimate)':68s}")
+    for r in rows:
+        print(f"{r['problem']:34s} " + " ".join(f"{r[key]:6.2f}" for key in PHASES))
 
 
 def main() -> None:
