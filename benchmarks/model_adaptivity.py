@@ -97,21 +97,22 @@ def long_scene(tol: float, mu: float = 0.5) -> dict:
             "regions": True}
 
 
-def alone_on(levels: list, law, goal) -> tuple[list[float], float, int, float]:
-    """J_h of ``law`` on each mesh of ``levels``, the seconds of its solves+estimates, its
-    Newton steps (cold starts) and the seconds of the solves alone."""
-    out, seconds, steps, solving = [], 0.0, 0, 0.0
+def alone_on(levels: list, law, goal) -> dict:
+    """``law`` alone on each mesh of ``levels`` (cold starts): its J_h and weights per mesh,
+    the seconds of its solves+estimates, of its solves alone and its Newton steps."""
+    out = {"J": [], "weights": [], "seconds": 0.0, "solving": 0.0, "steps": 0}
     for problem in levels:
         one = on_law(problem, law)
         COMM.Barrier()
         tic = time.perf_counter()
         with ds.solve(one) as r:
-            solving += time.perf_counter() - tic
+            out["solving"] += time.perf_counter() - tic
             with ds.estimate(r, goal) as est:
-                out.append(est.J_h)
-                steps += r.newton_iterations
-        seconds += time.perf_counter() - tic
-    return out, seconds, steps, solving
+                out["J"].append(est.J_h)
+                out["weights"].append(est.weights)
+                out["steps"] += r.newton_iterations
+        out["seconds"] += time.perf_counter() - tic
+    return out
 
 
 def run(scene: dict, max_levels: int, repeat: int) -> dict:
@@ -152,6 +153,9 @@ def adaptive_seconds(levels: list) -> float:
     return sum(r.time["total"] - r.time["refine"] for r in levels)
 
 
+#: The weights of each level's estimate, as the table prints them.
+SHORT = {"patch": "p", "higher_order": "ho", "hierarchical": "hi"}
+
 #: Where a run's seconds go (:func:`phases`), and the rich model's on the same meshes.
 PHASES = ("t_solve", "t_estimate", "t_model", "t_rich_solve", "t_rich_estimate")
 
@@ -188,22 +192,23 @@ def run_once(scene: dict, max_levels: int) -> dict:
         levels, converged = res.levels, res.converged
     with ds.solve_adaptive(rich, scene["goal"], **options) as res:
         rich_run = res.levels
-    rich_J, rich_seconds, rich_steps, rich_solving = alone_on(meshes, rich.law, scene["goal"])
-    simple_seconds = alone_on(meshes, simple.law, scene["goal"])[1]
+    alone = alone_on(meshes, rich.law, scene["goal"])
+    simple_seconds = alone_on(meshes, simple.law, scene["goal"])["seconds"]
     true, est = first_level(scene)
     return {
         "problem": scene["name"], "tol": scene["tol"], "true": true, "estimate": est,
         "models": [r.model for r in levels], "rich_share": [r.rich_share for r in levels],
         "cells": [r.num_cells for r in levels],
-        "J_best": levels[-1].J_best, "J_h": levels[-1].J_h, "J_rich": rich_J[-1],
+        "J_best": levels[-1].J_best, "J_h": levels[-1].J_h, "J_rich": alone["J"][-1],
         "J_rich_run": rich_run[-1].J_best, "model_error": levels[-1].model_error,
         "converged": converged, "newton": sum(r.newton_iterations for r in levels),
-        "newton_rich": rich_steps, "time": adaptive_seconds(levels),
-        "time_simple": simple_seconds, "time_rich": rich_seconds,
+        "newton_rich": alone["steps"], "time": adaptive_seconds(levels),
+        "time_simple": simple_seconds, "time_rich": alone["seconds"],
+        "weights": [r.weights for r in levels], "weights_rich": alone["weights"],
         "time_rich_run": adaptive_seconds(rich_run), "levels_rich_run": len(rich_run),
         "newton_cold_own": cold["own"][0], "newton_cold_rich": cold["rich"][0],
         "time_cold_own": cold["own"][1], "time_cold_rich": cold["rich"][1],
-        **phases(levels, cold["model"][1], rich_seconds, rich_solving),
+        **phases(levels, cold["model"][1], alone["seconds"], alone["solving"]),
     }
 
 
@@ -222,9 +227,12 @@ def print_table(rows: list[dict]) -> None:
               f"{r['time_simple']:6.2f} {r['time_rich']:6.2f} {r['time_rich_run']:8.2f} "
               f"{r['newton']:6d} {r['newton_rich']:4d} {r['newton_cold_own']:9d} "
               f"{r['newton_cold_rich']:4d} {r['time_cold_own']:6.2f} {r['time_cold_rich']:6.2f}")
-    print(f"\n{'seconds: run (solve, estimate, model error), rich (solve, estimate)':68s}")
+    print(f"\n{'seconds: run (solve, estimate, model error), rich (solve, estimate)':75s} "
+          "weights: run, rich")
     for r in rows:
-        print(f"{r['problem']:34s} " + " ".join(f"{r[key]:6.2f}" for key in PHASES))
+        weights = [",".join(SHORT[w] for w in r[key]) for key in ("weights", "weights_rich")]
+        print(f"{r['problem']:34s} " + " ".join(f"{r[key]:6.2f}" for key in PHASES)
+              + f"  {weights[0]:>7s} {weights[1]:>7s}")
 
 
 def main() -> None:
@@ -232,10 +240,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-levels", type=int, default=8)
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--only", default="", help="the scenes whose name contains this")
     args = parser.parse_args()
     scenes = [block_scene(0.5, 2e-4), block_scene(0.0001, 2e-5), hertz_scene(0.05),
               thin_scene(2e-5, False), thin_scene(2e-5, True), long_scene(2e-5)]
-    rows = [run(scene, args.max_levels, args.repeat) for scene in scenes]
+    rows = [run(scene, args.max_levels, args.repeat) for scene in scenes
+            if args.only in scene["name"]]
     if COMM.rank == 0:
         print_table(rows)
         RESULTS.mkdir(exist_ok=True)
