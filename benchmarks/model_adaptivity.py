@@ -22,7 +22,9 @@ of ``tests/test_model_regions.py``, mu = 0.2, goal the slide of the base under x
 changes J by -1.6e-3 of 3.8e-3, and its model indicators fall to 0.3 % towards the far end; the
 long block (0, 16) x (0, 0.5) with the same load and goal, mu = 0.5 (friction changes J by
 -3.7e-3), per region: most of its Gamma_C is far from the goal, where the per-region run leaves
-friction out and Coulomb alone solves and estimates it.
+friction out and Coulomb alone solves and estimates it; and the same with mu = 0.2 under x < 4
+and 1.5 beyond, where Coulomb's base sticks far from the goal (on the first mesh the 16
+facets under x < 4 slip, the 48 beyond stick).
 """
 
 from __future__ import annotations
@@ -30,9 +32,12 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 from mpi4py import MPI
+
+import ufl
 
 import dwr_signorini as ds
 from dwr_signorini.goal import GoalForms
@@ -88,13 +93,20 @@ def thin_scene(tol: float, regions: bool) -> dict:
             "regions": regions}
 
 
-def long_scene(tol: float, mu: float = 0.5) -> dict:
+def long_scene(tol: float, mu: float = 0.5, far: float | None = None) -> dict:
     """The long block (0, 16) x (0, 0.5) (64 x 4) with models [frictionless, Coulomb(mu)] per
-    region: the goal's end is 1/32 of Gamma_C, the rest is Coulomb's work the goal hardly feels."""
+    region: the goal's end is 1/32 of Gamma_C, the rest is Coulomb's work the goal hardly feels.
+    With ``far``, the coefficient is mu under x < 4 and ``far`` beyond (a rough far zone)."""
     msh, tags = block(COMM, 64, 4, lx=16.0, ly=0.5)
-    return {"name": f"long block, mu = {mu:g}, per region", "goal": near_end, "tol": tol,
-            "models": [thin(msh, tags, None), thin(msh, tags, ds.Coulomb(mu))],
-            "regions": True}
+    law = ds.Coulomb(mu if far is None else partial(zoned, mu, far))
+    name = f"mu = {mu:g}" if far is None else "two zones"
+    return {"name": f"long block, {name}, per region", "goal": near_end, "tol": tol,
+            "models": [thin(msh, tags, None), thin(msh, tags, law)], "regions": True}
+
+
+def zoned(near: float, far: float, x):
+    """mu of the long block's two zones: ``near`` under x < 4, ``far`` beyond."""
+    return ufl.conditional(ufl.lt(x[0], 4.0), near, far)
 
 
 def alone_on(levels: list, law, goal) -> dict:
@@ -243,7 +255,8 @@ def main() -> None:
     parser.add_argument("--only", default="", help="the scenes whose name contains this")
     args = parser.parse_args()
     scenes = [block_scene(0.5, 2e-4), block_scene(0.0001, 2e-5), hertz_scene(0.05),
-              thin_scene(2e-5, False), thin_scene(2e-5, True), long_scene(2e-5)]
+              thin_scene(2e-5, False), thin_scene(2e-5, True), long_scene(2e-5),
+              long_scene(2e-5, 0.2, 1.5)]
     rows = [run(scene, args.max_levels, args.repeat) for scene in scenes
             if args.only in scene["name"]]
     if COMM.rank == 0:
