@@ -27,7 +27,6 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-import ufl
 from dolfinx import mesh
 
 import dwr_signorini as ds
@@ -37,17 +36,12 @@ from dwr_signorini.model_regions import RegionMu, flag_function
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.problems import block
-from tests.test_model_regions import owned_midpoints
+from tests.test_model_regions import near_end, owned_midpoints
 
 COMM = MPI.COMM_WORLD
 MU = 0.5
 #: The timing phases of a solve that the table shows.
 SOLVE_PHASES = ("assemble", "factorize", "newton solve")
-
-
-def near_end(u, lam, m):
-    """The slide of the base under x < 0.5."""
-    return ufl.conditional(ufl.lt(m.x[0], 0.5), 1.0, 0.0) * u[0] * m.ds_contact
 
 
 def scene(n: int, dim: int):
