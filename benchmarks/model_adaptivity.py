@@ -19,7 +19,12 @@ by (0.02, -0.01) on a rigid plane, mu = 0.5 (friction changes int u_x on the bas
 0.040) and mu = 0.0001 (by about 7e-6); the 2D Hertz press of ``meshes/hertz_2d.py`` with
 mu = 0.3, whose contact force friction changes by about 1 %; and the thin block (0, 4) x (0, 0.5)
 of ``tests/test_model_regions.py``, mu = 0.2, goal the slide of the base under x < 0.5: friction
-changes J by -1.6e-3 of 3.8e-3, and its model indicators fall to 0.3 % towards the far end.
+changes J by -1.6e-3 of 3.8e-3, and its model indicators fall to 0.3 % towards the far end; the
+long block (0, 16) x (0, 0.5) with the same load and goal, mu = 0.5 (friction changes J by
+-3.7e-3), per region: most of its Gamma_C is far from the goal, where the per-region run leaves
+friction out and Coulomb alone solves and estimates it; and the same with mu = 0.2 under x < 4
+and 1.5 beyond, where Coulomb's base sticks far from the goal (on the first mesh the 16
+facets under x < 4 slip, the 48 beyond stick).
 """
 
 from __future__ import annotations
@@ -27,9 +32,12 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 from mpi4py import MPI
+
+import ufl
 
 import dwr_signorini as ds
 from dwr_signorini.goal import GoalForms
@@ -85,19 +93,38 @@ def thin_scene(tol: float, regions: bool) -> dict:
             "regions": regions}
 
 
-def alone_on(levels: list, law, goal) -> tuple[list[float], float, int]:
-    """J_h of ``law`` on each mesh of ``levels``, the seconds of its solves+estimates and its
-    Newton steps (cold starts)."""
-    out, seconds, steps = [], 0.0, 0
+def long_scene(tol: float, mu: float = 0.5, far: float | None = None) -> dict:
+    """The long block (0, 16) x (0, 0.5) (64 x 4) with models [frictionless, Coulomb(mu)] per
+    region: the goal's end is 1/32 of Gamma_C, the rest is Coulomb's work the goal hardly feels.
+    With ``far``, the coefficient is mu under x < 4 and ``far`` beyond (a rough far zone)."""
+    msh, tags = block(COMM, 64, 4, lx=16.0, ly=0.5)
+    law = ds.Coulomb(mu if far is None else partial(zoned, mu, far))
+    name = f"mu = {mu:g}" if far is None else "two zones"
+    return {"name": f"long block, {name}, per region", "goal": near_end, "tol": tol,
+            "models": [thin(msh, tags, None), thin(msh, tags, law)], "regions": True}
+
+
+def zoned(near: float, far: float, x):
+    """mu of the long block's two zones: ``near`` under x < 4, ``far`` beyond."""
+    return ufl.conditional(ufl.lt(x[0], 4.0), near, far)
+
+
+def alone_on(levels: list, law, goal) -> dict:
+    """``law`` alone on each mesh of ``levels`` (cold starts): its J_h and weights per mesh,
+    the seconds of its solves+estimates, of its solves alone and its Newton steps."""
+    out = {"J": [], "weights": [], "seconds": 0.0, "solving": 0.0, "steps": 0}
     for problem in levels:
         one = on_law(problem, law)
         COMM.Barrier()
         tic = time.perf_counter()
-        with ds.solve(one) as r, ds.estimate(r, goal) as est:
-            out.append(est.J_h)
-            steps += r.newton_iterations
-        seconds += time.perf_counter() - tic
-    return out, seconds, steps
+        with ds.solve(one) as r:
+            out["solving"] += time.perf_counter() - tic
+            with ds.estimate(r, goal) as est:
+                out["J"].append(est.J_h)
+                out["weights"].append(est.weights)
+                out["steps"] += r.newton_iterations
+        out["seconds"] += time.perf_counter() - tic
+    return out
 
 
 def run(scene: dict, max_levels: int, repeat: int) -> dict:
@@ -106,7 +133,7 @@ def run(scene: dict, max_levels: int, repeat: int) -> dict:
     rows = [run_once(scene, max_levels) for _ in range(repeat)]
     best = rows[-1]
     for key in ("time", "time_simple", "time_rich", "time_rich_run", "time_cold_own",
-                "time_cold_rich"):
+                "time_cold_rich", *PHASES):
         best[key] = min(r[key] for r in rows)
     return best
 
@@ -138,12 +165,32 @@ def adaptive_seconds(levels: list) -> float:
     return sum(r.time["total"] - r.time["refine"] for r in levels)
 
 
+#: The weights of each level's estimate, as the table prints them.
+SHORT = {"patch": "p", "higher_order": "ho", "hierarchical": "hi"}
+
+#: Where a run's seconds go (:func:`phases`), and the rich model's on the same meshes.
+PHASES = ("t_solve", "t_estimate", "t_model", "t_rich_solve", "t_rich_estimate")
+
+
+def phases(levels: list, model_seconds: float, rich_seconds: float, rich_solving: float
+           ) -> dict[str, float]:
+    """The run's seconds of its solves, its estimates of the discretisation error (with the dual
+    solve) and its model error estimates; the rich model's solves and estimates on its meshes."""
+    return {
+        "t_solve": sum(r.time["solve"] for r in levels),
+        "t_estimate": sum(r.time["dual"] + r.time["estimate"] for r in levels),
+        "t_model": model_seconds, "t_rich_solve": rich_solving,
+        "t_rich_estimate": rich_seconds - rich_solving,
+    }
+
+
 def run_once(scene: dict, max_levels: int) -> dict:
     """One adaptive-model run of ``scene``, the models alone on its meshes, the rich run."""
-    meshes, cold = [], {"own": [0, 0.0], "rich": [0, 0.0]}
+    meshes, cold = [], {"own": [0, 0.0], "rich": [0, 0.0], "model": [0, 0.0]}
 
     def keep(record, sol, est):
         meshes.append(sol.disc.problem)
+        cold["model"][1] += est.timings.get("model_error", 0.0)
         own = sol.disc.problem
         for key, problem in (("own", own), ("rich", on_law(own, rich.law))):
             steps, seconds = cold_solve(sol.disc.for_problem(problem))
@@ -157,21 +204,23 @@ def run_once(scene: dict, max_levels: int) -> dict:
         levels, converged = res.levels, res.converged
     with ds.solve_adaptive(rich, scene["goal"], **options) as res:
         rich_run = res.levels
-    rich_J, rich_seconds, rich_steps = alone_on(meshes, rich.law, scene["goal"])
-    _, simple_seconds, _ = alone_on(meshes, simple.law, scene["goal"])
+    alone = alone_on(meshes, rich.law, scene["goal"])
+    simple_seconds = alone_on(meshes, simple.law, scene["goal"])["seconds"]
     true, est = first_level(scene)
     return {
         "problem": scene["name"], "tol": scene["tol"], "true": true, "estimate": est,
         "models": [r.model for r in levels], "rich_share": [r.rich_share for r in levels],
         "cells": [r.num_cells for r in levels],
-        "J_best": levels[-1].J_best, "J_h": levels[-1].J_h, "J_rich": rich_J[-1],
+        "J_best": levels[-1].J_best, "J_h": levels[-1].J_h, "J_rich": alone["J"][-1],
         "J_rich_run": rich_run[-1].J_best, "model_error": levels[-1].model_error,
         "converged": converged, "newton": sum(r.newton_iterations for r in levels),
-        "newton_rich": rich_steps, "time": adaptive_seconds(levels),
-        "time_simple": simple_seconds, "time_rich": rich_seconds,
+        "newton_rich": alone["steps"], "time": adaptive_seconds(levels),
+        "time_simple": simple_seconds, "time_rich": alone["seconds"],
+        "weights": [r.weights for r in levels], "weights_rich": alone["weights"],
         "time_rich_run": adaptive_seconds(rich_run), "levels_rich_run": len(rich_run),
         "newton_cold_own": cold["own"][0], "newton_cold_rich": cold["rich"][0],
         "time_cold_own": cold["own"][1], "time_cold_rich": cold["rich"][1],
+        **phases(levels, cold["model"][1], alone["seconds"], alone["solving"]),
     }
 
 
@@ -190,6 +239,12 @@ def print_table(rows: list[dict]) -> None:
               f"{r['time_simple']:6.2f} {r['time_rich']:6.2f} {r['time_rich_run']:8.2f} "
               f"{r['newton']:6d} {r['newton_rich']:4d} {r['newton_cold_own']:9d} "
               f"{r['newton_cold_rich']:4d} {r['time_cold_own']:6.2f} {r['time_cold_rich']:6.2f}")
+    print(f"\n{'seconds: run (solve, estimate, model error), rich (solve, estimate)':75s} "
+          "weights: run, rich")
+    for r in rows:
+        weights = [",".join(SHORT[w] for w in r[key]) for key in ("weights", "weights_rich")]
+        print(f"{r['problem']:34s} " + " ".join(f"{r[key]:6.2f}" for key in PHASES)
+              + f"  {weights[0]:>7s} {weights[1]:>7s}")
 
 
 def main() -> None:
@@ -197,10 +252,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-levels", type=int, default=8)
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--only", default="", help="the scenes whose name contains this")
     args = parser.parse_args()
     scenes = [block_scene(0.5, 2e-4), block_scene(0.0001, 2e-5), hertz_scene(0.05),
-              thin_scene(2e-5, False), thin_scene(2e-5, True)]
-    rows = [run(scene, args.max_levels, args.repeat) for scene in scenes]
+              thin_scene(2e-5, False), thin_scene(2e-5, True), long_scene(2e-5),
+              long_scene(2e-5, 0.2, 1.5)]
+    rows = [run(scene, args.max_levels, args.repeat) for scene in scenes
+            if args.only in scene["name"]]
     if COMM.rank == 0:
         print_table(rows)
         RESULTS.mkdir(exist_ok=True)
