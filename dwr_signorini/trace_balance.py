@@ -31,15 +31,16 @@ from mpi4py import MPI
 
 import numpy as np
 
+from . import search
 from .mortar import MortarRule, facet_reach
-from .search import candidate_parts, search_radius
+from .search import search_radius
 
 __all__ = ["SEARCH_SHARE", "search_counts", "search_parts", "transfers"]
 
 #: The share of a slave facet's trace cost in its candidate search and clipping (measured on the
 #: stacked boxes of ``benchmarks/trace_scaling.py``: 0.46 of the CPU at 968 slave facets, 0.55
 #: at 4,608); the rest (pull-backs, projection, matrices) stays with the facet's owner.
-SEARCH_SHARE = 0.5
+SEARCH_SHARE = 0.6
 
 
 def search_counts(counts: np.ndarray, share: float = SEARCH_SHARE) -> np.ndarray:
@@ -179,8 +180,8 @@ def _search_local(
 ) -> tuple[list[MortarRule], np.ndarray]:
     """The search of the facets ``kept`` on this rank, indexed as ``slave``."""
     vertices, master_normals, numbers = master
-    parts, full = candidate_parts(slave[kept], normals[kept], vertices, master_normals, None,
-                                  windows[kept], reach, numbers)
+    parts, full = search.candidate_parts(slave[kept], normals[kept], vertices, master_normals,
+                                         None, windows[kept], reach, numbers)
     parts = [MortarRule(kept[r.facet], r.points, r.weights, r.master, r.gap) for r in parts]
     return parts, kept[full]
 
@@ -190,8 +191,8 @@ def _search_batch(
     master_normals: np.ndarray, numbers: np.ndarray, reach: float,
 ) -> tuple[MortarRule, np.ndarray]:
     """A batch received: its rule (masters as global numbers) and the facets left over."""
-    parts, full = candidate_parts(slave, normals, vertices, master_normals, None, windows,
-                                  reach, numbers)
+    parts, full = search.candidate_parts(slave, normals, vertices, master_normals, None,
+                                         windows, reach, numbers)
     if not parts:
         empty = np.zeros(0)
         return MortarRule(empty.astype(np.int64), np.zeros((0, slave.shape[2])), empty,
