@@ -8,16 +8,15 @@ clipping of each slave facet against its candidates
 and the master facets within its search radius (:func:`~dwr_signorini.search.search_radius`).
 :func:`search_parts` moves that work, not the mesh partition:
 
-1. every rank's number of slave facets c_r is gathered, and the number k_r each rank searches
-   chosen so that the modelled loads (1 - s) c_r + s k_r are as even as they can be
-   (:func:`search_counts`, s = :data:`SEARCH_SHARE` the search's share of a facet's trace
-   cost; the rest, the projection and its matrix, stays with the owner);
+1. every rank's number of slave facets c_r is gathered, and each rank searches as many as the
+   others (:func:`search_counts`; the rest of the trace, the Gauss points, the bases, the
+   projection and its matrix, stays with the owner, after the search);
 2. a rank searching fewer than it owns sends the surplus (its facets last along the axis of
    their widest spread, so each batch is a compact strip) with the held master facets whose
    centres lie within the batch's search radii, their global numbers, and the pair's largest
    master reach (:func:`transfers` says to whom: in the order of the ranks);
-3. each rank searches its own kept facets and the batches it received, and returns each batch's
-   rule (its masters as global numbers) and the facets the candidates left over;
+3. each rank searches the batches it received and its own kept facets, and returns each
+   batch's rule (its masters as global numbers) and the facets the candidates left over;
 4. the owner maps the results back onto its facets and held masters.
 
 Each facet is searched as on its owner (the same master facets within its radius, met in the
@@ -35,48 +34,25 @@ from . import search
 from .mortar import MortarRule, facet_reach
 from .search import search_radius
 
-__all__ = ["SEARCH_SHARE", "search_counts", "search_parts", "transfers"]
+__all__ = ["search_counts", "search_parts", "transfers"]
 
-#: The share of a slave facet's trace cost in its candidate search and clipping (measured on the
-#: stacked boxes of ``benchmarks/trace_scaling.py``: 0.46 of the CPU at 968 slave facets, 0.55
-#: at 4,608); the rest (pull-backs, projection, matrices) stays with the facet's owner.
-SEARCH_SHARE = 0.6
+def search_counts(counts: np.ndarray) -> np.ndarray:
+    """How many slave facets each rank searches: as many as the others, to one facet.
 
-
-def search_counts(counts: np.ndarray, share: float = SEARCH_SHARE) -> np.ndarray:
-    """How many slave facets each rank searches, so that the ranks' loads are even.
-
-    The load of rank r, (1 - s) c_r + s k_r (c_r facets owned, k_r searched, s = ``share``),
-    is levelled: k_r = max(0, (L - (1 - s) c_r) / s), the level L such that sum k_r = sum c_r
-    (water-filling), rounded down, the remainder to the largest fractions (ties: the lower
-    rank).
+    Only the search is shared: the rest of each facet's trace (its Gauss points, bases,
+    projection and matrix rows) follows on its owner once every search is back, so the time to
+    the rule is that of the rank searching most, and the split levels the search itself:
+    k_r = floor(N / p), plus one on the first N mod p ranks (N facets, p ranks).
 
     Args:
         counts: The slave facets each rank owns.
-        share: The search's share s of a facet's cost, in (0, 1].
 
     Returns:
-        The facets each rank searches (integers summing to ``counts.sum()``).
+        The facets each rank searches (summing to ``counts.sum()``).
     """
-    if not 0.0 < share <= 1.0:
-        raise ValueError(f"search_counts: share must lie in (0, 1], got {share}")
     counts = np.asarray(counts, dtype=np.int64)
-    total = int(counts.sum())
-    if total == 0:
-        return counts.copy()
-    fixed = np.sort((1.0 - share) * counts)
-    # the level L: with the j lowest fixed loads below it, sum_{i<j} (L - a_i) = s N
-    level = 0.0
-    for j in range(1, len(fixed) + 1):
-        level = (share * total + fixed[:j].sum()) / j
-        if j == len(fixed) or level <= fixed[j]:
-            break
-    ideal = np.maximum(0.0, (level - (1.0 - share) * counts) / share)
-    ideal *= total / ideal.sum()
-    k = np.floor(ideal).astype(np.int64)
-    rest = total - int(k.sum())
-    k[np.argsort(-(ideal - k), kind="stable")[:rest]] += 1
-    return k
+    total, size = int(counts.sum()), len(counts)
+    return total // size + (np.arange(size) < total % size).astype(np.int64)
 
 
 def transfers(counts: np.ndarray, searched: np.ndarray) -> list[tuple[int, int, int]]:
@@ -151,8 +127,8 @@ def search_parts(
                      numbers[near])
     received = comm.alltoall(out) if balance else out
     replies = [None if b is None else _search_batch(*b, reach) for b in received]
+    parts, full = _search_local(slave, normals, windows, master, reach, kept)  # meanwhile
     answers = comm.alltoall(replies) if balance else replies
-    parts, full = _search_local(slave, normals, windows, master, reach, kept)
     order = np.argsort(numbers, kind="stable")
     for dest, at in batches.items():
         rule, left = answers[dest]
