@@ -231,6 +231,29 @@ def test_search_split_levels_the_search(counts):
     assert np.array_equal(c + moved, k)
 
 
+@pytest.mark.mpi
+@pytest.mark.skipif(COMM.size == 1, reason="needs ranks that share the search")
+@pytest.mark.parametrize("kind", ["flat", "partly covered", "two layers", "steep"])
+def test_shared_search_is_the_owners_search(kind):
+    """Rank 0 owns every slave facet, each rank holds the master facets in its own order: the
+    search shared between the ranks returns rank 0 its own search's pieces, point by point,
+    and the same facets left over (the other ranks: nothing)."""
+    slave, master, master_normals = COMM.bcast(_layers(kind) if COMM.rank == 0 else None)
+    mine = slave if COMM.rank == 0 else slave[:0]
+    order = np.random.default_rng(COMM.rank).permutation(len(master))  # held, numbered
+    held = (master[order], master_normals[order], order)
+    reach = float(facet_reach(master)[1].max())
+    args = (mine, _normals(mine, 1.0), np.full(len(mine), 0.1), held, reach)
+    shared, alone = (trace_balance.search_parts(COMM, *args, balance=b) for b in (True, False))
+    counts = np.array(COMM.allgather(len(mine)))
+    assert trace_balance.transfers(counts, trace_balance.search_counts(counts))
+    assert np.array_equal(shared[1], alone[1])
+    a, b = (search.merge_rules(r[0], 3) for r in (shared, alone))
+    assert len(b.facet) > 0 if COMM.rank == 0 else len(b.facet) == 0
+    for field in ("facet", "points", "weights", "master", "gap"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
 def _owned_csr(mat) -> tuple[np.ndarray, ...]:
     """The owned rows of a PETSc matrix as (row pointers, columns, values)."""
     return mat.getValuesCSR()
