@@ -12,6 +12,9 @@ the discretisation of the pair (one uniform refinement), per size in one run:
   Newton steps: assembly, factorisation, solves), and ``trace / solve``,
   ``(trace + P2) / solve``;
 * ``held``: the most master facets a rank holds, of ``master facets`` in all;
+* on more than one rank, ``trace unbalanced``: the same trace with each rank searching its own
+  slave facets (``TraceGeometry(disc, balance=False)``, :mod:`dwr_signorini.trace_balance`),
+  the least of as many builds, in the same run: the baseline of the shared search;
 * wall and CPU times (the largest over the ranks; on a shared machine the wall time also
   counts the waits for a core), the ratios of both; each trace's times the least of
   ``--repeat`` builds (the first, the discretisation's, and builds anew, each destroyed);
@@ -105,12 +108,13 @@ def peak_of(build) -> tuple[float, float, float, object]:
     return t, c, comm.allreduce(high_water_mb() - before, op=MPI.MAX), out
 
 
-def anew(disc, degree: int) -> list:
+def anew(disc, degree: int, balance: bool = True) -> list:
     """A trace of ``degree`` built anew beside the discretisation's (collective): degree 1
-    with its geometry, degree 2 on the discretisation's geometry (its rule placed anew), as
-    the first ``disc.master_trace`` of each builds them. Destroy them in reverse order."""
+    with its geometry (its search shared between the ranks or not: ``balance``), degree 2 on
+    the discretisation's geometry (its rule placed anew), as the first ``disc.master_trace`` of
+    each builds them. Destroy them in reverse order."""
     if degree == 1:
-        geometry = pairs.TraceGeometry(disc)
+        geometry = pairs.TraceGeometry(disc, balance=balance)
         return [geometry, pairs.MasterTrace(disc, disc.V, geometry)]
     geometry = disc.master_trace().geometry
     geometry._rules.pop(2, None)
@@ -123,11 +127,11 @@ def destroy(built: list) -> None:
         obj.destroy()
 
 
-def least(disc, degree: int, repeat: int) -> tuple[float, float]:
+def least(disc, degree: int, repeat: int, balance: bool = True) -> tuple[float, float]:
     """The least wall and CPU times of ``repeat`` builds :func:`anew` (inf if none)."""
     best = (np.inf, np.inf)
     for _ in range(repeat):
-        t, c, built = timed(lambda: anew(disc, degree))
+        t, c, built = timed(lambda: anew(disc, degree, balance))
         destroy(built)
         best = (min(best[0], t), min(best[1], c))
     return best
@@ -160,6 +164,9 @@ def measure(n: int, solve: bool, layers: int, p2: bool = True, repeat: int = 1,
         if p2:
             t, c = least(disc, 2, repeat - 1)
             t_p2, c_p2 = min(t_p2, t), min(c_p2, c)
+    # the baseline in the same run: each rank searches its own slave facets
+    t_own, c_own = least(disc, 1, max(repeat, 1), balance=False) if comm.size > 1 else (
+        t_trace, c_trace)
     geometry = trace.geometry
     slaves = comm.allreduce(len(geometry.vertices), op=MPI.SUM)
     row = {
@@ -169,6 +176,7 @@ def measure(n: int, solve: bool, layers: int, p2: bool = True, repeat: int = 1,
         "held": comm.allreduce(len(geometry.master.cell), op=MPI.MAX),
         "slave facets held": comm.allreduce(len(geometry.vertices), op=MPI.MAX),
         "trace [s]": t_trace, "trace CPU [s]": c_trace,
+        "trace unbalanced [s]": t_own, "trace CPU unbalanced [s]": c_own,
         "P2 [s]": t_p2 if p2 else "", "P2 CPU [s]": c_p2 if p2 else "",
         "traces MB": comm.allreduce(resident_mb() - before, op=MPI.MAX),
         "peak MB, traces": peak_mb(),
@@ -187,6 +195,7 @@ def measure(n: int, solve: bool, layers: int, p2: bool = True, repeat: int = 1,
         row["solve [s]"], row["solve CPU [s]"] = t_solve, c_solve
         row["trace / solve"] = t_trace / t_solve
         row["trace / solve, CPU"] = c_trace / c_solve
+        row["trace / solve, CPU, unbalanced"] = c_own / c_solve
         row["(trace + P2) / solve, CPU"] = (c_trace + c_p2) / c_solve if p2 else ""
         row["peak MB, solve"] = peak_mb()
     disc.destroy()

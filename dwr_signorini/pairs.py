@@ -80,8 +80,9 @@ from .pair_facets import (
     slave_facets,
     windows,
 )
-from .search import candidate_parts, merge_rules, search_radius
+from .search import merge_rules, search_radius
 from .timing import timed
+from .trace_balance import search_parts
 
 __all__ = [
     "MAX_DEGREE",
@@ -153,6 +154,8 @@ class TraceGeometry:
 
     Args:
         disc: The discretisation (its slave facet mesh ``disc.slave_mesh``).
+        balance: Whether the ranks share the contact search of the slave facets, whoever
+            owns them (:mod:`~dwr_signorini.trace_balance`; the same rule either way).
 
     Raises:
         ValueError: Warped quadrilateral facets on a pair (on every rank).
@@ -179,8 +182,8 @@ class TraceGeometry:
     #: How many geometries are alive (built and not destroyed), on this rank.
     live = 0
 
-    def __init__(self, disc: Any) -> None:
-        self.disc = disc
+    def __init__(self, disc: Any, balance: bool = True) -> None:
+        self.disc, self.balance = disc, balance
         self.Fs = fem.functionspace(disc.slave_mesh, ("DG", 0))
         with timed("master trace"):
             self._build(disc)
@@ -270,8 +273,9 @@ class TraceGeometry:
         slave, on, w = self._pair_slaves(pair)
         normals = self.normals[on]
         held = exchange.side
-        parts, full = candidate_parts(slave, normals, held.vertices, held.normals, None, w,
-                                      exchange.reach, exchange.number)
+        parts, full = search_parts(self.disc.comm, slave, normals, w,
+                                   (held.vertices, held.normals, exchange.number),
+                                   exchange.reach, self.balance)
         exchange.shadows(slave[full], normals[full], w[full])
         held, order = exchange.side, np.argsort(exchange.number, kind="stable")
         r = mortar_rule(slave[full], normals[full], held.vertices[order], held.normals[order],

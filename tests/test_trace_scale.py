@@ -11,6 +11,9 @@
 * The basis values in affine simplices (pair_facets.cell_basis) reproduce quadratics.
 * The master trace on 2 ranks is the serial one: each rank holds only the master facets its
   slave facets need (dwr_signorini.exchange), and the trace does not depend on the partition.
+* The search shared between the ranks (dwr_signorini.trace_balance) gives the trace of each rank
+  searching its own slave facets: P, the gap, the frame, the coverage and the share; its split
+  levels the modelled loads.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import ufl
 from dolfinx import fem
 
 import dwr_signorini as ds
-from dwr_signorini import compat, search
+from dwr_signorini import compat, pairs, search, trace_balance
 from dwr_signorini.clipping import place
 from dwr_signorini.mortar import facet_reach, in_shadow, mortar_rule
 from dwr_signorini.pair_facets import cell_basis
@@ -211,3 +214,81 @@ def test_trace_on_two_ranks_is_the_serial_trace():
     parallel = _trace_values(COMM)
     assert np.all(np.abs(serial) > 1e-3)  # no trivial zero compared
     assert parallel == pytest.approx(serial, rel=1e-12, abs=1e-14)
+
+
+@pytest.mark.parametrize("counts", [[64, 904], [4500, 108], [7, 0, 0, 100], [5, 5], [0, 0, 3]])
+def test_search_split_levels_the_search(counts):
+    """Every rank searches as many slave facets as the others to one, all of them in all, and
+    the transfers (each from a rank owning more to one owning fewer) move c - k."""
+    c = np.array(counts)
+    k = trace_balance.search_counts(c)
+    assert k.sum() == c.sum() and k.max() - k.min() <= 1
+    moved = np.zeros(len(c), np.int64)
+    for source, dest, n in trace_balance.transfers(c, k):
+        assert n > 0 and c[source] > k[source] and c[dest] < k[dest]
+        moved[source] -= n
+        moved[dest] += n
+    assert np.array_equal(c + moved, k)
+
+
+@pytest.mark.mpi
+@pytest.mark.skipif(COMM.size == 1, reason="needs ranks that share the search")
+@pytest.mark.parametrize("kind", ["flat", "partly covered", "two layers", "steep"])
+def test_shared_search_is_the_owners_search(kind):
+    """Rank 0 owns every slave facet, each rank holds the master facets in its own order: the
+    search shared between the ranks returns rank 0 its own search's pieces, point by point,
+    and the same facets left over (the other ranks: nothing)."""
+    slave, master, master_normals = COMM.bcast(_layers(kind) if COMM.rank == 0 else None)
+    mine = slave if COMM.rank == 0 else slave[:0]
+    order = np.random.default_rng(COMM.rank).permutation(len(master))  # held, numbered
+    held = (master[order], master_normals[order], order)
+    reach = float(facet_reach(master)[1].max())
+    args = (mine, _normals(mine, 1.0), np.full(len(mine), 0.1), held, reach)
+    shared, alone = (trace_balance.search_parts(COMM, *args, balance=b) for b in (True, False))
+    counts = np.array(COMM.allgather(len(mine)))
+    assert trace_balance.transfers(counts, trace_balance.search_counts(counts))
+    assert np.array_equal(shared[1], alone[1])
+    a, b = (search.merge_rules(r[0], 3) for r in (shared, alone))
+    assert len(b.facet) > 0 if COMM.rank == 0 else len(b.facet) == 0
+    for field in ("facet", "points", "weights", "master", "gap"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
+def _owned_csr(mat) -> tuple[np.ndarray, ...]:
+    """The owned rows of a PETSc matrix as (row pointers, columns, values)."""
+    return mat.getValuesCSR()
+
+
+def _built(disc, balance: bool) -> tuple[pairs.TraceGeometry, pairs.MasterTrace]:
+    geometry = pairs.TraceGeometry(disc, balance=balance)
+    return geometry, pairs.MasterTrace(disc, disc.V, geometry)
+
+
+@pytest.mark.mpi
+@pytest.mark.skipif(COMM.size == 1, reason="needs ranks that share the search")
+def test_shared_search_gives_the_trace_of_the_owners():
+    """On 2 ranks, whose slave facets are unevenly owned (the split moves some): the trace
+    with the search shared equals the one each rank searches alone, entry by entry: P (P1),
+    the gap, the contact frame, the covered measure, and the share matrices S^T and H^T."""
+    msh, tags = G.tet_boxes(COMM, 4, gap=0.01)
+    problem = ds.SignoriniProblem(msh, tags, contact=ds.ContactPair(slave=G.TET_SLAVE,
+                                                                    master=G.TET_MASTER),
+                                  E=1.0, nu=0.3, model="3d",
+                                  dirichlet={G.TET_BOTTOM: 0.0, G.TET_TOP: (0.0, 0.0, -0.01)})
+    disc = discretize(problem)
+    counts = np.array(COMM.allgather(len(disc.master_trace().geometry.vertices)))
+    assert trace_balance.transfers(counts, trace_balance.search_counts(counts))  # work moves
+    built = [_built(disc, balance) for balance in (False, True)]
+    (g0, t0), (g1, t1) = built
+    for a, b in [(t0.P, t1.P), (g0.share_weights, g1.share_weights), (g0._home, g1._home)]:
+        (ia, ja, va), (ib, jb, vb) = _owned_csr(a), _owned_csr(b)
+        assert np.array_equal(ia, ib) and np.array_equal(ja, jb)
+        assert vb == pytest.approx(va, rel=1e-13, abs=1e-15)
+    for a, b in [(t0.gap.x.array, t1.gap.x.array), (g0.frame.x.array, g1.frame.x.array),
+                 (g0.covered, g1.covered)]:
+        assert b == pytest.approx(a, rel=1e-13, abs=1e-15)
+    assert COMM.allreduce(float(np.abs(t0.gap.x.array).sum()), op=MPI.SUM) > 0.0
+    for geometry, trace in reversed(built):
+        trace.destroy()
+        geometry.destroy()
+    disc.destroy()
