@@ -337,7 +337,9 @@ def model_error(
         )
     disc = sol.disc.for_problem(richer)
     if history and sol.disc.u_old is not None:
-        disc.set_u_old(sol.disc.u_old, sol.disc.obstacle_translation)
+        start = sol.disc.fields.obstacle_start
+        disc.set_u_old(sol.disc.u_old, sol.disc.obstacle_translation,
+                       None if start is None else float(start.value))
     if richer.finite_strain:
         from .strain_model_error import strain_model_error  # it builds on this module
 

@@ -256,11 +256,6 @@ def _solve(
     method = options.method
     motions = free_motions(disc)
     obstacle = disc.problem.force_obstacle
-    if obstacle is not None and not symmetric:
-        raise ValueError(
-            f"an obstacle under a given force ({obstacle!r}) takes a frictionless or 2D Tresca "
-            "law (a symmetric Newton matrix)"
-        )
     if motions.count or obstacle is not None:
         method = held_method(method, motions.count)
     if method is None:
@@ -379,8 +374,7 @@ def _semismooth_newton(
             if force is None:
                 loop.linear_solve(it, new, new_free, couplings)
             else:
-                force.step(functools.partial(loop.linear_solve, it, couplings=couplings),
-                           new, new_free)
+                force.step(functools.partial(loop.linear_solve, it), new, new_free, couplings)
                 loop.moving = force.moving(rtol)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):

@@ -1,0 +1,174 @@
+"""A rigid obstacle under a given force with friction (:mod:`dwr_signorini.force`).
+
+The obstacle moves by delta d, delta an unknown; with friction its motion along the contact
+frame's tangents is a slip of the obstacle, so the tangential offsets are
+B_l (u_old + t + (delta - delta_0) d) and the force balance is the obstacle's equilibrium
+along d with the tangential tractions, sum_k int (-e_k . d) lam_k = F. Truths:
+
+- change of control: the force-controlled frictional solution is the displacement-controlled
+  one at the delta it finds (the obstacle placed there by hand, moved there from its given
+  position on a path's step so that the slip sees the same motion): u, lambda_n, lambda_t to
+  1e-8 relative, for a rigid disc pressed into a block with Coulomb mu = 0.3 (single solve;
+  and a path: two force steps, then the block's top moved sideways with the force held);
+  a flat approached obliquely (its motion drags the face) likewise;
+- the balance: sum_k int (-e_k . d) lam_k = F to round-off, the tangential share not small;
+- the dual's entry for delta is dJ/dF (a central difference in F);
+- the estimate's interval for int u_x on Gamma_C holds the J_h of a mesh 4 times finer.
+"""
+
+import math
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import mesh
+
+import dwr_signorini as ds
+from dwr_signorini import examples as ex
+from dwr_signorini.obstacles import Plane, Sphere
+
+from .helpers import global_max, integrate
+
+pytestmark = pytest.mark.mpi
+
+COMM = MPI.COMM_WORLD
+R = 1.0
+F = 0.05
+CENTRE = 0.45  # off the block's middle: an asymmetric contact
+SHEAR = 0.003
+
+
+def block(nx=24, ny=8):
+    """The block [0, 1] x [0, 0.5]: contact at y = 0, the top clamped (or moved)."""
+    msh = mesh.create_rectangle(COMM, [(0.0, 0.0), (1.0, 0.5)], [nx, ny],
+                                mesh.CellType.triangle, ghost_mode=mesh.GhostMode.none)
+    return msh, ex.tag_block_facets(msh, 0.5)
+
+
+def problem(msh, tags, gap, top=(0.0, 0.0)):
+    """The block pressed by ``gap`` with Coulomb's law, mu = 0.3."""
+    return ds.SignoriniProblem(msh, tags, contact=ex.CONTACT, dirichlet={ex.DIRICHLET: top},
+                               E=10.0, nu=0.3, model="plane_strain", gap=gap,
+                               friction=ds.Coulomb(0.3))
+
+
+def disc(lift=0.0, **force):
+    """The rigid disc touching the block's bottom at x = CENTRE, lifted by ``lift``."""
+    return Sphere((CENTRE, -R + lift), R, **force)
+
+
+def moment(u, lam, m, lam_t):
+    """A goal of (u, lambda_n, lambda_t): the x-moment of the contact force and int u_x."""
+    return (lam_t * (m.x[0] - CENTRE) + 0.1 * lam + u[0]) * m.ds_contact
+
+
+def run(problems):
+    """Each step's (u, lambda_n, lambda_t, delta) along a path."""
+    rows = []
+
+    def keep(record, sol, est):
+        rows.append((sol.u.x.array.copy(), sol.lam.x.array.copy(), sol.lam_t.x.array.copy(),
+                     sol.obstacle_displacement))
+
+    with ds.solve_path(problems, moment, weights="patch", callback=keep, verbose=False):
+        pass
+    return rows
+
+
+def assert_same(a, b, rtol=1e-8):
+    """The owned arrays (u, lambda_n, lambda_t) agree to ``rtol`` of each one's size."""
+    for x, y in zip(a[:3], b[:3], strict=True):
+        assert global_max(x - y) <= rtol * global_max(y), (global_max(x - y), global_max(y))
+
+
+def test_single_press_is_displacement_control():
+    """The disc pressed by F, against the disc moved from its touching position to delta on a
+    path's step (the same motion the slip sees); the balance with its tangential share."""
+    msh, tags = block()
+    with ds.solve(problem(msh, tags, disc(force=F, direction=(0.0, 1.0)))) as sol:
+        forced = (sol.u.x.array.copy(), sol.lam.x.array.copy(), sol.lam_t.x.array.copy())
+        delta = sol.obstacle_displacement
+        total = integrate(sol, sol.disc.force_balance((sol.lam, sol.lam_t)))
+        normal = integrate(sol, sol.disc.force_balance((sol.lam, 0.0 * sol.lam_t)))
+        slips = sol.num_slip
+    assert total == pytest.approx(F, rel=1e-10)
+    assert abs(total - normal) > 1e-3 * F  # the tangential tractions' share counts
+    assert slips > 0  # the slip offsets' dependence on delta is exercised
+    placed = run([problem(msh, tags, disc()), problem(msh, tags, disc(delta))])
+    assert_same(forced, placed[-1])
+
+
+def test_force_path_then_shear():
+    """Two force steps, then the block's top moved sideways with the force held, against the
+    displacement path through the deltas found (from the touching disc)."""
+    msh, tags = block()
+    forces, tops = (F / 2, F, F), [(0.0, 0.0), (0.0, 0.0), (SHEAR, 0.0)]
+    forced = run([problem(msh, tags, disc(force=f, direction=(0.0, 1.0)), top)
+                  for f, top in zip(forces, tops, strict=True)])
+    deltas = [row[3] for row in forced]
+    assert deltas[0] < deltas[1] and deltas[2] != pytest.approx(deltas[1], rel=1e-6)
+    placed = run([problem(msh, tags, disc(d), top)
+                  for d, top in zip([0.0, *deltas], [(0.0, 0.0), *tops], strict=True)])
+    for a, b in zip(forced, placed[1:], strict=True):
+        assert_same(a, b)
+    assert global_max(forced[-1][2]) > 0.0
+
+
+def test_oblique_flat():
+    """A flat approached obliquely by F: its tangential motion drags the face; against the
+    flat moved from its touching position to delta d on a path's step."""
+    msh, tags = block()
+    d = np.array([0.2, 1.0]) / math.hypot(0.2, 1.0)
+    with ds.solve(problem(msh, tags, Plane((0.0, 0.0), (0.0, -1.0), force=F,
+                                           direction=tuple(d)))) as sol:
+        forced = (sol.u.x.array.copy(), sol.lam.x.array.copy(), sol.lam_t.x.array.copy())
+        delta = sol.obstacle_displacement
+        assert integrate(sol, sol.disc.force_balance((sol.lam, sol.lam_t))) == pytest.approx(
+            F, rel=1e-10)
+    placed = run([problem(msh, tags, Plane((0.0, 0.0), (0.0, -1.0))),
+                  problem(msh, tags, Plane(tuple(delta * d), (0.0, -1.0)))])
+    assert_same(forced, placed[-1])
+    assert global_max(forced[2]) > 0.0
+
+
+def J_of(force):
+    """The goal's value at the force-controlled solution under ``force``."""
+    msh, tags = block(12, 4)
+    with ds.solve(problem(msh, tags, disc(force=force, direction=(0.0, 1.0)))) as sol:
+        return integrate(sol, moment(sol.u, sol.lam, sol.disc.m, sol.lam_t))
+
+
+def test_zeta_is_the_goals_rate_in_the_force():
+    """The dual of the bordered system with its tangential entries: zeta = dJ/dF (the force
+    enters only the bordered row), against a central difference in F."""
+    h = 1e-4 * F
+    reference = (J_of(F + h) - J_of(F - h)) / (2 * h)
+    msh, tags = block(12, 4)
+    with ds.solve(problem(msh, tags, disc(force=F, direction=(0.0, 1.0)))) as sol, \
+            ds.estimate(sol, moment, estimator="eta_p", weights="patch") as est:
+        assert est.dual.zeta == pytest.approx(reference, rel=1e-6)
+
+
+def ux(u, lam, m, lam_t):
+    """int u_x on Gamma_C."""
+    return u[0] * m.ds_contact
+
+
+@pytest.mark.slow
+def test_interval_holds_a_finer_reference():
+    """The estimate's interval for int u_x on Gamma_C (the default weights) holds the J_h of
+    the mesh 4 times finer, judged where the error is 10 times that reference's change."""
+    values = []
+    for n in (4, 8):
+        msh, tags = block(24 * n, 8 * n)
+        with ds.solve(problem(msh, tags, disc(force=F, direction=(0.0, 1.0)))) as sol:
+            values.append(integrate(sol, ux(sol.u, sol.lam, sol.disc.m, sol.lam_t)))
+    reference, uncertainty = values[1], abs(values[1] - values[0])
+    msh, tags = block()
+    with ds.solve(problem(msh, tags, disc(force=F, direction=(0.0, 1.0)))) as sol, \
+            ds.estimate(sol, ux) as est:
+        low, high = est.interval
+        assert abs(reference - est.J_h) > 3 * uncertainty, (reference, est.J_h, uncertainty)
+        assert low - uncertainty <= reference <= high + uncertainty, (low, reference, high)
