@@ -22,7 +22,6 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
-import ufl
 from dolfinx import mesh
 
 import dwr_signorini as ds
