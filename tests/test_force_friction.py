@@ -13,7 +13,9 @@ along d with the tangential tractions, sum_k int (-e_k . d) lam_k = F. Truths:
   a flat approached obliquely (its motion drags the face) likewise;
 - the balance: sum_k int (-e_k . d) lam_k = F to round-off, the tangential share not small;
 - the dual's entry for delta is dJ/dF (a central difference in F);
-- the estimate's interval for int u_x on Gamma_C holds the J_h of a mesh 4 times finer.
+- the estimate's interval for int u_x on Gamma_C holds the J_h of meshes 4 and 8 times finer
+  (higher-order weights; the patch weights miss it, as under displacement control: strict
+  xfail).
 """
 
 import math
@@ -156,9 +158,21 @@ def ux(u, lam, m, lam_t):
 
 
 @pytest.mark.slow
-def test_interval_holds_a_finer_reference():
-    """The estimate's interval for int u_x on Gamma_C (the default weights) holds the J_h of
-    the mesh 4 times finer, judged where the error is 10 times that reference's change."""
+@pytest.mark.parametrize(
+    "weights",
+    [
+        "higher_order",
+        pytest.param("patch", marks=pytest.mark.xfail(strict=True, reason=(
+            "measured: J_h -3.845e-5, eta 3.96e-5, interval [-1.84e-5, 3.57e-5] against the "
+            "reference -3.294e-5 (serial); the displacement-controlled step at the same delta "
+            "gives [-1.85e-5, 3.61e-5]: the patch weights' miss, not the force control's"))),
+    ],
+)
+def test_interval_holds_a_finer_reference(weights):
+    """The estimate's interval for int u_x on Gamma_C holds the J_h of the meshes 4 and 8
+    times finer (uncertain by their difference, 2.3e-7; the error is 5.5e-6). Measured
+    (serial): higher-order weights eta 1.43e-5, interval [-4.04e-5, 1.6e-6] around J_h
+    -3.845e-5, reference -3.294e-5."""
     values = []
     for n in (4, 8):
         msh, tags = block(24 * n, 8 * n)
@@ -167,7 +181,7 @@ def test_interval_holds_a_finer_reference():
     reference, uncertainty = values[1], abs(values[1] - values[0])
     msh, tags = block()
     with ds.solve(problem(msh, tags, disc(force=F, direction=(0.0, 1.0)))) as sol, \
-            ds.estimate(sol, ux) as est:
+            ds.estimate(sol, ux, weights=weights) as est:
         low, high = est.interval
-        assert abs(reference - est.J_h) > 3 * uncertainty, (reference, est.J_h, uncertainty)
+        assert abs(reference - est.J_h) > 10 * uncertainty, (reference, est.J_h, uncertainty)
         assert low - uncertainty <= reference <= high + uncertainty, (low, reference, high)
