@@ -17,6 +17,17 @@ On a plane (n_c its normal, constant) w = -m: the equilibrium is the derivative 
 Lagrangian 1/2 a(u, u) - l(u) - F delta + lam . (N u - g_c(delta)) and the bordered matrix below
 is symmetric; on a curved obstacle the two differ by the turn of n_c with delta.
 
+With friction the obstacle's motion along the contact frame's tangents e_l is a slip of the
+obstacle: the tangential offsets are g_l = B_l (u_old + t + (delta - delta_0) d)
+(:meth:`~dwr_signorini.fields.MeshFields.obstacle_motion`), at the rate m_l,i = int (d . e_l)
+psi_i in delta, and the body's traction on the obstacle is lam_n n_c + lam_l e_l, so the
+balance is
+
+    w^T lam = sum_k w_k . lam_k = F,    w_k,i = int_GC (-e_k . d) psi_i    (e_0 = n_c),
+
+over all the law's rows (:attr:`~dwr_signorini.algebra.ContactAlgebra.resultant`); on a plane
+approached along its normal d . e_l = 0 and the frictional system is the frictionless one's.
+
 So the Newton step of an active set A solves the bordered
 system
 
@@ -26,7 +37,9 @@ system
 A the Newton matrix of :mod:`dwr_signorini.newton` (the last step's, for the dual problem), b its
 column for delta (the gap's shift m delta on the active rows), c^T x = w^T lam. It is solved
 with A's factorisation (:class:`ForceControl`): x1 = A^-1 r and x2 = A^-1 r(f = 0, g = m), the
-response to a unit delta (the same active set: the factors are reused), then
+response to a unit delta (m = (m_0, m_l) on the normal and tangential rows; on a coupled
+facet its right-hand side -c J m, the iterate's r = P(x) - J x being data; the same active
+set: the factors are reused), then
 delta = (F - w^T lam1) / (w^T lam2) and x = x1 + delta x2. For a plane m does not depend on
 delta and the step is exact; for a curved obstacle it is Newton's step in delta (the set is
 not final until delta has settled too).
