@@ -28,7 +28,7 @@ from dolfinx import mesh
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
-from dwr_signorini.obstacles import Plane, Sphere
+from dwr_signorini.obstacles import Cylinder, Plane, Sphere
 
 from .helpers import global_max, integrate
 
@@ -201,3 +201,39 @@ def test_interval_holds_a_finer_reference(weights):
         low, high = est.interval
         assert abs(reference - est.J_h) > 10 * uncertainty, (reference, est.J_h, uncertainty)
         assert low - uncertainty <= reference <= high + uncertainty, (low, reference, high)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("law", [ds.Tresca(0.01), ds.Coulomb(0.3)], ids=["tresca", "coulomb"])
+def test_cylinder_in_3d_is_displacement_control(law):
+    """3D, the coupled rows of Tresca's ball and Coulomb's cone (their r = P(x) - J x is data
+    of the iterate, left out of the unit response): a cylinder along x pressed by a force into
+    a box, against the cylinder moved to its delta on a path's step. Measured (serial): u,
+    lambda_n, lambda_t to 3e-13, 2e-14, 5e-11 (Tresca; 3 slipping, 2 sticking facets) and
+    2e-12, 1e-13, 1e-11 (Coulomb). Slow for its forms' compilation (minutes on a cold cache)."""
+    msh = mesh.create_box(COMM, [(0.0, 0.0, 0.0), (1.0, 0.25, 0.5)], [4, 4, 4],
+                          mesh.CellType.tetrahedron, ghost_mode=mesh.GhostMode.none)
+    tags = ex.tag_block_facets(msh, 0.5)
+
+    def box(gap):
+        return ds.SignoriniProblem(msh, tags, contact=ex.CONTACT,
+                                   dirichlet={ex.DIRICHLET: (0.0, 0.0, 0.0)}, E=10.0, nu=0.3,
+                                   model="3d", gap=gap, friction=law)
+
+    def cylinder(lift=0.0, **force):
+        return Cylinder((0.0, 0.11, -R + lift), (1.0, 0.0, 0.0), R, **force)
+
+    with ds.solve(box(cylinder(force=0.01, direction=(0.0, 0.0, 1.0)))) as sol:
+        forced = (sol.u.x.array.copy(), sol.lam.x.array.copy(), sol.lam_t.x.array.copy())
+        delta = sol.obstacle_displacement
+        assert sol.num_slip > 0
+    rows = []
+
+    def keep(record, s, est):
+        rows.append((s.u.x.array.copy(), s.lam.x.array.copy(), s.lam_t.x.array.copy()))
+
+    with ds.solve_path([box(cylinder()), box(cylinder(delta))],
+                       lambda u, lam, m, lam_t: (lam_t[1] + lam) * m.ds_contact,
+                       weights="patch", callback=keep, verbose=False):
+        pass
+    assert_same(forced, rows[-1])
