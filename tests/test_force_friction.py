@@ -237,3 +237,14 @@ def test_cylinder_in_3d_is_displacement_control(law):
                        weights="patch", callback=keep, verbose=False):
         pass
     assert_same(forced, rows[-1])
+
+
+def test_model_error_under_a_given_force_is_refused():
+    """The model error's Newton step of the richer law does not border delta: refused, naming
+    the obstacle, rather than computed with the obstacle at its given position."""
+    msh, tags = block(6, 2)
+    gap = disc(force=F, direction=(0.0, 1.0))
+    with ds.solve(problem(msh, tags, gap, law=ds.Frictionless())) as sol:
+        with pytest.raises(ValueError, match="Newton step does not border"):
+            ds.estimate(sol, lambda u, lam, m: lam * m.ds_contact, weights="patch",
+                        model_error=problem(msh, tags, gap)).destroy()
