@@ -13,6 +13,8 @@ along d with the tangential tractions, sum_k int (-e_k . d) lam_k = F. Truths:
   a flat approached obliquely (its motion drags the face) likewise;
 - the balance: sum_k int (-e_k . d) lam_k = F to round-off, the tangential share not small;
 - the dual's entry for delta is dJ/dF (a central difference in F);
+- along a path, the history goal's rate in the earlier step's delta is dJ_k/d delta_0 (a
+  central difference; -0.0457, 0 before the history goal took delta_0 in);
 - the estimate's interval for int u_x on Gamma_C holds the J_h of meshes 4 and 8 times finer
   (higher-order weights; the patch weights miss it, as under displacement control: strict
   xfail).
@@ -248,3 +250,38 @@ def test_model_error_under_a_given_force_is_refused():
         with pytest.raises(ValueError, match="Newton step does not border"):
             ds.estimate(sol, lambda u, lam, m: lam * m.ds_contact, weights="patch",
                         model_error=problem(msh, tags, gap)).destroy()
+
+
+def test_history_goal_sees_the_previous_steps_delta():
+    """Along a force path a step's offsets start from the previous step's delta_0 d: the
+    history goal L (the step's sensitivity to its history, a goal of the earlier step) has
+    the rate -L(d) in the earlier step's delta, against a central difference of the step's J
+    in delta_0 (the earlier step's u held)."""
+    from dwr_signorini.goal import GoalForms
+    from dwr_signorini.path_history import history_goal
+
+    msh, tags = block()
+    first, second = (problem(msh, tags, disc(force=f, direction=(0.0, 1.0)))
+                     for f in (F / 2, F))
+    with ds.solve(first) as sol1:
+        start = sol1.obstacle_displacement
+
+        def step(delta_0):
+            disc2 = sol1.disc.for_problem(second)
+            disc2.set_u_old(sol1.u, None, delta_0)
+            return ds.solve(disc2)
+
+        def J(delta_0):
+            with step(delta_0) as sol:
+                return integrate(sol, moment(sol.u, sol.lam, sol.disc.m, sol.lam_t))
+
+        h = 1e-4 * start
+        reference = (J(start + h) - J(start - h)) / (2 * h)
+        with step(start) as sol2, \
+                ds.estimate(sol2, moment, estimator="eta_p", weights="patch") as est2:
+            assert sol2.num_slip > 0 and sol2.num_stick > 0
+            L = history_goal(sol2, est2)
+            rate = GoalForms(L, sol1.u, sol1.lam, sol1.disc, (sol1.lam_t,)).rate(
+                sol1.disc.fields.obstacle_displacement)
+    assert rate == pytest.approx(reference, rel=1e-6)
+    assert abs(rate) > 1e-3 * abs(J(start)) / start
