@@ -167,10 +167,8 @@ class ContactAlgebra:
             normal = self.components[0]
             rate = fields.gap_rate(m.x, m.n, lambda g, frame: normal.offset_in(g, m.n, frame))
             forms["g_rate"] = form(with_quadrature_degrees(rate * mu * m.ds_contact, degree))
-            # the tangential offsets' rate int (d . e_l) psi; w_k = int (-e_k . d) psi (force.py)
-            d = fields.approach()
-            forms["slip_rate"] = [form(ufl.dot(d, e) * mu * m.ds_contact) for e in directions[1:]]
-            forms["resultant"] = [form(-ufl.dot(e, d) * mu * m.ds_contact) for e in directions]
+            forms["resultant"] = [  # w_k = int (-e_k . d) psi, one form per component
+                form(w) for w in disc.force_balance([mu] * len(directions), per_component=True)]
         bound = problem.law.bound_expr(fields, m.x)
         if bound is not None:
             forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact, degree))
@@ -220,7 +218,7 @@ class ContactAlgebra:
             self.resultant = self.slip_rate = None
             if "resultant" in forms:
                 self.resultant = self._owned_rows(forms["resultant"])
-                self.slip_rate = self._owned_rows(forms["slip_rate"])
+                self.slip_rate = -self.resultant[self.n_q :]  # int (d . e_l) psi = -w_l
             g += [self._offset(*parts) for parts in self._offset_forms]
             self.M = self._stacked_vector([M] * len(self.components))
             self.g = self._stacked_vector(g)

@@ -286,18 +286,17 @@ class Discretization:
         """
         return self.fields.frame_normal(self.m.x, self.m.n)
 
-    def force_balance(self, mus: Any) -> Any:
+    def force_balance(self, mus: Any, per_component: bool = False) -> Any:
         """The force-balance row of an obstacle under a given force: w(mu), UFL.
 
         ``w(mu) = sum_k int_GC (-e_k . d) mu_k ds`` (:mod:`~dwr_signorini.force`: w^T lam = F),
-        d the obstacle's direction of approach, e_0 = n_c :meth:`contact_frame` and e_l the
-        frame's tangents (:meth:`directions`): the body's traction on the obstacle is
-        lam_n n_c + sum_l lam_l e_l; on a plane approached along its normal the tangential
-        terms vanish.
+        d the obstacle's direction of approach, e_0 = n_c and e_l the frame's tangents
+        (:meth:`directions`): the body's traction on the obstacle is lam_n n_c + lam_l e_l.
 
         Args:
             mus: The multipliers of the law's components (a tuple, normal first; trial, test
                 or discrete functions), or one multiplier for a frictionless law.
+            per_component: Return each component's term instead of their sum.
 
         Returns:
             The linear form ``w(mu)`` (UFL), a scalar for discrete multipliers.
@@ -314,8 +313,9 @@ class Discretization:
                 f"force_balance: {len(directions)} multipliers expected (one per component of "
                 f"the law {self.problem.law!r}), got {len(mus)}"
             )
-        return sum(-ufl.dot(e, d) * mu * self.m.ds_contact
-                   for e, mu in zip(directions, mus, strict=True))
+        terms = [-ufl.dot(e, d) * mu * self.m.ds_contact
+                 for e, mu in zip(directions, mus, strict=True)]
+        return terms if per_component else sum(terms)
 
     def directions(self, components: Any) -> list[Any]:
         """The directions of a law's components in its contact frame.
