@@ -145,9 +145,7 @@ def spence_block_path(
 
     Each step displaces the block's bottom by ``(0, press)`` towards the rigid cylinder of
     radius ``radius`` centred at (0, radius), with Coulomb friction ``mu``; Dundurs' beta is
-    ``cases.dundurs_beta(nu)``, eq. (S1). With ``loads`` the press is stated by its force
-    instead, as the half-plane theory states it: the bottom clamped, the cylinder pressed down
-    by P per unit length (:mod:`~dwr_signorini.force`; its motion is part of the slip).
+    ``cases.dundurs_beta(nu)``, eq. (S1); or, with ``loads``, the cylinder pressed by a force.
 
     Args:
         comm: The communicator (collective).
@@ -161,7 +159,9 @@ def spence_block_path(
             None to build it.
         **sizes: The sizes of :func:`spence_block_mesh` (without ``mesh``).
         loads: The cylinder's forces P per unit length, increasing and positive (Hertz: a =
-            sqrt(4 P R / (pi E*))), in place of ``presses``.
+            sqrt(4 P R / (pi E*))), in place of ``presses``: the press stated as the
+            half-plane theory states it, the bottom clamped and the cylinder pressed down
+            (:mod:`~dwr_signorini.force`; its motion is part of the slip).
 
     Returns:
         One problem per press, on one mesh.
