@@ -152,6 +152,25 @@ def test_oblique_flat():
     assert global_max(forced[2]) > 0.0
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    "the coupling rows of N are assembled in the contact frame at the solve's start (delta = "
+    "0), the gap at delta: where the frame turns with delta (a disc approached along "
+    "(0.3, 1), the face's normal rays meeting it elsewhere) the two controls differ, measured "
+    "u 2.3e-3, lambda_n 4.9e-4, lambda_t 5.2e-3 relative (frictionless: u 4.1e-3, lambda_n "
+    "6.9e-4, as before friction was accepted)"))
+def test_oblique_disc():
+    """A disc approached obliquely: the frame (the disc's normal where the face's normal ray
+    enters it) turns with delta; the same identity as for the disc pressed along the normal."""
+    msh, tags = block()
+    d = np.array([0.3, 1.0]) / math.hypot(0.3, 1.0)
+    with ds.solve(problem(msh, tags, disc(force=F, direction=tuple(d)))) as sol:
+        forced = (sol.u.x.array.copy(), sol.lam.x.array.copy(), sol.lam_t.x.array.copy())
+        delta = sol.obstacle_displacement
+    moved = Sphere((CENTRE + delta * d[0], -R + delta * d[1]), R)
+    placed = run([problem(msh, tags, disc()), problem(msh, tags, moved)])
+    assert_same(forced, placed[-1])
+
+
 def J_of(force):
     """The goal's value at the force-controlled solution under ``force``."""
     msh, tags = block(12, 4)
