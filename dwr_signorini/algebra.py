@@ -211,6 +211,8 @@ class ContactAlgebra:
             g = [self._vector(forms["g"], forms["N"][0] if lift else None, self.prescribed_bcs)]
             M_owned = M.array.copy()
             self._gap_forms = (forms["g"], forms["N"][0] if lift else None, forms.get("g_rate"))
+            constant = disc.fields.obstacle_displacement
+            self._framed = None if constant is None else (forms["N"], float(constant.value))
             self._offset_forms = [(forms["M"], forms["N"][k] if lift else None,
                                    forms["u_old"][k - 1] if "u_old" in forms else None)
                                   for k in range(1, len(self.components))]
@@ -256,6 +258,27 @@ class ContactAlgebra:
             out.append(vec.array.copy())
             vec.destroy()
         return np.concatenate(out) if out else np.zeros(0)
+
+    def frame_change(self) -> float:
+        """How far N's contact frame is from that of the force-controlled obstacle's delta now.
+
+        N's rows are assembled in the frame at the delta of the assembly; where the frame
+        turns with delta (a curved obstacle whose point met by a normal ray moves), N at the
+        current delta differs. Collective.
+
+        Returns:
+            ||N(delta) - N|| / ||N|| (Frobenius), 0 without force control or where delta has
+            not changed since the assembly.
+        """
+        if self._framed is None or self.disc.fields.obstacle_displacement.value == (
+                self._framed[1]):
+            return 0.0
+        now = self._stacked([self._matrix(f) for f in self._framed[0]], rows=True)
+        size = self.N.norm(PETSc.NormType.FROBENIUS)
+        now.axpy(-1.0, self.N, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        change = now.norm(PETSc.NormType.FROBENIUS) / max(size, 1e-300)
+        now.destroy()
+        return change
 
     def set_obstacle_displacement(self, delta: float) -> None:
         """Move the force-controlled obstacle to ``delta``: g and :attr:`gap_rate` anew.
