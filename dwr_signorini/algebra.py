@@ -98,9 +98,12 @@ class ContactAlgebra:
         c_n: c_n,i on the owned multiplier rows.
         gap_rate: With a force-controlled obstacle, m_i = int dg/ddelta psi_i on the owned normal
             rows at its current displacement (:meth:`set_obstacle_displacement`); else None.
-        resultant: With a force-controlled obstacle, w_i = int (-n . d) psi_i on the owned
-            normal rows: w . lam is the contact force on the obstacle against its direction d
-            of approach; else None.
+        slip_rate: With a force-controlled obstacle, int (d . e_l) psi_i on the owned
+            tangential rows (stacked as the multipliers' after the normal ones): the rate of
+            the tangential offsets in delta; else None.
+        resultant: With a force-controlled obstacle, w_i = int (-e_k . d) psi_i on all owned
+            multiplier rows (e_0 = n_c): w . lam is the contact force on the obstacle against
+            its direction d of approach; else None.
         ncp_scale: The validated ``ncp_scale``.
         n_u, n_lam: Owned displacement dofs and multiplier rows of this rank.
     """
@@ -155,16 +158,17 @@ class ContactAlgebra:
             forms["B"] = [
                 form(ufl.inner(mu, ufl.dot(w, e)) * m.ds_contact) for e in directions
             ]
-        if disc.u_old is not None:  # a load step's slip increment: g_k = B_k (u_old + t)
-            u_old = disc.slip_origin()
+        origin = disc.slip_origin()
+        if origin is not None:  # a step's slip increment: g_k = B_k (u_old + t + motion)
             forms["u_old"] = [
-                form(ufl.dot(u_old, e) * mu * m.ds_contact) for e in directions[1:]
+                form(ufl.dot(origin, e) * mu * m.ds_contact) for e in directions[1:]
             ]
         if problem.force_obstacle is not None:  # m_i = int dg_c/ddelta psi_i (force control)
             normal = self.components[0]
             rate = fields.gap_rate(m.x, m.n, lambda g, frame: normal.offset_in(g, m.n, frame))
             forms["g_rate"] = form(with_quadrature_degrees(rate * mu * m.ds_contact, degree))
-            forms["resultant"] = form(disc.force_balance(mu))
+            forms["resultant"] = [  # w_k = int (-e_k . d) psi, one form per component
+                form(w) for w in disc.force_balance([mu] * len(directions), per_component=True)]
         bound = problem.law.bound_expr(fields, m.x)
         if bound is not None:
             forms["bound"] = form(with_quadrature_degrees(bound * mu * m.ds_contact, degree))
@@ -205,17 +209,19 @@ class ContactAlgebra:
                 bc.set(self.f.array_w)
             M = self._vector(forms["M"])
             g = [self._vector(forms["g"], forms["N"][0] if lift else None, self.prescribed_bcs)]
-            g += [self._offset(forms["M"], forms["N"][k] if lift else None,
-                               forms["u_old"][k - 1] if "u_old" in forms else None)
-                  for k in range(1, len(self.components))]
             M_owned = M.array.copy()
             self._gap_forms = (forms["g"], forms["N"][0] if lift else None, forms.get("g_rate"))
+            constant = disc.fields.obstacle_displacement
+            self._framed = None if constant is None else (forms["N"], float(constant.value))
+            self._offset_forms = [(forms["M"], forms["N"][k] if lift else None,
+                                   forms["u_old"][k - 1] if "u_old" in forms else None)
+                                  for k in range(1, len(self.components))]
             self.gap_rate = self._gap_rate()
-            self.resultant = None
+            self.resultant = self.slip_rate = None
             if "resultant" in forms:
-                vec = self._vector(forms["resultant"])
-                self.resultant = vec.array.copy()
-                vec.destroy()
+                self.resultant = self._owned_rows(forms["resultant"])
+                self.slip_rate = -self.resultant[self.n_q :]  # int (d . e_l) psi = -w_l
+            g += [self._offset(*parts) for parts in self._offset_forms]
             self.M = self._stacked_vector([M] * len(self.components))
             self.g = self._stacked_vector(g)
             if self.trace is not None:
@@ -244,12 +250,44 @@ class ContactAlgebra:
         vec.destroy()
         return out
 
+    def _owned_rows(self, forms: list[fem.Form]) -> np.ndarray:
+        """The owned rows of one linear form per component, stacked as the multipliers."""
+        out = []
+        for f in forms:
+            vec = self._vector(f)
+            out.append(vec.array.copy())
+            vec.destroy()
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def frame_change(self) -> float:
+        """How far N's contact frame is from that of the force-controlled obstacle's delta now.
+
+        N's rows are assembled in the frame at the delta of the assembly; where the frame
+        turns with delta (a curved obstacle whose point met by a normal ray moves), N at the
+        current delta differs. Collective.
+
+        Returns:
+            ||N(delta) - N|| / ||N|| (Frobenius), 0 without force control or where delta has
+            not changed since the assembly.
+        """
+        if self._framed is None or self.disc.fields.obstacle_displacement.value == (
+                self._framed[1]):
+            return 0.0
+        now = self._stacked([self._matrix(f) for f in self._framed[0]], rows=True)
+        size = self.N.norm(PETSc.NormType.FROBENIUS)
+        now.axpy(-1.0, self.N, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        change = now.norm(PETSc.NormType.FROBENIUS) / max(size, 1e-300)
+        now.destroy()
+        return change
+
     def set_obstacle_displacement(self, delta: float) -> None:
         """Move the force-controlled obstacle to ``delta``: g and :attr:`gap_rate` anew.
 
         Sets the Constant of the discretisation's fields (so every form of the gap, the
         estimator's too, sees the obstacle there) and reassembles the normal rows of g (with
-        the lifting -N u_D, as in the constructor) and m = int dg/ddelta psi. Collective.
+        the lifting -N u_D, as in the constructor), m = int dg/ddelta psi and, with friction,
+        the tangential offsets g_l = B_l (u_old + (delta - delta_0) d) (their rate in delta,
+        :attr:`slip_rate`, is int (d . e_l) psi). Collective.
 
         Args:
             delta: The obstacle's rigid displacement along its direction of approach.
@@ -259,6 +297,10 @@ class ContactAlgebra:
         vec = self._vector(g_form, lifting, self.prescribed_bcs)
         self.g.array_w[: self.n_q] = vec.array[: self.n_q]
         vec.destroy()
+        for k, parts in enumerate(self._offset_forms, start=1):
+            vec = self._offset(*parts)
+            self.g.array_w[k * self.n_q : (k + 1) * self.n_q] = vec.array[: self.n_q]
+            vec.destroy()
         self.gap_rate = self._gap_rate()
 
     def _couple_master(self, B: list[PETSc.Mat], lift: bool) -> None:

@@ -199,6 +199,9 @@ def slip_offset_goal(system: NewtonLinearSystem, xi: np.ndarray) -> Goal:
     With the sets of the system's last Newton step and its dual solution (``xi`` the owned
     multiplier rows as :func:`solve_dual` returns them), L(v) = J(w(u_old + v)) -
     J(w(u_old)) = - sum_l (w_l, v . e_l)_GC (:func:`~dwr_signorini.path_history.history_goal`).
+    Under a given force with friction the offsets are B_l (u_old - delta_0 d + ...), delta_0
+    the earlier step's displacement: the goal is L(u - delta d), delta that step's
+    ``m.obstacle_displacement`` (its derivative in delta, -L(d), enters that step's dual).
 
     Args:
         system: The solved Newton system of the step (its sets, couplings and c_n).
@@ -217,10 +220,13 @@ def slip_offset_goal(system: NewtonLinearSystem, xi: np.ndarray) -> Goal:
     weights = multiplier_functions(system, w, "history_weight")[1:]
     disc = system.disc
     directions = disc.directions(system.algebra.components)[1:]
+    moves = disc.fields.obstacle_motion() is not None  # offsets from u_old - delta_0 d
 
     def goal(u: Any, lam: Any, m: Any, lam_t: Any) -> Any:
         form = None
         u_rel = disc.relative(u)  # u - P u with contact pairs (GoalForms differentiates P u)
+        if moves and m.obstacle_displacement is not None:  # delta_0: the earlier step's delta
+            u_rel = u_rel - m.obstacle_displacement * disc.fields.approach()
         for w_l, e_l in zip(weights, directions, strict=True):
             term = -w_l * ufl.dot(u_rel, e_l) * m.ds_contact
             form = term if form is None else form + term

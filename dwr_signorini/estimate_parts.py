@@ -192,14 +192,14 @@ class FactoredP2(Releasable):
         """The P2 Newton step of w_h's final sets (bordered where the obstacle is forced)."""
         couplings = sol.system.couplings
 
-        def solve(act: np.ndarray, free: np.ndarray) -> None:
-            self.system.solve_active(act, free, couplings)
+        def solve(act: np.ndarray, free: np.ndarray, cps: Any) -> None:
+            self.system.solve_active(act, free, cps)
 
         if sol.obstacle_displacement is None:
-            solve(sol.system.active, sol.system.free)
+            solve(sol.system.active, sol.system.free, couplings)
         else:
             self.force = self.system.force_control = ForceControl(self.system, move=False)
-            self.force.step(solve, sol.system.active, sol.system.free)
+            self.force.step(solve, sol.system.active, sol.system.free, couplings)
 
     def dual(self, goal: GoalForms) -> DualSolution:
         """The P2 dual of ``goal``: one transposed solve with the P2 factors."""

@@ -153,6 +153,11 @@ class MeshFields:
         self.obstacle_displacement = (
             None if problem.force_obstacle is None else fem.Constant(mesh, 0.0)
         )
+        #: Where the slip of the solve starts from: the obstacle's displacement delta_0 at the
+        #: start of the load step (0 in a single solve; the previous step's along a path).
+        self.obstacle_start = (
+            None if problem.force_obstacle is None else fem.Constant(mesh, 0.0)
+        )
 
     def call_user(self, where: str, function: Callable[..., Any], *args: Any) -> Any:
         """A user's callable of the problem's data, called collectively (naming ``where``)."""
@@ -339,6 +344,32 @@ class MeshFields:
         if not self.problem.pairs and all(np.array_equal(v, first) for v in moves.values()):
             return constants[next(iter(moves))]
         return sum(self.contact_indicators[t] * constants[t] for t in moves)
+
+    def obstacle_motion(self) -> ufl.core.expr.Expr | None:
+        """The force-controlled obstacle's motion in the step, (delta - delta_0) d, with friction.
+
+        Its part along the contact frame's tangents is a slip of the obstacle: the slip
+        increment is (u - u_old - (delta - delta_0) d) . e_l (:mod:`~dwr_signorini.force`),
+        delta the unknown :attr:`obstacle_displacement` and delta_0 :attr:`obstacle_start`.
+
+        Returns:
+            A UFL vector (the obstacle is the problem's only gap), or None without a
+            force-controlled obstacle or without friction (no slip).
+        """
+        if self.problem.force_obstacle is None or not self.problem.law.frictional:
+            return None
+        return (self.obstacle_displacement - self.obstacle_start) * self.approach()
+
+    def approach(self) -> ufl.core.expr.Expr:
+        """The direction d of approach of the obstacle under a given force (UFL vector).
+
+        Raises:
+            ValueError: The problem has no force-controlled obstacle.
+        """
+        obstacle = self.problem.force_obstacle
+        if obstacle is None:
+            raise ValueError("the problem has no obstacle under a given force")
+        return ufl.as_vector([float(c) for c in obstacle.direction])
 
     def _rigid_and_pairs(
         self, x: Any, value: Callable[[Any], Any], pairs: Callable[[], Any] | None

@@ -17,6 +17,17 @@ On a plane (n_c its normal, constant) w = -m: the equilibrium is the derivative 
 Lagrangian 1/2 a(u, u) - l(u) - F delta + lam . (N u - g_c(delta)) and the bordered matrix below
 is symmetric; on a curved obstacle the two differ by the turn of n_c with delta.
 
+With friction the obstacle's motion along the contact frame's tangents e_l is a slip of the
+obstacle: the tangential offsets are g_l = B_l (u_old + t + (delta - delta_0) d)
+(:meth:`~dwr_signorini.fields.MeshFields.obstacle_motion`), at the rate m_l,i = int (d . e_l)
+psi_i in delta, and the body's traction on the obstacle is lam_n n_c + lam_l e_l, so the
+balance is
+
+    w^T lam = sum_k w_k . lam_k = F,    w_k,i = int_GC (-e_k . d) psi_i    (e_0 = n_c),
+
+over all the law's rows (:attr:`~dwr_signorini.algebra.ContactAlgebra.resultant`); on a plane
+approached along its normal d . e_l = 0 and the frictional system is the frictionless one's.
+
 So the Newton step of an active set A solves the bordered
 system
 
@@ -26,7 +37,9 @@ system
 A the Newton matrix of :mod:`dwr_signorini.newton` (the last step's, for the dual problem), b its
 column for delta (the gap's shift m delta on the active rows), c^T x = w^T lam. It is solved
 with A's factorisation (:class:`ForceControl`): x1 = A^-1 r and x2 = A^-1 r(f = 0, g = m), the
-response to a unit delta (the same active set: the factors are reused), then
+response to a unit delta (m = (m_0, m_l) on the normal and tangential rows; on a coupled
+facet its right-hand side -c J m, the iterate's r = P(x) - J x being data; the same active
+set: the factors are reused), then
 delta = (F - w^T lam1) / (w^T lam2) and x = x1 + delta x2. For a plane m does not depend on
 delta and the step is exact; for a curved obstacle it is Newton's step in delta (the set is
 not final until delta has settled too).
@@ -43,14 +56,21 @@ bordered systems in P2 with the final active set, at w_h's delta (``move=False``
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
 
+from .laws import Coupling
 from .linalg import NewtonLinearSystem
 
 __all__ = ["ForceControl"]
+
+#: A linear solve of the bordered system's sets: ``(active, free, couplings) -> None``.
+Solve = Callable[[np.ndarray, np.ndarray, "list[Coupling] | None"], None]
 
 
 class ForceControl:
@@ -99,35 +119,50 @@ class ForceControl:
     def _dot(self, a: np.ndarray, b: np.ndarray) -> float:
         return float(self.comm.allreduce(float(a @ b), op=MPI.SUM))
 
-    def step(self, solve: object, active: np.ndarray, free: np.ndarray) -> None:
+    def step(
+        self, solve: Solve, active: np.ndarray, free: np.ndarray,
+        couplings: list[Coupling] | None = None,
+    ) -> None:
         """One bordered Newton step into ``system.x``; delta (and, with ``move``, the gap) updated.
 
         Args:
-            solve: ``(active, free) -> None``, the linear solve of the loop for the step's sets
-                into ``system.x`` (:meth:`~dwr_signorini.semismooth.NewtonLoop.linear_solve`).
+            solve: ``(active, free, couplings) -> None``, the linear solve of the loop for the
+                step's sets into ``system.x``
+                (:meth:`~dwr_signorini.semismooth.NewtonLoop.linear_solve`).
             active: The step's constrained rows.
             free: The free multiplier values.
+            couplings: The step's coupled facets (:class:`~dwr_signorini.laws.Coupling`).
         """
-        self.unit_response(solve, active, free)
-        solve(active, free)
+        self.unit_response(solve, active, free, couplings)
+        solve(active, free, couplings)
         self.balance()
 
-    def unit_response(self, solve: object, active: np.ndarray, free: np.ndarray) -> None:
-        """x2: the bordered system's response to a unit delta (f = 0, g = m, nothing free).
+    def unit_response(
+        self, solve: Solve, active: np.ndarray, free: np.ndarray,
+        couplings: list[Coupling] | None = None,
+    ) -> None:
+        """x2: the bordered system's response to a unit delta (module docstring).
+
+        The right-hand side's derivative in delta: f = 0, g = (m, m_t) (the normal rows' gap
+        rate and, with friction, the tangential offsets' rate int (d . e_l) psi), nothing
+        free, and the coupled facets' r = P(x) - J x (data of the iterate) zero.
 
         Args:
-            solve: ``(active, free) -> None``, a solve of the bordered system into
+            solve: ``(active, free, couplings) -> None``, a solve of the bordered system into
                 ``system.x`` with its algebra's f and g.
             active: The step's constrained rows.
             free: The free multiplier values (only their shape is used).
+            couplings: The step's coupled facets, or None.
         """
         system, alg = self.system, self.system.algebra
         f_now, g_now = alg.f.array.copy(), alg.g.array.copy()
+        still = [dataclasses.replace(cp, r=np.zeros_like(cp.r)) for cp in couplings or ()]
         try:
             alg.f.array_w[:] = 0.0
             alg.g.array_w[:] = 0.0
             alg.g.array_w[: alg.n_q] = alg.gap_rate
-            solve(active, np.zeros_like(free))
+            alg.g.array_w[alg.n_q :] = alg.slip_rate
+            solve(active, np.zeros_like(free), still)
             system.x.copy(self.x2)
         finally:
             alg.f.array_w[:] = f_now
@@ -139,10 +174,10 @@ class ForceControl:
         The bordered step in increments: d delta = (F - w^T lam1) / (w^T lam2), x = x1 +
         d delta x2 (the same step as the module docstring's; x1 solved at delta_k).
         """
-        system, n_q = self.system, self.system.algebra.n_q
+        system = self.system
         w = system.algebra.resultant
-        lam1 = system.split(system.x)[1][:n_q]
-        lam2 = system.split(self.x2)[1][:n_q]
+        lam1 = system.split(system.x)[1]
+        lam2 = system.split(self.x2)[1]
         response = self._dot(w, lam2)
         if response == 0.0:
             raise np.linalg.LinAlgError(
@@ -172,10 +207,9 @@ class ForceControl:
             zeta.
         """
         system = self.system
-        n_u, n_q = system.n_u, system.algebra.n_q
         c = rhs.duplicate()
         c.set(0.0)
-        c.array_w[n_u : n_u + n_q] = system.algebra.resultant
+        c.array_w[system.n_u :] = system.algebra.resultant
         z2 = rhs.duplicate()
         z2.set(0.0)  # an iterative system starts from it
         try:

@@ -416,8 +416,8 @@ def _solutions(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution, p
     bordered = _Bordered(p2, rtol)
     force = ForceControl(bordered, move=False)
     try:
-        def solve(active: np.ndarray, free: np.ndarray) -> None:
-            bordered.x.array_w[:] = _forward(p2, sol, free, rtol, None)
+        def solve(active: np.ndarray, free: np.ndarray, couplings: Any) -> None:
+            bordered.x.array_w[:] = _forward(p2, sol, free, rtol, None)  # a symmetric law
 
         force.unit_response(solve, sol.system.active, sol.system.free)
         z2 = _dual(p2, sol, goal, z, rtol, force)

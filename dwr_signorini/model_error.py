@@ -326,9 +326,16 @@ def model_error(
     Raises:
         TypeError, ValueError: ``richer`` is no problem, or not ``sol``'s problem with a
             richer law (:func:`check_richer`); ``sol`` is a load step of a path (without
-            ``history``: its model error is that of the path, eq. (M7)).
+            ``history``: its model error is that of the path, eq. (M7)); an obstacle under a
+            given force.
     """
     check_richer(sol.disc.problem, richer)
+    if richer.force_obstacle is not None:
+        raise ValueError(
+            f"model_error: the obstacle {richer.force_obstacle!r} is under a given force, whose "
+            "displacement the richer model's Newton step does not border: the model error of a "
+            "force-controlled problem is not supported (prescribe the obstacle's position)"
+        )
     if sol.disc.u_old is not None and not history:
         raise ValueError(
             "model_error: sol is a load step of solve_path, whose richer model is a load path "
@@ -337,7 +344,9 @@ def model_error(
         )
     disc = sol.disc.for_problem(richer)
     if history and sol.disc.u_old is not None:
-        disc.set_u_old(sol.disc.u_old, sol.disc.obstacle_translation)
+        start = sol.disc.fields.obstacle_start
+        disc.set_u_old(sol.disc.u_old, sol.disc.obstacle_translation,
+                       None if start is None else float(start.value))
     if richer.finite_strain:
         from .strain_model_error import strain_model_error  # it builds on this module
 

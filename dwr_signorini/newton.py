@@ -244,23 +244,55 @@ def _check_initial_guess(disc: Discretization, initial_guess: Any) -> None:
         )
 
 
+#: Most re-solves of a force-controlled obstacle whose contact frame turned with delta.
+FRAME_RESOLVES = 10
+
+
 def _solve(
     disc: Discretization,
     initial_guess: tuple[fem.Function, ...] | None,
     options: SolverOptions,
 ) -> Solution:
-    """:func:`solve` with checked arguments: set up the Newton system, run the loop."""
+    """:func:`solve` with checked arguments, until N's contact frame is that of the final delta.
+
+    N is assembled at the delta the solve starts from; where the frame turns with a
+    force-controlled obstacle's delta (:meth:`~dwr_signorini.algebra.ContactAlgebra.
+    frame_change`), the solve is repeated from its solution (the system assembled at its
+    delta) until N changes by at most ``rtol``: the solution is then the displacement-
+    controlled one at its delta, and the estimator's forms (in the frame at delta) are its.
+    """
+    sol = _solve_once(disc, initial_guess, options)
+    for _ in range(FRAME_RESOLVES):
+        if sol.system.algebra.frame_change() <= options.rtol:
+            return sol
+        earlier = sol
+        try:
+            sol = _solve_once(disc, (earlier.u, *earlier.multipliers), options)
+        finally:
+            earlier.destroy()
+        sol.history[:0] = earlier.history
+        sol.newton_iterations += earlier.newton_iterations + 1
+    change = sol.system.algebra.frame_change()
+    sol.destroy()
+    raise ConvergenceError(
+        f"the contact frame of the obstacle under a given force still turns by {change:.2e} "
+        f"(relative change of N) after {FRAME_RESOLVES} re-solves at its displacement",
+        sol.history,
+    )
+
+
+def _solve_once(
+    disc: Discretization,
+    initial_guess: tuple[fem.Function, ...] | None,
+    options: SolverOptions,
+) -> Solution:
+    """One Newton solve: set up the Newton system, run the loop."""
     compile_options = options.compile_options
     symmetric = disc.problem.law.symmetric(disc.mesh.topology.dim)
     assembled = None
     method = options.method
     motions = free_motions(disc)
     obstacle = disc.problem.force_obstacle
-    if obstacle is not None and not symmetric:
-        raise ValueError(
-            f"an obstacle under a given force ({obstacle!r}) takes a frictionless or 2D Tresca "
-            "law (a symmetric Newton matrix)"
-        )
     if motions.count or obstacle is not None:
         method = held_method(method, motions.count)
     if method is None:
@@ -379,8 +411,7 @@ def _semismooth_newton(
             if force is None:
                 loop.linear_solve(it, new, new_free, couplings)
             else:
-                force.step(functools.partial(loop.linear_solve, it, couplings=couplings),
-                           new, new_free)
+                force.step(functools.partial(loop.linear_solve, it), new, new_free, couplings)
                 loop.moving = force.moving(rtol)
             u_new, lam_new = system.split(system.x)
             if not _all_finite(disc.comm, u_new, lam_new):

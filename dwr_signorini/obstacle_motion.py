@@ -23,11 +23,15 @@ the slip unaffected by construction:
   frame is n itself, moved along n (no tangential part);
 - the same object (gap, callable or obstacle) at both steps: no motion.
 
-A force-controlled obstacle moves by its unknown displacement delta d within a step; that
-motion has no tangential part only for a :class:`~dwr_signorini.obstacles.Plane` approached
-along its normal (its frame's normal), the one force-controlled obstacle a frictional problem
-accepts (:class:`~dwr_signorini.SignoriniProblem` refuses the others). Contact pairs carry
-their relative motion in u and are unaffected.
+A force-controlled obstacle moves by its unknown displacement delta d within a step, from
+delta_0 (0 in a single solve and on a path's first step, else the previous step's converged
+delta): its motion in step k is t_k + (delta_k - delta_(k-1)) d, t_k the translation of its
+given position, and the slip offsets g_l = B_l (u_old + t_k + (delta - delta_0) d) depend
+on the unknown delta (:meth:`~dwr_signorini.fields.MeshFields.obstacle_motion`, the bordered
+Newton step of :mod:`~dwr_signorini.force`). A frictional path refuses a force-controlled
+obstacle whose direction d changes from step to step, or that is under a given force at one
+step and given by its position at the next (its position there would not include the
+previous step's delta). Contact pairs carry their relative motion in u and are unaffected.
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ def step_translation(
     Raises:
         ValueError: The obstacle of a tag is not the previous one translated.
     """
+    _check_forced(previous, current, step)
     dim = current.mesh.geometry.dim
     moves = {}
     for tag in current.rigid_tags:
@@ -103,6 +108,26 @@ def step_translation(
     if not any(np.any(t != 0.0) for t in moves.values()):
         return None
     return moves
+
+
+def _check_forced(previous: SignoriniProblem, current: SignoriniProblem, step: int) -> None:
+    """Refuse a force-controlled obstacle whose motion across steps is not delta along one d.
+
+    Raises:
+        ValueError: Step k - 1's obstacle is under a given force and step k's is not, or
+            their directions of approach differ (module docstring).
+    """
+    old, new = previous.force_obstacle, current.force_obstacle
+    if old is None:
+        return
+    if new is None or not np.allclose(old.direction, new.direction, rtol=0.0, atol=1e-12):
+        raise ValueError(
+            f"solve_path: step {step - 1}'s obstacle {old!r} is under a given force and step "
+            f"{step}'s ({new!r}) is not, or has another direction of approach: with friction "
+            "the slip is measured from the obstacle's position at the previous step, which "
+            "its displacement along its direction then does not give; keep the obstacle under "
+            "a (possibly other) force along the same direction on the following steps"
+        )
 
 
 def _gap_of(problem: SignoriniProblem, tag: int) -> Any:

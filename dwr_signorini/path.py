@@ -478,7 +478,8 @@ def _step(
         disc = state.disc = _discretization(current, state)
     previous = state.solution
     with timed("transfer"):
-        disc.set_u_old(None if previous is None else previous.u, state.translations[k])
+        disc.set_u_old(None if previous is None else previous.u, state.translations[k],
+                       None if previous is None else previous.obstacle_displacement)
         guess = state.first_guess if previous is None else _warm_start(previous, disc)
     state.retire()
     t_setup = time.perf_counter() - t_start

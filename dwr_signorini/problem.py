@@ -25,7 +25,7 @@ from .fields import MeshFields, lame_parameters, stress
 from .laws import ContactLaw, check_law
 from .materials import Material, check_material_law
 from .mesh_validation import check_cell_tags, check_mesh, check_projection_fits, check_tags
-from .obstacles import Obstacle, Plane
+from .obstacles import Obstacle
 from .pairs import ContactPair
 from .quadrature import DATA_QUADRATURE_DEGREE
 from .validation import (
@@ -189,7 +189,6 @@ class SignoriniProblem:
         check_pair_bodies(mesh, facet_tags, self.pairs)
         self.law = check_law(friction, self)
         self.friction = self.law if self.law.frictional else None
-        _check_force_with_friction(self.force_obstacle, self.law)
         self.material_law = check_material_law(material, self)
         self._miss = _miss_gap(mesh, self.gap)  # collective: computed once, here
         self._frozen = True
@@ -402,31 +401,6 @@ def _force_obstacle(gap: Any, pairs: bool) -> Obstacle | None:
             "a gap per contact tag or beside contact pairs"
         )
     return forced[0]
-
-
-def _check_force_with_friction(obstacle: Obstacle | None, law: Any) -> None:
-    """A force-controlled obstacle with friction: only a plane approached along its normal.
-
-    The obstacle's displacement along its direction is an unknown of the solve; its part along
-    the contact frame's tangents would enter the slip, which is measured from the obstacle's
-    given position (:mod:`~dwr_signorini.obstacle_motion`). A plane approached along its normal
-    has no such part.
-
-    Raises:
-        ValueError: Another force-controlled obstacle with a frictional law.
-    """
-    if obstacle is None or not law.frictional:
-        return
-    if isinstance(obstacle, Plane) and abs(abs(float(obstacle.direction @ obstacle.normal))
-                                           - 1.0) <= 1e-12:
-        return
-    raise ValueError(
-        f"the obstacle {obstacle!r} is force-controlled with friction={law!r}: its displacement "
-        "along its direction is an unknown of the solve with a part along the contact frame's "
-        "tangents, which the slip does not subtract; with friction, force control is supported "
-        "only for a Plane approached along its normal (prescribe the obstacle's position, per "
-        "step of solve_path, instead)"
-    )
 
 
 def _frozen_error(name: str) -> NoReturn:

@@ -189,7 +189,7 @@ def dual_residual(
     with ``b_k(xi, v) = int c chi_k xi v . e_k``, ``c_k(xi, mu) = int (1 - chi_k) xi mu`` and
     chi_k = P_k' at w_h (the pointwise chi_h of the paper for the normal component, the stick
     indicator for the tangential one). With an obstacle under a given force the dual has the
-    entry zeta of its displacement, and the force balance w^T lam = F adds ``-zeta w(mu_n)``
+    entry zeta of its displacement, and the force balance w^T lam = F adds ``-zeta w(mu)``
     (:meth:`~dwr_signorini.spaces.Discretization.force_balance`). Where a projection acts on
     several components (Tresca's ball in 3D) its derivative J is a matrix, chi_k = J_kk, and
     b_k, c_k gain
@@ -214,7 +214,7 @@ def dual_residual(
             if j != k and _nonzero(J_kj):  # the coupling of a projection onto a ball
                 form += (c * xi * J_kj * ufl.dot(v_rel, e_j) + xi * J_kj * mu_j) * m.ds_contact
     if z.zeta is not None:  # the force balance's column of the bordered dual (dwr_signorini.force)
-        form -= z.zeta * disc.force_balance(mus[0])
+        form -= z.zeta * disc.force_balance(mus)
     dJ = None if goal is None else goal.directional(v, *mus)
     return form if dJ is None else dJ + form
 

@@ -197,7 +197,8 @@ class Discretization:
         out.prescribed_bcs = out.dirichlet_bcs(out.V, homogeneous=False)
         out._make_fields()
         out._body_force = None
-        out.m = dataclasses.replace(self.m, problem=problem, fields=out.fields)
+        out.m = dataclasses.replace(self.m, problem=problem, fields=out.fields,
+                                    obstacle_displacement=out.fields.obstacle_displacement)
         return out
 
     def vector_space(self, degree: int) -> fem.FunctionSpace:
@@ -285,26 +286,36 @@ class Discretization:
         """
         return self.fields.frame_normal(self.m.x, self.m.n)
 
-    def force_balance(self, mu: Any) -> Any:
+    def force_balance(self, mus: Any, per_component: bool = False) -> Any:
         """The force-balance row of an obstacle under a given force: w(mu), UFL.
 
-        ``w(mu) = int_GC (-n_c . d) mu ds`` (:mod:`~dwr_signorini.force`: w^T lam = F), d the
-        obstacle's direction of approach, n_c :meth:`contact_frame`.
+        ``w(mu) = sum_k int_GC (-e_k . d) mu_k ds`` (:mod:`~dwr_signorini.force`: w^T lam = F),
+        d the obstacle's direction of approach, e_0 = n_c and e_l the frame's tangents
+        (:meth:`directions`): the body's traction on the obstacle is lam_n n_c + lam_l e_l.
 
         Args:
-            mu: A normal multiplier (trial, test or discrete function).
+            mus: The multipliers of the law's components (a tuple, normal first; trial, test
+                or discrete functions), or one multiplier for a frictionless law.
+            per_component: Return each component's term instead of their sum.
 
         Returns:
-            The linear form ``w(mu)`` (UFL), a scalar for a discrete ``mu``.
+            The linear form ``w(mu)`` (UFL), a scalar for discrete multipliers.
 
         Raises:
-            ValueError: If the problem has no obstacle under a given force.
+            ValueError: If the problem has no obstacle under a given force, or ``mus`` is
+                not one multiplier per component of the law.
         """
-        obstacle = self.problem.force_obstacle
-        if obstacle is None:
-            raise ValueError("force_balance: the problem has no obstacle under a given force")
-        d = ufl.as_vector([float(c) for c in obstacle.direction])
-        return -ufl.dot(self.contact_frame(), d) * mu * self.m.ds_contact
+        mus = tuple(mus) if isinstance(mus, (tuple, list)) else (mus,)
+        d = self.fields.approach()
+        directions = self.directions(self.problem.law.components(self.mesh.topology.dim))
+        if len(mus) != len(directions):
+            raise ValueError(
+                f"force_balance: {len(directions)} multipliers expected (one per component of "
+                f"the law {self.problem.law!r}), got {len(mus)}"
+            )
+        terms = [-ufl.dot(e, d) * mu * self.m.ds_contact
+                 for e, mu in zip(directions, mus, strict=True)]
+        return terms if per_component else sum(terms)
 
     def directions(self, components: Any) -> list[Any]:
         """The directions of a law's components in its contact frame.
@@ -363,7 +374,8 @@ class Discretization:
         self._traces.clear()
 
     def set_u_old(
-        self, u_old: fem.Function | None, translation: dict[int, np.ndarray] | None = None
+        self, u_old: fem.Function | None, translation: dict[int, np.ndarray] | None = None,
+        obstacle_start: float | None = None,
     ) -> None:
         """Measure the slip of this discretisation's solves from ``u_old`` (a load step's start).
 
@@ -373,11 +385,16 @@ class Discretization:
             translation: ``{rigid contact tag: t}``, the obstacles' translation since
                 ``u_old`` (:func:`~dwr_signorini.obstacle_motion.path_translations`), or None:
                 the slip is measured from u_old + t (:meth:`slip_origin`).
+            obstacle_start: delta_0, the displacement of a force-controlled obstacle at
+                ``u_old`` (the previous step's; None: 0).
 
         Raises:
             TypeError: ``u_old`` is not a vector function of the mesh's dimension.
         """
         self.obstacle_translation = None if u_old is None else translation
+        if self.fields.obstacle_start is not None:
+            start = None if u_old is None else obstacle_start
+            self.fields.obstacle_start.value = 0.0 if start is None else start
         if u_old is None:
             self.u_old = None
             return
@@ -403,17 +420,21 @@ class Discretization:
         ``u_old - P u_old`` (:meth:`relative`), plus the translation t of a rigid obstacle that
         moved since the previous step (:mod:`~dwr_signorini.obstacle_motion`): the slip
         increment is (u - u_old - t) . e_l, and g_l = B_l (u_old + t), in the Newton matrix's
-        right-hand side and in the estimator's residuals alike.
+        right-hand side and in the estimator's residuals alike. A force-controlled obstacle
+        adds its motion in the step, (delta - delta_0) d
+        (:meth:`~dwr_signorini.fields.MeshFields.obstacle_motion`), with the Constant delta
+        of the solve.
 
         Returns:
-            A UFL vector on Gamma_C, or None outside a load path (zero).
+            A UFL vector on Gamma_C, or None (zero: outside a load path, no obstacle moved).
         """
+        motion = self.fields.obstacle_motion()
         if self.u_old is None:
-            return None
+            return motion
         origin = self.relative(self.u_old)
-        if self.obstacle_translation is None:
-            return origin
-        return origin + self.fields.translation(self.obstacle_translation)
+        if self.obstacle_translation is not None:
+            origin = origin + self.fields.translation(self.obstacle_translation)
+        return origin if motion is None else origin + motion
 
     def _make_fields(self) -> None:
         """The problem's fields on T_h and T_H: cell tags of T_h (from the parents), indicators."""

@@ -225,16 +225,20 @@ def test_refused_changes(second, match):
 
 
 def test_refused_force_controlled_disc():
-    """(d) A force-controlled disc with friction (its unknown approach would enter the slip)
-    is refused, for a single solve as for a path, with either law; without friction it is
-    accepted; a force-controlled flat approached along its normal is accepted with friction."""
+    """(d) A force-controlled disc with friction is accepted (its unknown approach enters the
+    slip, :mod:`dwr_signorini.force`, ``tests/test_force_friction.py``); a frictional path
+    refuses one whose direction changes between steps, or that is given by its position after
+    a step under a given force (the previous step's delta would be lost); a force-controlled
+    flat approached along its normal has no tangential motion."""
     msh, tags = block(4, 2)
     disc = Sphere((0.5, -R), R, force=0.1, direction=(0.0, 1.0))
-    for law in (ds.Coulomb(0.3), ds.Tresca(0.01)):
-        with pytest.raises(ValueError, match="force-controlled with friction"):
-            path(msh, tags, [disc], [(0.0, 0.0)], law=law)
-    assert path(msh, tags, [disc], [(0.0, 0.0)], law=ds.Frictionless())[0].force_obstacle is disc
+    for law in (ds.Coulomb(0.3), ds.Tresca(0.01), ds.Frictionless()):
+        assert path(msh, tags, [disc], [(0.0, 0.0)], law=law)[0].force_obstacle is disc
     from dwr_signorini.obstacle_motion import path_translations
 
+    tilted = Sphere((0.5, -R), R, force=0.1, direction=(0.1, 1.0))
+    for second in (tilted, Sphere((0.5, -R), R)):
+        with pytest.raises(ValueError, match="under a given force"):
+            path_translations(path(msh, tags, [disc, second], [(0.0, 0.0)] * 2))
     flat = Plane((0.0, 0.0), (0.0, -1.0), force=0.1)
     assert path_translations(path(msh, tags, [flat, flat], [(0.0, 0.0)] * 2)) == [None, None]

@@ -10,11 +10,16 @@ by a block 40 x 20 with facets of 0.005 where a rigid cylinder of radius R = 10 
   give one c / a (to 0.036 in the half-plane theory itself, which couples the normal problem
   through beta mu: ``tests/test_halfplane_contact.py``);
 * c / a is the half-plane theory's, computed in the test by the boundary elements of
-  ``tests/halfplane_contact.py`` (the same theory solved by another method).
+  ``tests/halfplane_contact.py`` (the same theory solved by another method);
+* the press stated by the cylinder's force, as the theory states it (the bottom clamped, the
+  cylinder under Hertz loads, ``spence_block_path(..., loads=...)``): a_h is Hertz's a(P) and
+  c_h / a_h the boundary elements', within one facet.
 
 Measured (``scripts/fenicsx python3 -m pytest -s tests/test_spence.py`` prints the rows):
 see the tests' docstrings.
 """
+
+import math
 
 from mpi4py import MPI
 
@@ -33,13 +38,32 @@ _CACHE: dict = {}
 _BEM: dict = {}
 
 
-def spence_rows(nu, mu, h_contact=0.005, ratio=1.07):
-    """The :class:`~dwr_signorini.cases.CMMeasure` of every step of the press, cached."""
-    key = (nu, mu, h_contact, ratio, COMM.size)
+def hertz_loads(nu, ratio=1.07, a=0.12):
+    """Loads P per unit length whose Hertz half-widths grow by ``ratio`` per step up to ``a``
+    (a = sqrt(4 P R / (pi E*)), the schedule of :func:`~dwr_signorini.cases.spence_presses`)."""
+    e_star = cases.SPENCE_DEFAULTS["E"] / (1.0 - nu**2)
+    load = math.pi * e_star * a**2 / (4.0 * cases.SPENCE_DEFAULTS["radius"])
+    return cases.spence_presses(press=load, ratio=ratio)
+
+
+def hertz_half_width(load, nu):
+    """Hertz's a = sqrt(4 P R / (pi E*)) of the cylinder of the case."""
+    e_star = cases.SPENCE_DEFAULTS["E"] / (1.0 - nu**2)
+    return math.sqrt(4.0 * load * cases.SPENCE_DEFAULTS["radius"] / (math.pi * e_star))
+
+
+def spence_rows(nu, mu, h_contact=0.005, ratio=1.07, forced=False):
+    """The :class:`~dwr_signorini.cases.CMMeasure` of every step of the press, cached; with
+    ``forced`` the press by the cylinder's force (:func:`hertz_loads`)."""
+    key = (nu, mu, h_contact, ratio, forced, COMM.size)
     if key not in _CACHE:
         rows = []
-        presses = cases.spence_presses(ratio=ratio)
-        problems = cases.spence_block_path(COMM, presses, mu=mu, nu=nu, h_contact=h_contact)
+        if forced:
+            problems = cases.spence_block_path(COMM, loads=hertz_loads(nu, ratio), mu=mu,
+                                               nu=nu, h_contact=h_contact)
+        else:
+            problems = cases.spence_block_path(COMM, cases.spence_presses(ratio=ratio), mu=mu,
+                                               nu=nu, h_contact=h_contact)
         radius = cases.SPENCE_DEFAULTS["radius"]
 
         def keep(record, sol, est):
@@ -85,6 +109,24 @@ def test_stick_zone_is_self_similar_on_a_block():
         assert abs(m.c_h - r * m.a_h) <= m.h_facet, (m.c_h / m.a_h, r)
         assert abs(m.stick_center) <= 0.5 * m.h_facet, m.stick_center
 
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_press_by_force_is_the_half_plane_theory():
+    """The press stated by the cylinder's force (the half-plane theory's load-controlled
+    press, ``tests/halfplane_contact.py``), nu = 0.3, mu = 0.3: on the later steps a_h within
+    one facet of Hertz's a(P), and the mean c_h / a_h within h_facet / a_h of the boundary
+    elements' c / a. Measured (serial): a_h 0.2 to 0.95 facets below Hertz's a (the outer
+    facet, partly in contact, not counted), mean c_h / a_h 0.704 against 0.685 (0.691 under
+    the displacement-controlled press), h_facet / a_h 0.045."""
+    nu, mu = 0.3, 0.3
+    rows, loads = spence_rows(nu, mu, forced=True), hertz_loads(nu)
+    for m, load in zip(rows[-LATER:], loads[-LATER:], strict=True):
+        assert abs(m.a_h - hertz_half_width(load, nu)) <= m.h_facet, (m.a_h, load)
+        assert m.num_stick > 0 and m.num_slip > 0, (m.num_stick, m.num_slip)
+    measured, theory = _ratio(rows), bem_ratio(nu, mu)
+    assert abs(measured - theory) <= rows[-1].h_facet / rows[-1].a_h, (measured, theory)
 
 
 @pytest.mark.slow

@@ -138,13 +138,14 @@ def spence_block_path(
     E: float = SPENCE_DEFAULTS["E"],
     radius: float = SPENCE_DEFAULTS["radius"],
     mesh: tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags] | None = None,
+    loads: Sequence[float] | None = None,
     **sizes: float,
 ) -> list[SignoriniProblem]:
     """The monotone press of the module docstring, one problem per press, for ``solve_path``.
 
     Each step displaces the block's bottom by ``(0, press)`` towards the rigid cylinder of
     radius ``radius`` centred at (0, radius), with Coulomb friction ``mu``; Dundurs' beta is
-    ``cases.dundurs_beta(nu)``, eq. (S1).
+    ``cases.dundurs_beta(nu)``, eq. (S1); or, with ``loads``, the cylinder pressed by a force.
 
     Args:
         comm: The communicator (collective).
@@ -157,27 +158,40 @@ def spence_block_path(
         mesh: ``(msh, cell_tags, facet_tags)`` with the tags of :func:`spence_block_mesh`, or
             None to build it.
         **sizes: The sizes of :func:`spence_block_mesh` (without ``mesh``).
+        loads: The cylinder's forces P per unit length, increasing and positive (Hertz: a =
+            sqrt(4 P R / (pi E*))), in place of ``presses``: the press stated as the
+            half-plane theory states it, the bottom clamped and the cylinder pressed down
+            (:mod:`~dwr_signorini.force`; its motion is part of the slip).
 
     Returns:
         One problem per press, on one mesh.
 
     Raises:
-        ValueError: If the presses are not positive and increasing.
-        TypeError: If both ``mesh`` and sizes are given.
+        ValueError: If the presses (or loads) are not positive and increasing.
+        TypeError: If both ``mesh`` and sizes, or both ``presses`` and ``loads``, are given.
     """
-    presses = spence_presses() if presses is None else [float(d) for d in presses]
-    if not presses or presses[0] <= 0 or any(b <= a for a, b in itertools.pairwise(presses)):
-        raise ValueError(f"spence_block_path: presses must be positive and increasing, got "
-                         f"{presses}")
+    if loads is not None and presses is not None:
+        raise TypeError("spence_block_path: give presses= or loads=, not both")
+    values = loads if loads is not None else spence_presses() if presses is None else presses
+    values = [float(d) for d in values]
+    if not values or values[0] <= 0 or any(b <= a for a, b in itertools.pairwise(values)):
+        raise ValueError(f"spence_block_path: {'loads' if loads is not None else 'presses'} "
+                         f"must be positive and increasing, got {values}")
     if mesh is None:
         mesh = spence_block_mesh(comm, **sizes)
     elif sizes:
         raise TypeError("spence_block_path: give mesh= or the mesh's sizes, not both")
     msh, cell_tags, facet_tags = mesh
-    cylinder, law = Sphere((0.0, radius), radius), Coulomb(mu)
-    return [
-        SignoriniProblem(
-            msh, facet_tags, contact=CM_CONTACT, dirichlet={CM_TOP: (0.0, press)},
-            E=E, nu=nu, model="plane_strain", gap=cylinder, friction=law, cell_tags=cell_tags)
-        for press in presses
-    ]
+    law = Coulomb(mu)
+
+    def step(value: float) -> SignoriniProblem:
+        if loads is None:
+            gap, bottom = Sphere((0.0, radius), radius), (0.0, value)
+        else:
+            gap = Sphere((0.0, radius), radius, force=value, direction=(0.0, -1.0))
+            bottom = (0.0, 0.0)
+        return SignoriniProblem(
+            msh, facet_tags, contact=CM_CONTACT, dirichlet={CM_TOP: bottom},
+            E=E, nu=nu, model="plane_strain", gap=gap, friction=law, cell_tags=cell_tags)
+
+    return [step(value) for value in values]
