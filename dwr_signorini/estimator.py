@@ -242,15 +242,6 @@ def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
     if weights == "patch":
         z2, w2 = z, None
     else:
-        if weights == "hierarchical" and not sol.disc.problem.law.symmetric(
-            sol.disc.mesh.topology.dim
-        ):
-            raise ValueError(
-                "weights='hierarchical': the two-level P2 solver works on symmetric Newton "
-                "matrices; Tresca friction in 3D and Coulomb friction have coupled rows on "
-                "slipping facets: use "
-                "weights='higher_order' (the P2 system factored by LU) or 'patch'"
-            )
         z2, w2 = inp.parts.p2_solutions(
             sol, weights, inp.goal_forms, z, want_eta, inp.petsc_options
         )
