@@ -20,6 +20,7 @@ from dolfinx import fem, mesh
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini import hierarchical
+from dwr_signorini import weights as auto_weights
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.estimator import _higher_order_solutions
 from dwr_signorini.goal import GoalForms
@@ -169,3 +170,16 @@ def test_adaptive_run_with_hierarchical_weights():
     for level, weights, eta, eta_high, scale in levels:
         assert weights == "hierarchical"
         assert abs(eta - eta_high) <= 10 * hierarchical.HIERARCHICAL_RTOL * scale, level
+
+
+@pytest.mark.parametrize(("case", "kind"), [
+    ("Tresca friction 2D", "hierarchical"), ("Coulomb friction 2D", "hierarchical"),
+    ("Coulomb friction 3D", "higher_order"), ("Tresca friction 3D", "higher_order"),
+])
+def test_auto_takes_hierarchical_weights_for_coupled_rows_in_2d_only(case, kind):
+    """The P2 weights of weights="auto" (weights.p2_kind): the two-level solver for a symmetric
+    law and for coupled rows in 2D, where it was the faster; the factored P2 system for coupled
+    rows in 3D, where it was not (weights.HIERARCHICAL_COUPLED_DIMS)."""
+    build, _ = CASES[case]
+    with ds.solve(build(MPI.COMM_WORLD)) as sol:
+        assert auto_weights.p2_kind(sol) == kind
