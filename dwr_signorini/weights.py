@@ -122,8 +122,8 @@ def p2_weights_fit(V2: fem.FunctionSpace, kind: str) -> tuple[bool, int, int]:
 #: 147k P1 DoFs, 5.79 / 4.54 on 1 rank and 8.93 / 6.76 on 2 (8 + 5), 15k DoFs 1.44 / 1.06 on
 #: 2 ranks (7 + 5), 7k DoFs 0.28 / 0.23 on 1 (6 + 4); the long block of
 #: ``benchmarks/region_level_cost.py`` (8.7k DoFs) 0.42 / 0.41 on 1 rank, 0.36 / 0.40 on 2.
-#: 3D Coulomb on its box (``--dim 3``), every contact facet slipping: 4.5k DoFs 1.13 / 2.41
-#: (20 + 18), 30k DoFs 24.3 / 22.6 (32 + 28).
+#: 3D Coulomb on its box (``--dim 3``), every contact facet slipping: 4.5k DoFs 1.39 / 2.62 on
+#: 1 rank, 1.50 / 2.59 on 2 (20 + 18), 30k DoFs (``--n 8``) 26.6 / 26.7 on 1 (32 + 28).
 HIERARCHICAL_COUPLED_DIMS = (2,)
 
 
