@@ -14,6 +14,9 @@ on P1 subset P2 (a p-multigrid cycle; on Q2 the coarse space is Q1):
    (:mod:`~dwr_signorini.dual`);
 3. the smoothing again.
 
+The operator is the Newton matrix of the final sets for every law: a law with coupled rows
+(Coulomb friction, Tresca friction in 3D) brings its slipping facets' rows
+(:func:`~dwr_signorini.linalg.coupled.newton_rows`), and the coarse step its P1 LU factors.
 The dual's unknowns are y and the multiplier xi^(1) of the Newton system's scaling (c = 1 in
 b_h, see :mod:`~dwr_signorini.residuals`): xi = xi^(1) / c on the active facets; the primal's
 are the correction of w_h. The iterations start from z_h and w_h written in P2. No matrix of
