@@ -16,6 +16,13 @@ version of ``dwr_signorini/hierarchical.py`` (in the same run, on the same solut
         --baseline results/baseline_hierarchical.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/p2_weights_cost.py --n 190 \
         --baseline results/baseline_hierarchical.py
+
+``--law coulomb`` puts Coulomb friction (``--mu``) on the contact, whose Newton matrix has
+coupled rows on the slipping facets; ``--weights`` names the weights of the last estimate
+(default ``"auto"``), e.g. the factored against the hierarchical P2 weights in one run::
+
+    scripts/fenicsx python3 benchmarks/p2_weights_cost.py --n 190 --nu 0.3 --law coulomb \
+        --compare --weights hierarchical --repeat 2
 """
 
 from __future__ import annotations
@@ -41,7 +48,7 @@ from dwr_signorini import examples as ex
 from dwr_signorini.timing import snapshot
 
 
-def hertz_problem(comm: MPI.Comm, n: int, nu: float) -> ds.SignoriniProblem:
+def hertz_problem(comm: MPI.Comm, n: int, nu: float, law: Any = None) -> ds.SignoriniProblem:
     """The indented block on n x n/2 squares (the slightly off-square ratio avoids ties)."""
     msh = mesh.create_rectangle(comm, [(0.0, 0.0), (1.0, 0.5)], [n, n // 2 + 1],
                                 mesh.CellType.triangle, ghost_mode=mesh.GhostMode.none)
@@ -50,7 +57,7 @@ def hertz_problem(comm: MPI.Comm, n: int, nu: float) -> ds.SignoriniProblem:
     return ds.SignoriniProblem(
         msh, ex.tag_block_facets(msh, 0.5), contact=ex.CONTACT,
         dirichlet=(ex.DIRICHLET,), E=10.0, nu=nu, model="plane_strain",
-        gap=lambda x: (x[0] - 0.5) ** 2 / 2.0 - 0.01,
+        gap=lambda x: (x[0] - 0.5) ** 2 / 2.0 - 0.01, friction=law,
     )
 
 
@@ -129,14 +136,21 @@ def main() -> None:
     parser.add_argument("--compare", action="store_true",
                         help="also estimate with patch and higher_order weights")
     parser.add_argument("--baseline", help="a file with another hierarchical.py to compare")
+    parser.add_argument("--law", choices=("frictionless", "coulomb"), default="frictionless")
+    parser.add_argument("--mu", type=float, default=0.3, help="Coulomb's friction coefficient")
+    parser.add_argument("--weights", default="auto", help="the weights of the last estimate")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="rounds of the estimates (patch, higher_order, --weights); the "
+                             "last one's timings count")
     args = parser.parse_args()
+    law = ds.Coulomb(args.mu) if args.law == "coulomb" else None
     comm = MPI.COMM_WORLD
     count_iterations()
     baseline = None
     if args.baseline:
         baseline = baseline_module(args.baseline)
         count_iterations(baseline)
-    disc = ds.discretize(hertz_problem(comm, args.n, args.nu))
+    disc = ds.discretize(hertz_problem(comm, args.n, args.nu, law))
     comm.Barrier()
     before, tic = snapshot(), time.perf_counter()
     with ds.solve(disc) as sol:
@@ -144,9 +158,16 @@ def main() -> None:
         spent = phases(before, snapshot())
         if comm.rank == 0:
             print(f"{comm.size} rank(s), {disc.mesh.topology.index_map(2).size_global} cells, "
-                  f"{disc.num_dofs} DoFs, nu = {args.nu}")
+                  f"{disc.num_dofs} DoFs, nu = {args.nu}, {args.law}")
+        if sol.stick is not None:
+            counts = (sol.num_stick, sol.num_slip)  # collective
+            if comm.rank == 0:
+                print(f"stick {counts[0]}, slip {counts[1]}")
             print(f"solve: {t_solve:.2f} s, {sol.newton_iterations} Newton steps; phases: "
                   + ", ".join(f"{k} {v:.2f}" for k, v in spent.items()))
+        for _ in range(args.repeat - 1):  # a first round compiles (or loads) the forms
+            for weights in ("patch", "higher_order", args.weights):
+                estimate(comm, sol, weights, False, t_solve)
         if args.compare:  # first, so that the P2 forms are compiled before the timings below
             for weights in ("patch", "higher_order"):
                 estimate(comm, sol, weights, False, t_solve)
@@ -158,7 +179,7 @@ def main() -> None:
             estimator.hierarchical_solutions = hierarchical.hierarchical_solutions
             if comm.rank == 0:
                 print("this version:")
-        estimate(comm, sol, "auto", args.profile, t_solve)
+        estimate(comm, sol, args.weights, args.profile, t_solve)
 
 
 if __name__ == "__main__":

@@ -89,9 +89,9 @@ class Estimate(Releasable):
             ``weights="auto"`` takes "patch" where the contact set is resolved, and P2 weights
             on a level whose contact set is not (``resolved`` below, with the patch weights)
             and on every level of a nearly incompressible material
-            (:func:`nearly_incompressible`, nu >= 0.45): "hierarchical" for a symmetric
-            Newton matrix, "higher_order" for a law with coupled rows (Tresca friction in 3D,
-            Coulomb friction), whose nonsymmetric matrix the two-level solver does not take.
+            (:func:`nearly_incompressible`, nu >= 0.45): "hierarchical", but "higher_order"
+            for a law with coupled rows in 3D (Tresca and Coulomb friction), where the
+            two-level solver was not faster (:func:`~dwr_signorini.weights.p2_kind`).
         indicators: DG0 function on T_h of signed cell indicators; their sum is the estimate.
         dual: z_h = (y_h, xi_H).
         goal_is_linear: Whether J is linear in (u, lambda) (then R_J vanishes).
@@ -242,15 +242,6 @@ def _weights(inp: _Inputs, weights: str) -> tuple[Any, tuple, Any, Any, tuple]:
     if weights == "patch":
         z2, w2 = z, None
     else:
-        if weights == "hierarchical" and not sol.disc.problem.law.symmetric(
-            sol.disc.mesh.topology.dim
-        ):
-            raise ValueError(
-                "weights='hierarchical': the two-level P2 solver works on symmetric Newton "
-                "matrices; Tresca friction in 3D and Coulomb friction have coupled rows on "
-                "slipping facets: use "
-                "weights='higher_order' (the P2 system factored by LU) or 'patch'"
-            )
         z2, w2 = inp.parts.p2_solutions(
             sol, weights, inp.goal_forms, z, want_eta, inp.petsc_options
         )
@@ -380,14 +371,15 @@ def estimate(
             round-off while the patch estimate does not, see
             :mod:`~dwr_signorini.interval`, and on every level of a nearly incompressible
             material, :func:`nearly_incompressible`; the factored P2 ones, ``"higher_order"``,
-            for a law with coupled rows: Tresca friction in 3D, Coulomb friction; but the
+            for a law with coupled rows in 3D: Tresca and Coulomb friction; but the
             patch weights where the P2 ones' predicted memory does not fit,
             :func:`~dwr_signorini.weights.p2_weights_fit`, said by a log line and
             ``Estimate.weights_fallback``),
             ``"patch"`` (the paper's patch-wise reconstructions), ``"higher_order"`` (dual,
             and for eta the primal, solved in P2 with Lambda_H and the final active set, by a
             factorisation) or ``"hierarchical"`` (the same P2 solutions by a two-level
-            iteration on the Newton factors, :mod:`~dwr_signorini.hierarchical`).
+            iteration on the Newton factors, :mod:`~dwr_signorini.hierarchical`, for every
+            law, coupled rows included).
         petsc_options: Linear solver options for the higher-order solves (as
             :class:`~dwr_signorini.settings.EstimateOptions`).
         quadrature_degree: Quadrature degree of the non-polynomial residual integrals: the

@@ -14,6 +14,9 @@ on P1 subset P2 (a p-multigrid cycle; on Q2 the coarse space is Q1):
    (:mod:`~dwr_signorini.dual`);
 3. the smoothing again.
 
+The operator is the Newton matrix of the final sets for every law: a law with coupled rows
+(Coulomb friction, Tresca friction in 3D) brings its slipping facets' rows
+(:func:`~dwr_signorini.linalg.coupled.newton_rows`), and the coarse step its P1 LU factors.
 The dual's unknowns are y and the multiplier xi^(1) of the Newton system's scaling (c = 1 in
 b_h, see :mod:`~dwr_signorini.residuals`): xi = xi^(1) / c on the active facets; the primal's
 are the correction of w_h. The iterations start from z_h and w_h written in P2. No matrix of
@@ -43,6 +46,7 @@ from .dual import DualSolution, dual_rhs
 from .force import ForceControl
 from .goal import GoalForms
 from .lifetime import Releasable, destroy_attributes
+from .linalg.coupled import newton_rhs, newton_rows
 from .linalg.options import OptionsScope, unique_prefix
 from .newton import Solution
 from .timing import timed
@@ -106,9 +110,13 @@ class _P2System:
     FGMRES with the two-level preconditioner, on one solution; the matrices serve both solves.
     Unknowns [u (P2, owned dofs); lambda (owned multipliers)]. With the P2 stiffness K_2 and
     coupling N_2 (Dirichlet rows and columns removed, as in the P1 system) the Newton matrix of
-    :mod:`~dwr_signorini.linalg` is A = [[K_2, N_2^T], [-D_A N_2, D_I M]]; with
-    :attr:`transpose` the solver works on A^T = [[K_2, -N_2^T D_A], [N_2, D_I M]], the dual
-    system of :mod:`~dwr_signorini.dual`, whose multiplier is xi^(1).
+    :mod:`~dwr_signorini.linalg` is A = [[K_2, N_2^T], [W N_2, G]], with the multiplier rows
+    W, G of the final sets and the law's coupled facets
+    (:func:`~dwr_signorini.linalg.coupled.newton_rows`: W = -D_A, G = D_I M for a symmetric
+    law; the rows -c J N_2, (I - J) M of a slipping facet otherwise), the matrix the factored
+    P2 system of ``weights="higher_order"`` builds; with :attr:`transpose` the solver works on
+    A^T = [[K_2, N_2^T W^T], [N_2, G^T]], the dual system of :mod:`~dwr_signorini.dual`, whose
+    multiplier is xi^(1) on the constrained rows.
     """
 
     _petsc_objects = ("P", "smoother", "r_s", "d_s", "ksp", "op", "b", "x", "rhs1", "z1")
@@ -136,7 +144,9 @@ class _P2System:
 
         self.n2 = self.K2.getLocalSize()[0]
         self.n_lam = system.n_lam
-        self.inactive_mass = np.where(system.active, 0.0, system.M.array)
+        self.W, self.G = newton_rows(system.active, system.couplings, self.algebra.c_n,
+                                     self.algebra.M.array)
+        self.WT, self.GT = self.W.T.tocsr(), self.G.T.tocsr()
         n = self.n2 + self.n_lam
         self.op = PETSc.Mat().createPython(((n, None), (n, None)), comm=disc.comm)
         self.op.setPythonContext(_Operator(self))
@@ -162,21 +172,20 @@ class _P2System:
         return PETSc.Vec().createWithArray(arr, size=(self.n_lam, None), comm=self.disc.comm)
 
     def apply(self, x: np.ndarray, out: np.ndarray) -> None:
-        """The operator applied to x, into ``out`` (owned arrays)."""
-        active = self.system.active
+        """A (or A^T with :attr:`transpose`) applied to x, into ``out`` (owned arrays)."""
         u, lam = x[: self.n2], x[self.n2 :]
         u_vec, out_u = self._u_vec(np.ascontiguousarray(u)), self._u_vec(out[: self.n2])
-        # A^T couples -N^T D_A xi into the displacement rows, A couples N^T lambda.
-        lam_vec = self._lam_vec(np.ascontiguousarray(-lam * active if self.transpose else lam))
+        # A^T couples N^T W^T xi into the displacement rows, A couples N^T lambda.
+        lam_vec = self._lam_vec(np.ascontiguousarray(self.WT @ lam if self.transpose else lam))
         out_lam = self._lam_vec(out[self.n2 :])
         tmp = out_u.duplicate()
         self.K2.mult(u_vec, out_u)
         self.N2.multTranspose(lam_vec, tmp)
         out_u.axpy(1.0, tmp)
         self.N2.mult(u_vec, out_lam)
-        n_u = out_lam.array if self.transpose else np.where(active, -out_lam.array, 0.0)
+        n_u = out_lam.array if self.transpose else self.W @ out_lam.array
         out[: self.n2] = out_u.array
-        out[self.n2 :] = n_u + self.inactive_mass * lam
+        out[self.n2 :] = n_u + (self.GT if self.transpose else self.G) @ lam
         for vec in (u_vec, out_u, lam_vec, out_lam, tmp):
             vec.destroy()
 
@@ -360,7 +369,10 @@ def _dual(p2: _P2System, sol: Solution, goal: GoalForms, z: DualSolution, rtol: 
 def _forward(
     p2: _P2System, sol: Solution, free: np.ndarray, rtol: float, start: np.ndarray | None
 ) -> np.ndarray:
-    """A x = [f_2; -D_A g; M_I free_I] of the P2 algebra's f and g, from ``start`` (or 0).
+    """A x = [f_2; h] of the P2 algebra's f and g, from ``start`` (or 0).
+
+    h = [-D_A g; M_I free_I] and the coupled facets' rows
+    (:func:`~dwr_signorini.linalg.coupled.newton_rhs`, as the factored P2 system's).
 
     Solved as the correction of ``start``, so ``rtol`` is relative to the residual of the
     start (its rows mix forces and gaps, whose right-hand sides differ by many orders of
@@ -371,15 +383,16 @@ def _forward(
     Returns:
         x = [u (P2); lambda] (owned values).
     """
-    active, algebra = sol.system.active, p2.algebra
+    system, algebra = sol.system, p2.algebra
     start = np.zeros(p2.n2 + p2.n_lam) if start is None else start
     p2.transpose = False
     residual = np.empty_like(start)
     p2.apply(start, residual)
     # the constrained rows -(B u)_A = -g_A, the free ones M_I lam_I = M_I free_I (0 inactive)
-    rhs = np.concatenate([algebra.f.array, np.where(active, -algebra.g.array,
-                                                     algebra.M.array * free)])
-    g_active = algebra.g.array[active]
+    h = newton_rhs(system.active, system.couplings, algebra.c_n, algebra.M.array,
+                   algebra.g.array, free)
+    rhs = np.concatenate([algebra.f.array, h])
+    g_active = algebra.g.array[system.active]
     rhs_norm = math.sqrt(sol.disc.comm.allreduce(
         float(algebra.f.array @ algebra.f.array + g_active @ g_active), op=MPI.SUM))
     correction = p2.solve(False, np.zeros_like(start), rhs - residual, rtol,

@@ -1,10 +1,10 @@
 """Which weights ``weights="auto"`` of :func:`~dwr_signorini.estimator.estimate` takes.
 
-The patch weights where they serve; P2 weights (hierarchical for a symmetric law, factored
-otherwise) for a nearly incompressible material, on a level whose contact set is not
-resolved, and where J_h vanishes to round-off but the patch estimate does not; never P2
-weights that would not fit in memory (predicted from global sizes, the same on every rank, as
-the solver's method is chosen).
+The patch weights where they serve; P2 weights (hierarchical, but factored for a law with
+coupled rows in 3D, :func:`p2_kind`) for a nearly incompressible material, on a level whose
+contact set is not resolved, and where J_h vanishes to round-off but the patch estimate does
+not; never P2 weights that would not fit in memory (predicted from global sizes, the same on
+every rank, as the solver's method is chosen).
 """
 
 from __future__ import annotations
@@ -115,10 +115,28 @@ def p2_weights_fit(V2: fem.FunctionSpace, kind: str) -> tuple[bool, int, int]:
     return need <= memory.FACTOR_FRACTION * available, need, available
 
 
+#: Dimensions in which ``"auto"`` takes the hierarchical P2 weights for a law with coupled rows
+#: (Coulomb friction, Tresca friction in 3D); in the others the factored ones. Measured (seconds
+#: of the estimate, factored / hierarchical, in one run each, FGMRES iterations dual + primal):
+#: 2D Coulomb on the Hertz block of ``benchmarks/p2_weights_cost.py --nu 0.3 --law coulomb``,
+#: 147k P1 DoFs, 5.79 / 4.54 on 1 rank and 8.93 / 6.76 on 2 (8 + 5), 15k DoFs 1.44 / 1.06 on
+#: 2 ranks (7 + 5), 7k DoFs 0.28 / 0.23 on 1 (6 + 4); the long block of
+#: ``benchmarks/region_level_cost.py`` (8.7k DoFs) 0.42 / 0.41 on 1 rank, 0.36 / 0.40 on 2.
+#: 3D Coulomb on its box (``--dim 3``), every contact facet slipping: 4.5k DoFs 1.39 / 2.62 on
+#: 1 rank, 1.50 / 2.59 on 2 (20 + 18), 30k DoFs (``--n 8``) 26.6 / 26.7 on 1 (32 + 28).
+HIERARCHICAL_COUPLED_DIMS = (2,)
+
+
 def p2_kind(sol: Any) -> str:
-    """The P2 weights of ``"auto"``: hierarchical for a symmetric law, else factored."""
-    disc = sol.disc
-    return "hierarchical" if disc.problem.law.symmetric(disc.mesh.topology.dim) else "higher_order"
+    """The P2 weights of ``"auto"``: hierarchical, but factored for coupled rows in 3D.
+
+    A symmetric law, or coupled rows in :data:`HIERARCHICAL_COUPLED_DIMS`: ``"hierarchical"``;
+    otherwise ``"higher_order"``.
+    """
+    tdim = sol.disc.mesh.topology.dim
+    if sol.disc.problem.law.symmetric(tdim) or tdim in HIERARCHICAL_COUPLED_DIMS:
+        return "hierarchical"
+    return "higher_order"
 
 
 def second_weights(

@@ -326,14 +326,11 @@ def test_higher_order_weights_solve_the_coupled_p2_system():
 
 
 def test_symmetric_only_paths_are_refused_by_name():
-    """The Schur path, a Cholesky factorisation and the hierarchical P2 weights need symmetric
-    Newton matrices: each refused with an error naming what to use instead."""
+    """The Schur path and a Cholesky factorisation need symmetric Newton matrices: each
+    refused with an error naming what to use instead."""
     problem = example(MPI.COMM_SELF)
     with pytest.raises(ValueError, match=r"method=.schur.*method=.block."):
         ds.solve(problem, method="schur")
     with pytest.raises(ValueError, match=r"pc_type .cholesky.*LU"):
         ds.solve(problem, petsc_options={"pc_type": "cholesky",
                                          "pc_factor_mat_solver_type": "mumps"})
-    with ds.solve(problem) as sol:
-        with pytest.raises(ValueError, match=r"weights=.hierarchical.*higher_order"):
-            ds.estimate(sol, ex.goal_friction_force(), weights="hierarchical")

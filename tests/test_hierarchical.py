@@ -20,6 +20,7 @@ from dolfinx import fem, mesh
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
 from dwr_signorini import hierarchical
+from dwr_signorini import weights as auto_weights
 from dwr_signorini.dual import solve_dual
 from dwr_signorini.estimator import _higher_order_solutions
 from dwr_signorini.goal import GoalForms
@@ -43,6 +44,21 @@ def _difference(a: fem.Function, b: fem.Function) -> float:
     return _norm(d) / _norm(b)
 
 
+def _with_law(problem: ds.SignoriniProblem, law) -> ds.SignoriniProblem:
+    return problem.with_mesh(problem.mesh, problem.facet_tags, law=law)
+
+
+def _friction_3d(comm: MPI.Comm) -> ds.SignoriniProblem:
+    """The sheared block on a sphere of tests/test_friction_3d.py, on 4 x 4 x 2 boxes."""
+    return ex.friction_problem(comm, nx=4, ny=2, dim=3, radius=4.0, s=0.2)
+
+
+def _stick_and_slip(sol) -> None:
+    """A frictional case has both stick and slip facets (the coupled rows are the slip's)."""
+    if sol.stick is not None:
+        assert sol.num_stick > 0 and sol.num_slip > 0, (sol.num_stick, sol.num_slip)
+
+
 CASES = {
     "strip 2D": (lambda comm: strip_problem(comm, 16, 4), total_force),
     "example 5.1, quadrilaterals": (
@@ -51,6 +67,12 @@ CASES = {
     ),
     "example 5.3": (lambda comm: ex.obstacle_problem(comm, (1, 4, 4)), ex.goal_obstacle()),
     "Tresca friction 2D": (lambda comm: ex.friction_problem(comm), ex.goal_friction_force()),
+    # coupled Newton rows: a slipping facet's tangential row couples its normal multiplier
+    "Coulomb friction 2D": (lambda comm: _with_law(ex.friction_problem(comm), ds.Coulomb(0.3)),
+                            ex.goal_friction_force()),
+    "Coulomb friction 3D": (lambda comm: _with_law(_friction_3d(comm), ds.Coulomb(0.3)),
+                            ex.goal_friction_force()),
+    "Tresca friction 3D": (lambda comm: _friction_3d(comm), ex.goal_friction_force()),
     # nu = 0.49: the P1 coarse space locks, the smoother carries the divergence-free modes
     "nearly incompressible Hertz block": (
         lambda comm: indented_block(comm, 24, 11, 0.01, nu=0.49), total_force,
@@ -64,7 +86,8 @@ def test_iterative_p2_dual_equals_the_factored_one(case):
     comm = MPI.COMM_WORLD
     with ds.solve(build(comm)) as sol:
         assert comm.allreduce(int(sol.system.active.sum())) > 0
-        forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.lam_t)
+        _stick_and_slip(sol)
+        forms = GoalForms(goal, sol.u, sol.lam, sol.disc, sol.tangential or None)
         z = solve_dual(sol.system, forms)
         rec = Reconstructor(sol.disc)
         try:
@@ -147,3 +170,16 @@ def test_adaptive_run_with_hierarchical_weights():
     for level, weights, eta, eta_high, scale in levels:
         assert weights == "hierarchical"
         assert abs(eta - eta_high) <= 10 * hierarchical.HIERARCHICAL_RTOL * scale, level
+
+
+@pytest.mark.parametrize(("case", "kind"), [
+    ("Tresca friction 2D", "hierarchical"), ("Coulomb friction 2D", "hierarchical"),
+    ("Coulomb friction 3D", "higher_order"), ("Tresca friction 3D", "higher_order"),
+])
+def test_auto_takes_hierarchical_weights_for_coupled_rows_in_2d_only(case, kind):
+    """The P2 weights of weights="auto" (weights.p2_kind): the two-level solver for a symmetric
+    law and for coupled rows in 2D, where it was the faster; the factored P2 system for coupled
+    rows in 3D, where it was not (weights.HIERARCHICAL_COUPLED_DIMS)."""
+    build, _ = CASES[case]
+    with ds.solve(build(MPI.COMM_WORLD)) as sol:
+        assert auto_weights.p2_kind(sol) == kind

@@ -55,7 +55,7 @@ from .base import MULTIGRID, owned_rows
 from .factor import FactoredNewtonSystem
 from .lowrank import RowUpdate
 
-__all__ = ["CoupledNewtonSystem"]
+__all__ = ["CoupledNewtonSystem", "newton_rhs", "newton_rows"]
 
 
 def _pattern(mat: scipy.sparse.csr_matrix) -> tuple[scipy.sparse.csr_matrix, np.ndarray]:
@@ -64,6 +64,68 @@ def _pattern(mat: scipy.sparse.csr_matrix) -> tuple[scipy.sparse.csr_matrix, np.
     mat.sort_indices()
     rows = np.repeat(np.arange(mat.shape[0], dtype=np.int64), np.diff(mat.indptr))
     return mat, rows * mat.shape[1] + mat.indices
+
+
+def newton_rows(
+    active: np.ndarray, couplings: list[Coupling], c: np.ndarray, M: np.ndarray
+) -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix]:
+    """The multiplier rows [W N, G] of the Newton matrix: W and G (module docstring).
+
+    Owned rows, local columns (a coupled facet's rows are owned by one rank). Without coupled
+    facets W = -D_A and G = D_I M, the rows of the symmetric paths.
+
+    Args:
+        active: The constrained rows (active, stick).
+        couplings: The coupled facets (:class:`~dwr_signorini.laws.Coupling`).
+        c: c_i of the NCP on the owned rows.
+        M: M_i, the sizes of the macro contact facets.
+    """
+    n = len(active)
+    coupled = np.zeros(n, dtype=bool)
+    for cp in couplings:
+        coupled[cp.rows.ravel()] = True
+    free = ~active & ~coupled
+    w_rows, w_cols, w_vals = [np.flatnonzero(active)], [np.flatnonzero(active)], []
+    w_vals.append(-np.ones(len(w_rows[0])))
+    g_rows, g_cols, g_vals = [np.flatnonzero(free)], [np.flatnonzero(free)], [M[free]]
+    for cp in couplings:
+        k = cp.rows.shape[1]
+        rows = np.repeat(cp.rows, k, axis=1).ravel()
+        cols = np.tile(cp.rows, (1, k)).ravel()
+        own = ~active[rows]  # a constrained row of a coupled facet keeps its equation
+        J = cp.J.reshape(len(cp.rows), k * k)
+        w_rows.append(rows[own])
+        w_cols.append(cols[own])
+        w_vals.append((-c[cp.rows[:, :1]] * J).ravel()[own])
+        eye = np.eye(k).ravel()[None, :]
+        g_rows.append(rows[own])
+        g_cols.append(cols[own])
+        g_vals.append(((eye - J) * M[cp.rows[:, :1]]).ravel()[own])
+
+    def csr(vals: list, rows: list, cols: list) -> scipy.sparse.csr_matrix:
+        return scipy.sparse.coo_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+        ).tocsr()
+
+    return csr(w_vals, w_rows, w_cols), csr(g_vals, g_rows, g_cols)
+
+
+def newton_rhs(
+    active: np.ndarray, couplings: list[Coupling], c: np.ndarray, M: np.ndarray,
+    g: np.ndarray, free: np.ndarray,
+) -> np.ndarray:
+    """h, the multiplier rows of the Newton step's right-hand side (module docstring).
+
+    -g on the constrained rows, M free on the free ones, r_k - c_f sum_l J_kl g_l on the rows of
+    a coupled facet that are not constrained; ``g`` the offsets of the system that solves the
+    step (:class:`~dwr_signorini.laws.Coupling`).
+    """
+    h = np.where(active, -g, M * free)
+    for cp in couplings:
+        coupled_h = cp.r - c[cp.rows] * np.einsum("mkl,ml->mk", cp.J, g[cp.rows])
+        h[cp.rows] = np.where(active[cp.rows], h[cp.rows], coupled_h)
+    return h
+
 
 
 class CoupledNewtonSystem(FactoredNewtonSystem):
@@ -118,40 +180,9 @@ class CoupledNewtonSystem(FactoredNewtonSystem):
         self, active: np.ndarray, couplings: list[Coupling]
     ) -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix, np.ndarray]:
         """W, G (owned rows, local columns) and h of the module docstring."""
-        n, c, M, g = self.n_lam, self.c_n, self.M.array, self.g.array
-        coupled = np.zeros(n, dtype=bool)
-        w_rows, w_cols, w_vals = [np.flatnonzero(active)], [np.flatnonzero(active)], []
-        w_vals.append(-np.ones(len(w_rows[0])))
-        free = ~active
-        for cp in couplings:
-            coupled[cp.rows.ravel()] = True
-        free &= ~coupled
-        g_rows, g_cols, g_vals = [np.flatnonzero(free)], [np.flatnonzero(free)], [M[free]]
-        h = np.where(active, -g, M * self.free)
-        for cp in couplings:
-            k = cp.rows.shape[1]
-            rows = np.repeat(cp.rows, k, axis=1).ravel()
-            cols = np.tile(cp.rows, (1, k)).ravel()
-            own = ~active[rows]  # a constrained row of a coupled facet keeps its equation
-            J = cp.J.reshape(len(cp.rows), k * k)
-            w_rows.append(rows[own])
-            w_cols.append(cols[own])
-            w_vals.append((-c[cp.rows[:, :1]] * J).ravel()[own])
-            eye = np.eye(k).ravel()[None, :]
-            g_rows.append(rows[own])
-            g_cols.append(cols[own])
-            g_vals.append(((eye - J) * M[cp.rows[:, :1]]).ravel()[own])
-            coupled_h = cp.r - c[cp.rows] * np.einsum("mkl,ml->mk", cp.J, g[cp.rows])
-            h[cp.rows] = np.where(active[cp.rows], h[cp.rows], coupled_h)
-        W = scipy.sparse.coo_matrix(
-            (np.concatenate(w_vals), (np.concatenate(w_rows), np.concatenate(w_cols))),
-            shape=(n, n),
-        ).tocsr()
-        G = scipy.sparse.coo_matrix(
-            (np.concatenate(g_vals), (np.concatenate(g_rows), np.concatenate(g_cols))),
-            shape=(n, n),
-        ).tocsr()
-        return W, G, h
+        W, G = newton_rows(active, couplings, self.c_n, self.M.array)
+        return W, G, newton_rhs(active, couplings, self.c_n, self.M.array, self.g.array,
+                                self.free)
 
     def _petsc(
         self, pattern: tuple[scipy.sparse.csr_matrix, np.ndarray], mat: scipy.sparse.csr_matrix,
