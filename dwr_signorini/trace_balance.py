@@ -36,6 +36,7 @@ from .search import search_radius
 
 __all__ = ["search_counts", "search_parts", "transfers"]
 
+
 def search_counts(counts: np.ndarray) -> np.ndarray:
     """How many slave facets each rank searches: as many as the others, to one facet.
 
