@@ -481,8 +481,14 @@ def test_cattaneo_mindlin_serial_and_parallel(tmp_path):
     for rs, rp in zip(serial, parallel, strict=True):
         for key in ("num_cells", "num_stick", "num_slip"):
             assert rs[key] == rp[key], key
-        for key in ("J_h", "J_low", "J_high", "P", "Q", "c_h", "l2_lam_t"):
+        for key in ("J_h", "P", "Q", "c_h", "l2_lam_t"):
             assert _close(rs[key], rp[key], 1e-8), (key, rs[key], rp[key])
+        # The interval's ends carry the estimate, whose P2 weights (Coulomb in 2D: the two-level
+        # solver) are solved to a relative residual of HIERARCHICAL_RTOL, not to round-off: its
+        # Krylov iterates differ with the rank count within that tolerance.
+        width = rs["J_high"] - rs["J_low"]
+        for key in ("J_low", "J_high"):
+            assert abs(rs[key] - rp[key]) <= 10 * HIERARCHICAL_RTOL * width, (key, rs, rp)
     assert all(abs(r["c_error_facets"]) < 2 for r in serial if r["step"] > 0)
     for r in serial:  # ds.contact_summary: the same force, the stick zone from its measure
         assert _close(r["P_summary"], r["P"], 1e-10)
