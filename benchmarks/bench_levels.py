@@ -14,8 +14,10 @@ per iteration) and ``krylov-schur`` (``method="schur"`` with ``iterative_petsc_o
 S_AA with a CG + GAMG solve of K per iteration); the ``ref`` of both is one CG + GAMG solve of
 K with the same options and the rigid body modes, set-up included. It first prints
 how long filling memory takes the first time and again: where the first time is costly (a
-sandbox), ``ref`` and ``ref_warm`` differ. Run it with 1 and with 2 ranks; ``--summary`` then
-prints the speed-ups::
+sandbox), ``ref`` and ``ref_warm`` differ. After each level (outside its time) it measures the
+machine's parallel capacity (``capacity``, :func:`parallel_capacity`): a speed-up on 2 ranks
+needs a second free core. Run it with 1 and with 2 ranks; ``--summary`` then prints the
+speed-ups (``--phases-from DOFS``: per phase, for the levels of at least DOFS DoFs)::
 
     scripts/fenicsx python3 benchmarks/bench_levels.py
     scripts/fenicsx mpirun -n 2 python3 benchmarks/bench_levels.py
@@ -100,6 +102,32 @@ def first_touch_seconds_per_gib(comm: MPI.Comm, gib: float = 0.5) -> tuple[float
     return tuple(comm.allreduce(t, op=MPI.MAX) / gib for t in seconds)
 
 
+def parallel_capacity(comm: MPI.Comm, size: int = 300, repeat: int = 40) -> float:
+    """How many ranks' worth of compute the machine gives now: ranks x t_alone / t_together.
+
+    Rank 0 multiplies two dense matrices ``repeat`` times alone (the other ranks sleep, polling
+    a non-blocking barrier: no busy wait), then all ranks do the same at once. On an idle
+    machine with a core per rank this is about the number of ranks; where other work shares the
+    cores it is less, and it bounds the speed-up any phase can reach at that moment (1 on one
+    rank).
+    """
+    a = np.random.default_rng(0).random((size, size))
+
+    def work() -> float:
+        tic = time.perf_counter()
+        for _ in range(repeat):
+            a @ a
+        return time.perf_counter() - tic
+
+    work()  # warm up
+    alone = work() if comm.rank == 0 else 0.0
+    request = comm.Ibarrier()
+    while not request.Test():
+        time.sleep(1e-3)
+    together = comm.allreduce(work(), op=MPI.MAX)
+    return comm.size * comm.bcast(alone, root=0) / together
+
+
 def problem_2d(comm: MPI.Comm, n: int) -> tuple[ds.SignoriniProblem, object]:
     return ex.analytic_problem(comm, 3 * n, 2 * n, mesh.CellType.triangle), ex.goal_a(-0.5)
 
@@ -137,6 +165,7 @@ def run(
         measure = krylov_reference_times if method.startswith("krylov") else reference_times
         ref, ref_warm = measure(sol)
         peak = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX)
+        capacity = parallel_capacity(comm)
         total = comm.allreduce(wall, op=MPI.MAX)
         row = {
             "example": example, "refinement": refinement, "method": method, "ranks": comm.size,
@@ -144,7 +173,7 @@ def run(
             "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
             "newton": record.newton_iterations, **{k: phases[k] for k in COLUMNS},
             "total": total, "ref": ref, "ratio": total / ref, "ref_warm": ref_warm,
-            "ratio_warm": total / ref_warm, "peak_MiB": peak / 1024.0,
+            "ratio_warm": total / ref_warm, "peak_MiB": peak / 1024.0, "capacity": capacity,
         }
         # The primal solve: assembly, factorisations and Newton solves (solve()).
         primal = phases["assemble"] + phases["factorize"] + phases["newton solve"]
@@ -167,7 +196,7 @@ HEADER = ("example", "refinement", "method", "used", "weights", "level", "cells"
           "assemble", "factorize", "newton solve", "dual solve", "higher-order solve", "goal",
           "reconstruct", "indicators", "mark", "refine", "total", "ref", "ratio", "ref_warm",
           "ratio_warm", "dual/primal", "est/primal",
-          "peak_MiB")
+          "peak_MiB", "capacity")
 
 
 def _fmt(value: object) -> str:
@@ -249,6 +278,37 @@ def summary(out: Path) -> None:
               f"{one['est/primal']:7.3f}")
 
 
+def phase_summary(out: Path, min_dofs: int) -> None:
+    """Per phase, 1 rank against 2, of the levels of at least ``min_dofs`` DoFs (medians).
+
+    Prints t1, t2 and the speed-up t1/t2 of every phase that takes at least 0.05 s on 1 rank,
+    of ``other`` (the level's time outside the named phases: the callback, the search for the
+    marking fraction's refinement, Python between phases) and of the level, with the parallel
+    capacity (:func:`parallel_capacity`) the 2-rank runs measured after each level, and the
+    spread (min-max over the runs) of the level's time.
+    """
+    tables = {np_: _runs(out, np_) for np_ in (1, 2)}
+    for key, r1 in tables[1][0].items():
+        if int(r1["dofs"]) < min_dofs or not all(key in t for t in tables[2]):
+            continue
+        totals = {np_: [float(t[key]["total"]) for t in tables[np_] if key in t] for np_ in (1, 2)}
+        capacity = [float(t[key].get("capacity") or "nan") for t in tables[2]]
+        print(f"{key[0]} {key[1]} level {key[3]}, {r1['dofs']} DoFs: level {min(totals[1]):.2f}-"
+              f"{max(totals[1]):.2f} s (1 rank), {min(totals[2]):.2f}-{max(totals[2]):.2f} s "
+              f"(2 ranks), capacity of the 2-rank runs {', '.join(f'{c:.2f}' for c in capacity)}")
+        print(f"  {'phase':>18} {'t1':>8} {'t2':>8} {'speed-up':>8}")
+        rest = {np_: _median(tables[np_], key, "total") for np_ in (1, 2)}
+        for phase in COLUMNS:
+            t = {np_: _median(tables[np_], key, phase) for np_ in (1, 2)}
+            for np_ in (1, 2):
+                rest[np_] -= t[np_]
+            if t[1] >= 0.05:
+                print(f"  {phase:>18} {t[1]:8.3f} {t[2]:8.3f} {t[1] / max(t[2], 1e-9):8.2f}")
+        print(f"  {'other':>18} {rest[1]:8.3f} {rest[2]:8.3f} {rest[1] / max(rest[2], 1e-9):8.2f}")
+        t = {np_: _median(tables[np_], key, "total") for np_ in (1, 2)}
+        print(f"  {'level':>18} {t[1]:8.3f} {t[2]:8.3f} {t[1] / t[2]:8.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--examples", default="2d,3d")
@@ -275,9 +335,14 @@ def main() -> None:
                         help="number of this run: writes bench_levels_np<ranks>_run<k>.csv")
     parser.add_argument("--summary", action="store_true",
                         help="print the table of the runs written before (medians over runs)")
+    parser.add_argument("--phases-from", type=int, default=None, metavar="DOFS",
+                        help="with --summary: also the speed-up per phase of the levels of at "
+                             "least DOFS DoFs")
     args = parser.parse_args()
     if args.summary:
         summary(args.output)
+        if args.phases_from is not None:
+            phase_summary(args.output, args.phases_from)
         return
     comm = MPI.COMM_WORLD
     fresh, again = first_touch_seconds_per_gib(comm)
