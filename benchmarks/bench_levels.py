@@ -171,7 +171,12 @@ def run(
             "example": example, "refinement": refinement, "method": method, "ranks": comm.size,
             "used": sol.method, "weights": record.weights,
             "level": record.level, "cells": record.num_cells, "dofs": record.num_dofs,
-            "newton": record.newton_iterations, **{k: phases[k] for k in COLUMNS},
+            "newton": record.newton_iterations,
+            # factorisations of the Newton matrix and steps solved with earlier factors (the
+            # block path's reuse decisions follow MUMPS's counts, which differ with the ranks)
+            "factored": getattr(sol.system, "factorizations", ""),
+            "reused": getattr(sol.system, "reused", ""),
+            **{k: phases[k] for k in COLUMNS},
             "total": total, "ref": ref, "ratio": total / ref, "ref_warm": ref_warm,
             "ratio_warm": total / ref_warm, "peak_MiB": peak / 1024.0, "capacity": capacity,
         }
@@ -193,6 +198,7 @@ def run(
 
 
 HEADER = ("example", "refinement", "method", "used", "weights", "level", "cells", "dofs", "newton",
+          "factored", "reused",
           "assemble", "factorize", "newton solve", "dual solve", "higher-order solve", "goal",
           "reconstruct", "indicators", "mark", "refine", "total", "ref", "ratio", "ref_warm",
           "ratio_warm", "dual/primal", "est/primal",
