@@ -44,7 +44,7 @@ from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .settings import EstimateOptions
 from .timing import timed
-from .weights import nearly_incompressible, p2_kind, second_weights
+from .weights import nearly_incompressible, p2_kind, second_weights, unresolved_kind
 
 __all__ = ["Estimate", "estimate", "goal_magnitude"]
 
@@ -337,7 +337,7 @@ def _auto_terms(
     terms = _terms(inp, first, quadrature_degree, DG0)
     value = terms.value(estimator)
     resolved = contact_set_resolved(value, terms.remainder, terms.contact, roundoff)
-    second = second_weights(terms, estimator, resolved, J_h, roundoff, p2)
+    second = second_weights(terms, estimator, resolved, J_h, roundoff, unresolved_kind(inp.sol))
     if weights == "auto" and first == "patch" and fallback is None and second is not None:
         fallback = inp.parts.fallback(inp.sol, second)
         if fallback is None:
