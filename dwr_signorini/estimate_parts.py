@@ -46,7 +46,7 @@ from .force import ForceControl
 from .goal import GoalForms, localize
 from .hierarchical import HierarchicalP2
 from .lifetime import Releasable
-from .linalg import memory
+from .linalg import CoupledNewtonSystem, NewtonSystem, memory
 from .local_p2 import ContactBand, band_options
 from .newton import Solution
 from .pairs import images_of
@@ -171,10 +171,10 @@ class FactoredP2(Releasable):
     """
 
     def __init__(self, sol: Solution, rec: Reconstructor, petsc_options: Any,
-                 algebra: ContactAlgebra | None = None) -> None:
+                 algebra: ContactAlgebra | None = None, system: type | None = None) -> None:
         self.force: ForceControl | None = None
         with timed("higher-order solve"):
-            self.system = type(sol.system)(
+            self.system = (type(sol.system) if system is None else system)(
                 sol.disc, petsc_options, V=rec.V2h, prefix=sol.system.prefix + "p2_",
                 ncp_scale=sol.ncp_scale, algebra=algebra,
             )
@@ -204,7 +204,7 @@ class FactoredP2(Releasable):
             self.force = self.system.force_control = ForceControl(self.system, move=False)
             self.force.step(solve, sol.system.active, sol.system.free, couplings)
 
-    def dual(self, goal: GoalForms, z: DualSolution) -> DualSolution:
+    def dual(self, goal: GoalForms, z: DualSolution | None = None) -> DualSolution:
         """The P2 dual of ``goal``: one transposed solve with the P2 factors (z_h unused)."""
         with timed("higher-order solve"):
             return solve_dual(self.system, goal)
@@ -233,7 +233,9 @@ class LocalP2(FactoredP2):
         NotImplementedError: A contact pair, whose master side the band does not follow.
 
     :class:`FactoredP2` on the band of :mod:`~dwr_signorini.local_p2`: the primal's data off
-    the band's free nodes is i_2h^(2) w_h, a dual's i_2h^(2) z_h of its goal.
+    the band's free nodes is i_2h^(2) w_h, a dual's i_2h^(2) z_h of its goal. The band's
+    system is factored (the block path) whatever the primal's method: where that is the
+    Krylov path (3D from 200k DoFs) the band is a small part of the mesh.
     """
 
     def __init__(self, sol: Solution, rec: Reconstructor, petsc_options: Any,
@@ -243,14 +245,21 @@ class LocalP2(FactoredP2):
         with timed("reconstruct"):
             data = rec.patch_quadratic(sol.u)
         algebra = ContactAlgebra(sol.disc, rec.V2h, sol.ncp_scale, band=(self.band, data))
-        super().__init__(sol, rec, band_options(sol.system.options, petsc_options), algebra)
+        factored = isinstance(sol.system, (NewtonSystem, CoupledNewtonSystem))
+        super().__init__(sol, rec, band_options(petsc_options), algebra,
+                         type(sol.system) if factored else NewtonSystem)
 
-    def dual(self, goal: GoalForms, z: DualSolution) -> DualSolution:
-        """The P2 dual of ``goal`` on the band, i_2h^(2) z_h off its free nodes."""
+    def dual(self, goal: GoalForms, z: DualSolution | None = None) -> DualSolution:
+        """The P2 dual of ``goal`` on the band, i_2h^(2) z_h off its free nodes (z_h needed)."""
+        if z is None:
+            raise ValueError("the band's P2 dual needs z_h: its data off the band")
         with timed("reconstruct"):
             data = self.rec.patch_quadratic(z.y)
         with timed("higher-order solve"):
             return solve_dual(self.system, goal, data)
+
+
+ZONE_BAND = True
 
 
 def contact_band(sol: Solution, rec: Reconstructor) -> ContactBand:
@@ -265,7 +274,7 @@ def contact_band(sol: Solution, rec: Reconstructor) -> ContactBand:
             "needs the master side too: use 'higher_order' or 'hierarchical'"
         )
     with timed("higher-order solve"):
-        return ContactBand(sol.disc, rec.V2h)
+        return ContactBand(sol.disc, rec.V2h, zone=sol.multipliers[0] if ZONE_BAND else None)
 
 
 def _options_key(petsc_options: Any) -> str:

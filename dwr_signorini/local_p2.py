@@ -50,15 +50,33 @@ def _marked(imap: Any, nodes: np.ndarray) -> np.ndarray:
     return marks.array > 0
 
 
-def band_cells(disc: Any, layers: int) -> np.ndarray:
-    """The owned cells of T_h within ``layers`` vertex layers of Gamma_C (collective).
+def _touching(vertex: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+    """The cells (rows of ``dofs``, their P1 nodes) with a marked vertex."""
+    return np.flatnonzero(vertex[dofs].any(axis=1)).astype(np.int32)
+
+
+def _zone_vertices(disc: Any, zone: fem.Function, P1: fem.FunctionSpace) -> np.ndarray:
+    """The vertices of the Gamma_C facets where ``zone`` (a function on Lambda_H) is not 0."""
+    form = disc.form(abs(zone) * ufl.TestFunction(P1) * disc.m.ds_contact)
+    vec = fem.assemble_vector(form)
+    vec.scatter_reverse(la.InsertMode.add)
+    vec.scatter_forward()
+    return vec.array > 0
+
+
+def band_cells(disc: Any, layers: int, zone: fem.Function | None = None) -> np.ndarray:
+    """The owned cells of T_h near Gamma_C and its contact zone (collective).
 
     Args:
         disc: The discretisation (its fine facet tags mark Gamma_C).
-        layers: At least 1: the first layer is every cell with a vertex on Gamma_C.
+        layers: At least 1: the vertex layers of cells around the contact zone (the first:
+            every cell with a vertex on it, the next every cell with a vertex on one of these).
+        zone: The normal multiplier lambda_h: the contact zone is the Gamma_C facets where it
+            is not 0. None: all of Gamma_C.
 
     Returns:
-        Sorted local indices of owned cells, the same band whatever the partition.
+        Sorted local indices of owned cells: every cell with a vertex on Gamma_C, and the
+        ``layers`` layers around the contact zone; the same band whatever the partition.
     """
     if layers < 1:
         raise ValueError(f"the band needs at least one layer of cells, got {layers}")
@@ -72,11 +90,11 @@ def band_cells(disc: Any, layers: int) -> np.ndarray:
     facets = disc.facet_tags.indices[facets].astype(np.int32)
     vertex = _marked(P1.dofmap.index_map, fem.locate_dofs_topological(P1, fdim, facets))
     dofs = P1.dofmap.list[: msh.topology.index_map(tdim).size_local]
-    cells = np.flatnonzero(vertex[dofs].any(axis=1)).astype(np.int32)
+    first = _touching(vertex, dofs)
+    cells = first if zone is None else _touching(_zone_vertices(disc, zone, P1), dofs)
     for _ in range(layers - 1):
-        vertex = _marked(P1.dofmap.index_map, dofs[cells].ravel())
-        cells = np.flatnonzero(vertex[dofs].any(axis=1)).astype(np.int32)
-    return cells
+        cells = _touching(_marked(P1.dofmap.index_map, dofs[cells].ravel()), dofs)
+    return np.union1d(first, cells).astype(np.int32)
 
 
 class ContactBand:
@@ -86,6 +104,7 @@ class ContactBand:
         disc: The discretisation.
         V2: The vector P2 space on T_h.
         layers: The band's layers of cells (:func:`band_cells`; None: :data:`BAND_LAYERS`).
+        zone: lambda_h, whose nonzero facets are the contact zone (:func:`band_cells`).
 
     Attributes:
         cells: Owned cells of B (local indices).
@@ -96,12 +115,13 @@ class ContactBand:
         total_dofs: Global number of displacement dofs of V2.
     """
 
-    def __init__(self, disc: Any, V2: fem.FunctionSpace, layers: int | None = None) -> None:
+    def __init__(self, disc: Any, V2: fem.FunctionSpace, layers: int | None = None,
+                 zone: fem.Function | None = None) -> None:
         msh = disc.mesh
         tdim = msh.topology.dim
         self.V2 = V2
         self._zero: fem.DirichletBC | None = None
-        self.cells = band_cells(disc, BAND_LAYERS if layers is None else layers)
+        self.cells = band_cells(disc, BAND_LAYERS if layers is None else layers, zone)
         tags = dmesh.meshtags(msh, tdim, self.cells, np.ones(self.cells.size, dtype=np.int32))
         self.dx = ufl.Measure("dx", domain=msh, subdomain_data=tags)(1)
         num_cells = msh.topology.index_map(tdim).size_local
@@ -178,15 +198,16 @@ class ContactBand:
 BAND_ORDERING = {"mat_mumps_icntl_7": 2}
 
 
-def band_options(system_options: dict[str, Any], petsc_options: dict[str, Any] | None) -> Any:
+def band_options(petsc_options: dict[str, Any] | None) -> dict[str, Any] | None:
     """The band's solver options: ``petsc_options``, with :data:`BAND_ORDERING` under MUMPS.
 
     Args:
-        system_options: The options of the primal's Newton system (of the same kind).
-        petsc_options: The estimate's options for the P2 system, or None.
+        petsc_options: The estimate's options for the P2 system, or None (the package's
+            direct solver, :func:`~dwr_signorini.linalg.options.default_petsc_options`).
     """
-    merged = {**system_options, **(petsc_options or {})}
-    if (merged.get("pc_factor_mat_solver_type") != "mumps"
-            or merged.get("pc_type") not in ("lu", "cholesky")):
+    options = petsc_options or {}
+    direct = options.get("pc_type", "cholesky") in ("lu", "cholesky")
+    mumps = options.get("pc_factor_mat_solver_type", "mumps") == "mumps"
+    if not (direct and mumps and PETSc.Sys.hasExternalPackage("mumps")):
         return petsc_options
-    return {**BAND_ORDERING, **(petsc_options or {})}
+    return {**BAND_ORDERING, **options}
