@@ -1,10 +1,12 @@
 """Which weights ``weights="auto"`` of :func:`~dwr_signorini.estimator.estimate` takes.
 
-The patch weights where they serve; P2 weights (hierarchical, but factored for a law with
-coupled rows in 3D, :func:`p2_kind`) for a nearly incompressible material, on a level whose
-contact set is not resolved, and where J_h vanishes to round-off but the patch estimate does
-not; never P2 weights that would not fit in memory (predicted from global sizes, the same on
-every rank, as the solver's method is chosen).
+The patch weights where they serve; P2 weights on a band around the contact zone
+(:func:`unresolved_kind`, :mod:`~dwr_signorini.local_p2`) on a level whose contact set is not
+resolved; the factored P2 weights of the whole mesh where J_h vanishes to round-off but the
+patch estimate does not; those of the whole mesh (hierarchical, but factored for a law with
+coupled rows in 3D, :func:`p2_kind`) on every level of a nearly incompressible material;
+never P2 weights that would not fit in memory (predicted from global sizes, the same on every
+rank, as the solver's method is chosen).
 """
 
 from __future__ import annotations
