@@ -81,6 +81,9 @@ def band_cells(disc: Any, layers: int, zone: fem.Function | None = None) -> np.n
     Returns:
         Sorted local indices of owned cells: every cell with a vertex on Gamma_C, and the
         ``layers`` layers around the contact zone; the same band whatever the partition.
+
+    Raises:
+        ValueError: ``layers`` below 1.
     """
     if layers < 1:
         raise ValueError(f"the band needs at least one layer of cells, got {layers}")
@@ -158,8 +161,14 @@ class ContactBand:
     def stiffness(self, form: fem.Form, bcs: list[fem.DirichletBC]) -> PETSc.Mat:
         """K of the band (``form`` integrated over B), 1 on the diagonal of the constrained rows.
 
-        The sparsity pattern is B's and the diagonal: the rows of nodes outside B hold nothing
-        else, so the factorisation sees the band alone.
+        Args:
+            form: The compiled stiffness form over :attr:`dx`.
+            bcs: The band's homogeneous conditions (:meth:`conditions`).
+
+        Returns:
+            The assembled matrix (the caller owns it). Its sparsity pattern is B's and the
+            diagonal: the rows of nodes outside B hold nothing else, so the factorisation sees
+            the band alone.
         """
         pattern = fem.create_sparsity_pattern(form)
         imap = self.V2.dofmap.index_map
@@ -209,6 +218,9 @@ def band_options(petsc_options: dict[str, Any] | None) -> dict[str, Any] | None:
     Args:
         petsc_options: The estimate's options for the P2 system, or None (the package's
             direct solver, :func:`~dwr_signorini.linalg.options.default_petsc_options`).
+
+    Returns:
+        The options for the band's system (a new dict where :data:`BAND_ORDERING` is added).
     """
     options = petsc_options or {}
     direct = options.get("pc_type", "cholesky") in ("lu", "cholesky")

@@ -152,8 +152,13 @@ def p2_kind(sol: Any) -> str:
 def unresolved_kind(sol: Any) -> str:
     """The P2 weights of ``"auto"`` on a level whose contact set is not resolved.
 
-    ``"local"`` (P2 on the band around Gamma_C, :mod:`~dwr_signorini.local_p2`) for one body;
-    :func:`p2_kind` for a contact pair, whose master side the band does not follow.
+    Args:
+        sol: The solution.
+
+    Returns:
+        ``"local"`` (P2 on the band around the contact zone, :mod:`~dwr_signorini.local_p2`)
+        for one body; :func:`p2_kind` for a contact pair, whose master side the band does not
+        follow.
     """
     return "local" if sol.disc.slave_mesh is None else p2_kind(sol)
 
