@@ -193,6 +193,10 @@ LABELS = {"analytic": "5.1, J_a1 (exact)", "bar": "5.2", "block": "2D indented b
           "indentation12": "indentation 12x12x6", "friction": "Tresca friction"}
 
 
+#: The weights as the table names them: P2 on the band around the contact zone, P2 on all T_h.
+WEIGHT_LABELS = {"patch": "patch", "local": "P2 band"}
+
+
 def print_markdown(problems: dict[str, Any]) -> None:
     """The judged levels of every problem as one Markdown table (benchmarks/README.md)."""
     print("| problem | run | L | cells | J_h | [J_low, J_high] | J_ref - J_h | contains "
@@ -203,7 +207,7 @@ def print_markdown(problems: dict[str, Any]) -> None:
             for r in rows:
                 if not r["judged"] or (refinement == "uniform" and r["level"] == 0):
                     continue  # (a uniform run's level 0 is the adaptive one's)
-                weights = "patch" if r["weights"] == "patch" else "P2"
+                weights = WEIGHT_LABELS.get(r["weights"], "P2")
                 print(f"| {LABELS.get(name, name)} | {refinement} | {r['level']} "
                       f"| {r['num_cells']:,} | {r['J_h']:.6g} "
                       f"| [{r['J_low']:.6g}, {r['J_high']:.6g}] | {r['error']:+.2e} "

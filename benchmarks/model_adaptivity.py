@@ -166,7 +166,7 @@ def adaptive_seconds(levels: list) -> float:
 
 
 #: The weights of each level's estimate, as the table prints them.
-SHORT = {"patch": "p", "higher_order": "ho", "hierarchical": "hi"}
+SHORT = {"patch": "p", "higher_order": "ho", "hierarchical": "hi", "local": "lo"}
 
 #: Where a run's seconds go (:func:`phases`), and the rich model's on the same meshes.
 PHASES = ("t_solve", "t_estimate", "t_model", "t_rich_solve", "t_rich_estimate")

@@ -87,9 +87,14 @@ class ContactAlgebra:
         ncp_scale: ``"physical"`` (c_n,i = E / H_i) or a number c (c_n,i = c).
         compile_options: ``form_compiler_options`` and ``jit_options`` of ``dolfinx.fem.form``
             (None values are left out).
+        band: ``(band, data)``: K on a band of cells only, the displacement fixed to ``data``
+            off its free nodes (:class:`~dwr_signorini.local_p2.ContactBand`, P2 weights near
+            Gamma_C); None: the whole mesh.
 
     Attributes:
         disc, V: The discretisation and the displacement space.
+        band: The :class:`~dwr_signorini.local_p2.ContactBand`, or None.
+        stiffness_form: The compiled form of K (over the band where there is one).
         bcs: Homogeneous Dirichlet conditions on V (the rows and columns of K, N, N^T; the dual
             problem's right-hand side is zero on them).
         prescribed_bcs: The same conditions with their prescribed values u_D: f holds the
@@ -116,8 +121,10 @@ class ContactAlgebra:
         V: fem.FunctionSpace | None = None,
         ncp_scale: str | float = "physical",
         compile_options: dict[str, Any] | None = None,
+        band: tuple[Any, fem.Function] | None = None,
     ) -> None:
         self.disc = disc
+        self.band = None if band is None else band[0]
         problem = disc.problem
         V = disc.V if V is None else V
         Q, m = disc.Q, disc.m
@@ -135,7 +142,7 @@ class ContactAlgebra:
         # (and the stiffness, if E or nu is a function of x).
         degree = problem.quadrature_degree
         fields = disc.fields
-        a = fields.elastic_form(u, v, m.dx)
+        a = fields.elastic_form(u, v, m.dx if band is None else band[0].dx)
         if callable(problem.E) or callable(problem.nu):
             a = with_quadrature_degrees(a, degree)
         directions = disc.directions(self.components)  # in the contact frame
@@ -177,11 +184,15 @@ class ContactAlgebra:
         else:
             self.bcs = disc.dirichlet_bcs(V)
             self.prescribed_bcs = disc.dirichlet_bcs(V, homogeneous=False)
+        if band is not None:
+            self.bcs, self.prescribed_bcs = band[0].conditions(
+                self.bcs, self.prescribed_bcs, band[1])
         self.n_u = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         self.n_q = Q.dofmap.index_map.size_local
         self.n_lam = self.n_q * len(self.components)
         try:  # on a failure (e.g. data that raise), what was assembled is destroyed
-            self._assemble(forms, problem.homogeneous_dirichlet, ncp_scale, form, mu)
+            self._assemble(forms, problem.homogeneous_dirichlet and band is None, ncp_scale,
+                           form, mu)
         except BaseException:
             self.destroy()
             raise
@@ -198,7 +209,9 @@ class ContactAlgebra:
         disc = self.disc
         lift = not homogeneous
         with timed("assemble"):
-            self.K = self._matrix(forms["a"])
+            self.stiffness_form = forms["a"]
+            self.K = (self._matrix(forms["a"]) if self.band is None
+                      else self.band.stiffness(forms["a"], self.bcs))
             N = [self._matrix(f) for f in forms["N"]]
             NT = [self._matrix(f) for f in forms["NT"]]
             self.N, self.NT = self._stacked(N, rows=True), self._stacked(NT, rows=False)

@@ -68,14 +68,18 @@ class DualSolution:
 
 
 def dual_rhs(
-    system: NewtonLinearSystem | ContactAlgebra, goal: GoalForms, out: PETSc.Vec
+    system: NewtonLinearSystem | ContactAlgebra, goal: GoalForms, out: PETSc.Vec,
+    frozen: fem.Function | None = None,
 ) -> PETSc.Vec:
     """Assemble [J'_u(w_h); J'_lambda(w_h)] into the block vector ``out`` (zero on Gamma_D).
 
     Non-polynomial integrands of J' are integrated with the problem's ``quadrature_degree``, as
     in the dual residual of the estimator, so that it vanishes on discrete test functions.
+    On a band's system (:mod:`~dwr_signorini.local_p2`) the displacement rows take the data
+    ``frozen`` on the constrained nodes (lifted from the free rows).
     """
     disc = system.disc
+    algebra = system if isinstance(system, ContactAlgebra) else system.algebra
     degree = disc.problem.quadrature_degree
     arr = out.array_w
     arr[:] = 0.0
@@ -91,10 +95,12 @@ def dual_rhs(
             b = fem.Function(V).x.petsc_vec.copy()
         if goal.dJ_trace is not None:
             _add_master_trace_part(disc, goal, V, degree, b)
-        fem_petsc.set_bc(b, system.bcs)
+        if algebra.band is None:
+            fem_petsc.set_bc(b, system.bcs)
+        else:  # the band's conditions first (see ContactBand.conditions)
+            algebra.band.lift(b, frozen, algebra.stiffness_form, system.bcs)
         arr[: system.n_u] = b.array
         b.destroy()
-    algebra = system if isinstance(system, ContactAlgebra) else system.algebra
     rows = algebra.components_of(arr[system.n_u :])
     for k, dJ in enumerate(goal.dJ_multipliers):
         if dJ is not None:
@@ -120,12 +126,16 @@ def _add_master_trace_part(
         vec.destroy()
 
 
-def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:
+def solve_dual(
+    system: NewtonLinearSystem, goal: GoalForms, frozen: fem.Function | None = None
+) -> DualSolution:
     """Solve the dual problem (11)-(12) with the transposed last Newton matrix.
 
     Args:
         system: The solved Newton system (its last factorisations are reused).
         goal: The goal's derivatives at w_h.
+        frozen: On a band's system (:mod:`~dwr_signorini.local_p2`), the dual's values on the
+            constrained nodes; else None.
 
     Returns:
         z_h = (y_h, xi_H) on the system's displacement space and Lambda_H.
@@ -135,18 +145,19 @@ def solve_dual(system: NewtonLinearSystem, goal: GoalForms) -> DualSolution:
     rhs = system.x.duplicate()
     z = system.x.duplicate()
     try:
-        return _solve_dual(system, goal, rhs, z)
+        return _solve_dual(system, goal, rhs, z, frozen)
     finally:
         rhs.destroy()
         z.destroy()
 
 
 def _solve_dual(
-    system: NewtonLinearSystem, goal: GoalForms, rhs: PETSc.Vec, z: PETSc.Vec
+    system: NewtonLinearSystem, goal: GoalForms, rhs: PETSc.Vec, z: PETSc.Vec,
+    frozen: fem.Function | None,
 ) -> DualSolution:
     """:func:`solve_dual` into the work vectors ``rhs`` and ``z`` (the caller destroys them)."""
     with timed("goal"):
-        dual_rhs(system, goal, rhs)
+        dual_rhs(system, goal, rhs, frozen)
     force = getattr(system, "force_control", None)  # an obstacle under a given force
     with timed("dual solve"), collective(system.disc.comm, "the dual solve"):
         if force is None:

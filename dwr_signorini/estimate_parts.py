@@ -40,12 +40,14 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from .algebra import ContactAlgebra
 from .dual import DualSolution, solve_dual
 from .force import ForceControl
 from .goal import GoalForms, localize
 from .hierarchical import HierarchicalP2
 from .lifetime import Releasable
-from .linalg import memory
+from .linalg import CoupledNewtonSystem, NewtonSystem, memory
+from .local_p2 import ContactBand, band_options
 from .newton import Solution
 from .pairs import images_of
 from .quadrature import with_quadrature_degrees
@@ -168,12 +170,13 @@ class FactoredP2(Releasable):
     P2 dual is one transposed solve with its factors (:meth:`dual`).
     """
 
-    def __init__(self, sol: Solution, rec: Reconstructor, petsc_options: Any) -> None:
+    def __init__(self, sol: Solution, rec: Reconstructor, petsc_options: Any,
+                 algebra: ContactAlgebra | None = None, system: type | None = None) -> None:
         self.force: ForceControl | None = None
         with timed("higher-order solve"):
-            self.system = type(sol.system)(
+            self.system = (type(sol.system) if system is None else system)(
                 sol.disc, petsc_options, V=rec.V2h, prefix=sol.system.prefix + "p2_",
-                ncp_scale=sol.ncp_scale,
+                ncp_scale=sol.ncp_scale, algebra=algebra,
             )
         try:
             with timed("higher-order solve"):
@@ -201,8 +204,8 @@ class FactoredP2(Releasable):
             self.force = self.system.force_control = ForceControl(self.system, move=False)
             self.force.step(solve, sol.system.active, sol.system.free, couplings)
 
-    def dual(self, goal: GoalForms) -> DualSolution:
-        """The P2 dual of ``goal``: one transposed solve with the P2 factors."""
+    def dual(self, goal: GoalForms, z: DualSolution | None = None) -> DualSolution:
+        """The P2 dual of ``goal``: one transposed solve with the P2 factors (z_h unused)."""
         with timed("higher-order solve"):
             return solve_dual(self.system, goal)
 
@@ -214,6 +217,64 @@ class FactoredP2(Releasable):
         if self.system is not None:
             self.system.destroy()
             self.system = None
+
+
+class LocalP2(FactoredP2):
+    """The P2 systems of the final active set on the band around Gamma_C (``weights="local"``).
+
+    Args:
+        sol: The solved discrete problem (a single body: no master trace).
+        rec: Its reconstructor.
+        petsc_options: The linear solver options of the band's P2 system (MUMPS orders it
+            with :data:`~dwr_signorini.local_p2.BAND_ORDERING` unless they say otherwise).
+        band: The band (:func:`contact_band`), or None: made here.
+
+    Raises:
+        NotImplementedError: A contact pair, whose master side the band does not follow.
+
+    :class:`FactoredP2` on the band of :mod:`~dwr_signorini.local_p2`: the primal's data off
+    the band's free nodes is i_2h^(2) w_h, a dual's i_2h^(2) z_h of its goal. The band's
+    system is factored (the block path) whatever the primal's method: where that is the
+    Krylov path (3D from 200k DoFs) the band is a small part of the mesh.
+    """
+
+    def __init__(self, sol: Solution, rec: Reconstructor, petsc_options: Any,
+                 band: ContactBand | None = None) -> None:
+        self.rec = rec
+        self.band = contact_band(sol, rec) if band is None else band
+        with timed("reconstruct"):
+            data = rec.patch_quadratic(sol.u)
+        algebra = ContactAlgebra(sol.disc, rec.V2h, sol.ncp_scale, band=(self.band, data))
+        factored = isinstance(sol.system, (NewtonSystem, CoupledNewtonSystem))
+        super().__init__(sol, rec, band_options(petsc_options), algebra,
+                         type(sol.system) if factored else NewtonSystem)
+
+    def dual(self, goal: GoalForms, z: DualSolution | None = None) -> DualSolution:
+        """The P2 dual of ``goal`` on the band, i_2h^(2) z_h off its free nodes (z_h needed)."""
+        if z is None:
+            raise ValueError("the band's P2 dual needs z_h: its data off the band")
+        with timed("reconstruct"):
+            data = self.rec.patch_quadratic(z.y)
+        with timed("higher-order solve"):
+            return solve_dual(self.system, goal, data)
+
+
+ZONE_BAND = True
+
+
+def contact_band(sol: Solution, rec: Reconstructor) -> ContactBand:
+    """The band of :mod:`~dwr_signorini.local_p2` on ``sol``'s mesh (collective).
+
+    Raises:
+        NotImplementedError: A contact pair, whose master side the band does not follow.
+    """
+    if sol.disc.slave_mesh is not None:
+        raise NotImplementedError(
+            "weights='local' solves P2 on a band around Gamma_C of one body; a contact pair "
+            "needs the master side too: use 'higher_order' or 'hierarchical'"
+        )
+    with timed("higher-order solve"):
+        return ContactBand(sol.disc, rec.V2h, zone=sol.multipliers[0] if ZONE_BAND else None)
 
 
 def _options_key(petsc_options: Any) -> str:
@@ -306,12 +367,14 @@ class SolverBudget:
     def __init__(self) -> None:
         self.kept = 0
 
-    def admit(self, V2: fem.FunctionSpace, kind: str) -> int | None:
+    def admit(self, V2: fem.FunctionSpace, kind: str, free: int | None = None) -> int | None:
         """The predicted bytes of a P2 solver ``kind`` on V2 if it may be kept, else None.
 
         Collective (the prediction and the available memory are the same on every rank).
+        ``free``: the band's unconstrained dofs for ``"local"``
+        (:func:`~dwr_signorini.weights.p2_weights_memory`).
         """
-        need = p2_weights_memory(V2, kind)
+        need = p2_weights_memory(V2, kind, free)
         available = memory.available_memory(V2.mesh.comm)
         if self.kept + 2 * need > memory.FACTOR_FRACTION * available:
             return None
@@ -347,11 +410,22 @@ class EstimateParts(Releasable):
         self._solvers: dict[tuple[str, str], Releasable] = {}
         self._primal: dict[tuple[str, bool], PrimalWeights] = {}
         self._fallback: dict[str, str | None] = {}
+        self._band: ContactBand | None = None
+
+    def band(self, sol: Solution) -> ContactBand:
+        """The band of ``weights="local"`` (made once; collective the first time)."""
+        if self._band is None:
+            self._band = contact_band(sol, self.rec)
+        return self._band
+
+    def _free(self, sol: Solution, kind: str) -> int | None:
+        """The band's unconstrained dofs for ``"local"``, else None."""
+        return self.band(sol).free_dofs if kind == "local" else None
 
     def fallback(self, sol: Solution, kind: str) -> str | None:
         """Why ``"auto"`` keeps the patch weights instead of P2 weights ``kind``, or None."""
         if kind not in self._fallback:
-            self._fallback[kind] = memory_fallback(sol, self.rec, kind)
+            self._fallback[kind] = memory_fallback(sol, self.rec, kind, self._free(sol, kind))
         return self._fallback[kind]
 
     def p2_solutions(
@@ -371,23 +445,31 @@ class EstimateParts(Releasable):
         Returns:
             z^(2) and w^(2) (or None).
         """
-        key = (kind, _options_key(petsc_options) if kind == "higher_order" else "")
+        key = (kind, "" if kind == "hierarchical" else _options_key(petsc_options))
         solver = self._solvers.get(key)
         kept = solver is not None
         if not kept:
-            solver = (HierarchicalP2(sol, self.rec.V2h) if kind == "hierarchical"
-                      else FactoredP2(sol, self.rec, petsc_options))
+            solver = self._new_solver(sol, kind, petsc_options)
         try:
             if kind == "hierarchical":
                 return solver.solutions(sol, goal, z, primal)
-            return solver.dual(goal), solver.primal if primal else None
+            return solver.dual(goal, z), solver.primal if primal else None
         finally:
             if not kept:
-                self._keep_or_release(key, solver)
+                self._keep_or_release(sol, key, solver)
 
-    def _keep_or_release(self, key: tuple[str, str], solver: Releasable) -> None:
+    def _new_solver(self, sol: Solution, kind: str, petsc_options: Any) -> Releasable:
+        """A P2 solver of the weights ``kind``."""
+        if kind == "hierarchical":
+            return HierarchicalP2(sol, self.rec.V2h)
+        if kind == "local":
+            return LocalP2(sol, self.rec, petsc_options, self.band(sol))
+        return FactoredP2(sol, self.rec, petsc_options)
+
+    def _keep_or_release(self, sol: Solution, key: tuple[str, str], solver: Releasable) -> None:
         """Keep a new P2 solver for later estimates where the budget admits it, else release it."""
-        need = None if self.budget is None else self.budget.admit(self.rec.V2h, key[0])
+        need = (None if self.budget is None
+                else self.budget.admit(self.rec.V2h, key[0], self._free(sol, key[0])))
         if need is None:
             solver.destroy()
         else:

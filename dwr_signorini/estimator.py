@@ -44,7 +44,7 @@ from .quadrature import with_quadrature_degrees
 from .reconstruction import Reconstructor
 from .settings import EstimateOptions
 from .timing import timed
-from .weights import nearly_incompressible, p2_kind, second_weights
+from .weights import nearly_incompressible, p2_kind, second_weights, unresolved_kind
 
 __all__ = ["Estimate", "estimate", "goal_magnitude"]
 
@@ -85,13 +85,16 @@ class Estimate(Releasable):
         rho: rho(w_h)(A z_h - z_h).
         rho_star: rho*(w_h, z_h)(A w_h - w_h), or ``None``.
         estimator: Which estimator the indicators belong to ("eta" or "eta_p").
-        weights: The weights it was computed with: "patch", "higher_order" or "hierarchical".
-            ``weights="auto"`` takes "patch" where the contact set is resolved, and P2 weights
+        weights: The weights it was computed with: "patch", "higher_order", "hierarchical"
+            or "local". ``weights="auto"`` takes "patch" where the contact set is resolved;
             on a level whose contact set is not (``resolved`` below, with the patch weights)
-            and on every level of a nearly incompressible material
-            (:func:`nearly_incompressible`, nu >= 0.45): "hierarchical", but "higher_order"
-            for a law with coupled rows in 3D (Tresca and Coulomb friction), where the
-            two-level solver was not faster (:func:`~dwr_signorini.weights.p2_kind`).
+            "local", the P2 weights on a band around the contact zone
+            (:mod:`~dwr_signorini.local_p2`; a contact pair takes the P2 weights of the whole
+            mesh); on every level of a nearly incompressible material
+            (:func:`nearly_incompressible`, nu >= 0.45) the P2 weights of the whole mesh:
+            "hierarchical", but "higher_order" for a law with coupled rows in 3D (Tresca and
+            Coulomb friction), where the two-level solver was not faster
+            (:func:`~dwr_signorini.weights.p2_kind`).
         indicators: DG0 function on T_h of signed cell indicators; their sum is the estimate.
         dual: z_h = (y_h, xi_H).
         goal_is_linear: Whether J is linear in (u, lambda) (then R_J vanishes).
@@ -337,7 +340,7 @@ def _auto_terms(
     terms = _terms(inp, first, quadrature_degree, DG0)
     value = terms.value(estimator)
     resolved = contact_set_resolved(value, terms.remainder, terms.contact, roundoff)
-    second = second_weights(terms, estimator, resolved, J_h, roundoff, p2)
+    second = second_weights(terms, estimator, resolved, J_h, roundoff, unresolved_kind(inp.sol))
     if weights == "auto" and first == "patch" and fallback is None and second is not None:
         fallback = inp.parts.fallback(inp.sol, second)
         if fallback is None:
@@ -366,20 +369,22 @@ def estimate(
         goal: ``goal(u, lam, m) -> ufl.Form``.
         estimator: ``"eta"`` (primal and dual residual, (15)) or ``"eta_p"`` (primal residual,
             (13)). eta_p is reported in both cases.
-        weights: ``"auto"`` (the default: the patch weights, and the hierarchical P2 weights
-            instead on a level whose contact set is not resolved or whose J_h vanishes to
-            round-off while the patch estimate does not, see
-            :mod:`~dwr_signorini.interval`, and on every level of a nearly incompressible
-            material, :func:`nearly_incompressible`; the factored P2 ones, ``"higher_order"``,
-            for a law with coupled rows in 3D: Tresca and Coulomb friction; but the
-            patch weights where the P2 ones' predicted memory does not fit,
-            :func:`~dwr_signorini.weights.p2_weights_fit`, said by a log line and
-            ``Estimate.weights_fallback``),
+        weights: ``"auto"`` (the default: the patch weights; instead, on a level whose
+            contact set is not resolved (see :mod:`~dwr_signorini.interval`), ``"local"`` (the
+            P2 weights of the whole mesh for a contact pair); where J_h vanishes to round-off
+            while the patch estimate does not, ``"higher_order"``; on every level of a nearly
+            incompressible material, :func:`nearly_incompressible`, the hierarchical P2
+            weights, or the factored ones, ``"higher_order"``, for a law with coupled rows in
+            3D: Tresca and Coulomb friction; but the patch weights where the P2 ones'
+            predicted memory does not fit, :func:`~dwr_signorini.weights.p2_weights_fit`, said
+            by a log line and ``Estimate.weights_fallback``),
             ``"patch"`` (the paper's patch-wise reconstructions), ``"higher_order"`` (dual,
             and for eta the primal, solved in P2 with Lambda_H and the final active set, by a
-            factorisation) or ``"hierarchical"`` (the same P2 solutions by a two-level
+            factorisation), ``"hierarchical"`` (the same P2 solutions by a two-level
             iteration on the Newton factors, :mod:`~dwr_signorini.hierarchical`, for every
-            law, coupled rows included).
+            law, coupled rows included) or ``"local"`` (the same P2 problems solved on a band
+            of cells around the contact zone, the patch reconstructions as their data off it,
+            :mod:`~dwr_signorini.local_p2`; one body).
         petsc_options: Linear solver options for the higher-order solves (as
             :class:`~dwr_signorini.settings.EstimateOptions`).
         quadrature_degree: Quadrature degree of the non-polynomial residual integrals: the

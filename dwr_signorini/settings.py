@@ -27,7 +27,7 @@ ESTIMATORS = ("eta", "eta_p")
 #: (the patch weights, and the hierarchical P2 ones on a level whose contact set is not
 #: resolved), the paper's patch-wise reconstructions, P2 solutions by a factorisation, or the
 #: same P2 solutions by FGMRES with the Newton factorisation as coarse level.
-WEIGHTS = ("auto", "patch", "higher_order", "hierarchical")
+WEIGHTS = ("auto", "patch", "higher_order", "hierarchical", "local")
 
 
 def _check_petsc_options(petsc_options: Any) -> None:

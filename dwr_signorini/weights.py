@@ -1,10 +1,12 @@
 """Which weights ``weights="auto"`` of :func:`~dwr_signorini.estimator.estimate` takes.
 
-The patch weights where they serve; P2 weights (hierarchical, but factored for a law with
-coupled rows in 3D, :func:`p2_kind`) for a nearly incompressible material, on a level whose
-contact set is not resolved, and where J_h vanishes to round-off but the patch estimate does
-not; never P2 weights that would not fit in memory (predicted from global sizes, the same on
-every rank, as the solver's method is chosen).
+The patch weights where they serve; P2 weights on a band around the contact zone
+(:func:`unresolved_kind`, :mod:`~dwr_signorini.local_p2`) on a level whose contact set is not
+resolved; the factored P2 weights of the whole mesh where J_h vanishes to round-off but the
+patch estimate does not; those of the whole mesh (hierarchical, but factored for a law with
+coupled rows in 3D, :func:`p2_kind`) on every level of a nearly incompressible material;
+never P2 weights that would not fit in memory (predicted from global sizes, the same on every
+rank, as the solver's method is chosen).
 """
 
 from __future__ import annotations
@@ -67,12 +69,15 @@ P2_NONZEROS_PER_ROW = {2: 24, 3: 90}
 P2_VECTORS = 70
 
 
-def p2_weights_memory(V2: fem.FunctionSpace, kind: str) -> int:
+def p2_weights_memory(V2: fem.FunctionSpace, kind: str, free: int | None = None) -> int:
     """The bytes the P2 weights would take on the rank that holds most of V2 (collective).
 
     Args:
         V2: The vector P2 space on T_h.
-        kind: ``"hierarchical"`` or ``"higher_order"``.
+        kind: ``"hierarchical"``, ``"higher_order"`` or ``"local"``.
+        free: For ``"local"``, the band's unconstrained dofs
+            (:attr:`~dwr_signorini.local_p2.ContactBand.free_dofs`): the matrix rows and the
+            factors are the band's.
 
     Returns:
         Bytes.
@@ -86,21 +91,26 @@ def p2_weights_memory(V2: fem.FunctionSpace, kind: str) -> int:
     imap, bs = V2.dofmap.index_map, V2.dofmap.index_map_bs
     comm = V2.mesh.comm
     rows = comm.allreduce((imap.size_local + imap.num_ghosts) * bs, op=MPI.MAX)
+    n = imap.size_global * bs
+    band = 1.0 if kind != "local" else free / max(n, 1)  # the band's share of the rows
     tdim = V2.mesh.topology.dim
-    need = rows * (P2_NONZEROS_PER_ROW[tdim] * BYTES_PER_NONZERO + 8 * P2_VECTORS)
-    if kind == "higher_order":
-        n = max(imap.size_global * bs, 2)
+    need = rows * (band * P2_NONZEROS_PER_ROW[tdim] * BYTES_PER_NONZERO + 8 * P2_VECTORS)
+    if kind in ("higher_order", "local"):
+        n = max(int(band * n), 2)
         fill = n ** (4 / 3) if tdim == 3 else n * np.log2(n)
         need += 1.5 * memory.ROUGH_BYTES * fill / comm.size
     return int(need)
 
 
-def p2_weights_fit(V2: fem.FunctionSpace, kind: str) -> tuple[bool, int, int]:
+def p2_weights_fit(
+    V2: fem.FunctionSpace, kind: str, free: int | None = None
+) -> tuple[bool, int, int]:
     """Whether the P2 weights fit in memory, as the solver's factorisations must (collective).
 
     Args:
         V2: The vector P2 space on T_h.
-        kind: ``"hierarchical"`` or ``"higher_order"``.
+        kind: ``"hierarchical"``, ``"higher_order"`` or ``"local"``.
+        free: For ``"local"``, the band's unconstrained dofs (:func:`p2_weights_memory`).
 
     Returns:
         ``(fits, predicted bytes, available bytes per rank)``.
@@ -110,7 +120,7 @@ def p2_weights_fit(V2: fem.FunctionSpace, kind: str) -> tuple[bool, int, int]:
     :func:`~dwr_signorini.linalg.memory.available_memory` (the budget
     ``DWR_SIGNORINI_MEMORY_BUDGET`` where set). Both are the same on every rank, so is the answer.
     """
-    need = p2_weights_memory(V2, kind)
+    need = p2_weights_memory(V2, kind, free)
     available = memory.available_memory(V2.mesh.comm)
     return need <= memory.FACTOR_FRACTION * available, need, available
 
@@ -139,6 +149,20 @@ def p2_kind(sol: Any) -> str:
     return "higher_order"
 
 
+def unresolved_kind(sol: Any) -> str:
+    """The P2 weights of ``"auto"`` on a level whose contact set is not resolved.
+
+    Args:
+        sol: The solution.
+
+    Returns:
+        ``"local"`` (P2 on the band around the contact zone, :mod:`~dwr_signorini.local_p2`)
+        for one body; :func:`p2_kind` for a contact pair, whose master side the band does not
+        follow.
+    """
+    return "local" if sol.disc.slave_mesh is None else p2_kind(sol)
+
+
 def second_weights(
     terms: Any, estimator: str, resolved: bool, J_h: float, roundoff: float, p2: str
 ) -> str | None:
@@ -155,9 +179,9 @@ def second_weights(
     return None if resolved else p2
 
 
-def memory_fallback(sol: Any, rec: Any, kind: str) -> str | None:
+def memory_fallback(sol: Any, rec: Any, kind: str, free: int | None = None) -> str | None:
     """None where the P2 weights ``kind`` fit in memory, else the sentence that says why not."""
-    fits, need, available = p2_weights_fit(rec.V2h, kind)
+    fits, need, available = p2_weights_fit(rec.V2h, kind, free)
     if fits:
         return None
     gib = 2.0**30

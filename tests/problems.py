@@ -113,14 +113,15 @@ def from_model(build, **kwargs):
 def estimate_rel(level) -> float:
     """The relative tolerance to which a level's estimates agree between one process and several.
 
-    The patch weights agree to round-off. The hierarchical P2 weights (``weights="auto"`` on a level
-    whose contact set is not resolved) are solved iteratively (the coarse step by the factors
-    of each partition, the smoother's eigenvalue estimate from a random start) and stop at a
-    relative residual of ``HIERARCHICAL_RTOL``, so their estimates agree to that tolerance.
+    The patch weights and the factored P2 ones (``"higher_order"``, and ``"local"``, which
+    ``weights="auto"`` takes on a level whose contact set is not resolved) agree to round-off.
+    The hierarchical P2 weights are solved iteratively (the coarse step by the factors of each
+    partition, the smoother's eigenvalue estimate from a random start) and stop at a relative
+    residual of ``HIERARCHICAL_RTOL``, so their estimates agree to that tolerance.
     """
     from dwr_signorini.hierarchical import HIERARCHICAL_RTOL
 
-    return 1e-8 if level.weights == "patch" else HIERARCHICAL_RTOL
+    return HIERARCHICAL_RTOL if level.weights == "hierarchical" else 1e-8
 
 
 def block(comm, nx, ny, lx=1.0, ly=1.0, transform=None, cell_type=TRI):

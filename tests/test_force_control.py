@@ -249,8 +249,8 @@ def test_solve_adaptive_defaults_under_a_given_force():
     """``solve_adaptive`` with its defaults (weights="auto") on Hertz under a given force: every
     level its reference judges (the finest J_h, uncertain by its last change, at least 10 times
     that far) has an interval that contains it. The second moment of the pressure leaves the
-    contact set unresolved on some levels, where "auto" takes the bordered hierarchical P2
-    weights (which raised a ValueError before)."""
+    contact set unresolved on some levels, where "auto" takes the bordered P2 weights on the
+    band around the contact zone (the hierarchical ones before; a ValueError before those)."""
     with ds.solve_adaptive(hertz_2d(0), near_displacement, max_levels=8, verbose=False) as res:
         levels = res.levels
     reference, uncertainty = levels[-1].J_h, abs(levels[-1].J_h - levels[-2].J_h)
@@ -259,7 +259,7 @@ def test_solve_adaptive_defaults_under_a_given_force():
     for r in judged:
         assert r.J_low - uncertainty <= reference <= r.J_high + uncertainty, r.level
     with ds.solve_adaptive(hertz_2d(0), pressure_moment, max_levels=3, verbose=False) as res:
-        assert "hierarchical" in [r.weights for r in res.levels]
+        assert "local" in [r.weights for r in res.levels]
 
 
 def test_bad_force_input():

@@ -45,10 +45,10 @@ def test_interval_contains_the_exact_J_of_example_51(refinement):
         assert r.J_low <= J <= r.J_high, (r.level, r.J_low, J, r.J_high)
         # Nothing is gained by an interval far wider than the error (a check that can fail).
         assert r.J_high - r.J_low <= 10 * abs(J - r.J_h), (r.level, r.J_high - r.J_low)
-    assert {r.weights for r in rows} <= {"patch", "hierarchical"}
+    assert {r.weights for r in rows} <= {"patch", "local"}
     # Where contact is found on a quarter of Gamma_C only (level 0), the level is unresolved and
-    # its estimate computed with P2 weights; once resolved, the patch weights serve.
-    assert not rows[0].resolved and rows[0].weights == "hierarchical"
+    # its estimate computed with P2 weights near Gamma_C; once resolved, the patch weights serve.
+    assert not rows[0].resolved and rows[0].weights == "local"
     assert rows[-1].resolved and rows[-1].weights == "patch"
 
 
@@ -61,9 +61,9 @@ def test_estimate_interval_matches_the_record_and_weights_auto_decides():
             assert auto.resolved == patch.resolved == contact_set_resolved(
                 patch.eta, patch.active_set_remainder, patch.contact_term
             )
-            assert auto.weights == ("patch" if patch.resolved else "hierarchical")
+            assert auto.weights == ("patch" if patch.resolved else "local")
             if not patch.resolved:
-                with ds.estimate(sol, goal, weights="hierarchical") as p2:
+                with ds.estimate(sol, goal, weights="local") as p2:
                     assert auto.eta == pytest.approx(p2.eta, rel=1e-12)
             lo, hi = auto.interval
             assert (lo, hi) == error_interval(
