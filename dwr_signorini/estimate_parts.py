@@ -7,7 +7,8 @@ made from it depend on J; these do not:
 * the patch reconstructor (:class:`~dwr_signorini.reconstruction.Reconstructor`) and the DG0
   space of the indicators;
 * the P2 system of the final active set with its factorisation (``weights="higher_order"``,
-  :class:`FactoredP2`) or its two-level set-up (``weights="hierarchical"``,
+  :class:`FactoredP2`; on the band around the contact zone, ``weights="local"``,
+  :class:`LocalP2`) or its two-level set-up (``weights="hierarchical"``,
   :class:`~dwr_signorini.hierarchical.HierarchicalP2`): only the right-hand side of the P2 dual
   changes with J. Kept only within a memory budget (:class:`SolverBudget`): a P2 solver
   that is not kept is made for each estimate and released after it, as without the parts;
@@ -259,11 +260,15 @@ class LocalP2(FactoredP2):
             return solve_dual(self.system, goal, data)
 
 
-ZONE_BAND = True
-
-
 def contact_band(sol: Solution, rec: Reconstructor) -> ContactBand:
-    """The band of :mod:`~dwr_signorini.local_p2` on ``sol``'s mesh (collective).
+    """The band of :mod:`~dwr_signorini.local_p2` around ``sol``'s contact zone (collective).
+
+    Args:
+        sol: The solution (its normal multiplier marks the contact zone).
+        rec: Its reconstructor (the P2 space).
+
+    Returns:
+        The band.
 
     Raises:
         NotImplementedError: A contact pair, whose master side the band does not follow.
@@ -274,7 +279,7 @@ def contact_band(sol: Solution, rec: Reconstructor) -> ContactBand:
             "needs the master side too: use 'higher_order' or 'hierarchical'"
         )
     with timed("higher-order solve"):
-        return ContactBand(sol.disc, rec.V2h, zone=sol.multipliers[0] if ZONE_BAND else None)
+        return ContactBand(sol.disc, rec.V2h, zone=sol.multipliers[0])
 
 
 def _options_key(petsc_options: Any) -> str:
