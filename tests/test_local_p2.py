@@ -9,7 +9,8 @@ touches. Truths:
   cell with a vertex on it and nothing farther than k cells;
 - a band that holds every cell constrains no node, and is the P2 system of the whole mesh: the
   estimate equals that of ``weights="higher_order"`` to round-off (2D, 3D, Coulomb's coupled
-  rows, an obstacle under a given force, the Krylov path), serially and on 2 ranks;
+  rows, an obstacle under a given force, the Krylov path, quadrilaterals, hexahedra), serially
+  and on 2 ranks;
 - off the band the P2 dual and primal are the patch reconstructions, exactly;
 - the interval of ``weights="auto"``, which takes these weights on a level whose contact set is
   not resolved, holds example 5.1's exact J (``tests/test_interval.py``).
@@ -20,6 +21,7 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 from dolfinx import fem
+from dolfinx.mesh import CellType
 
 import dwr_signorini as ds
 from dwr_signorini import examples as ex
@@ -108,6 +110,11 @@ WHOLE = {
     "disc under a given force": (_forced, _goal, {}),
     "example 5.3, Krylov path": (lambda comm: ex.obstacle_problem(comm, (1, 4, 4)),
                                  ex.goal_obstacle(), {"method": "krylov"}),
+    "example 5.1, quadrilaterals": (
+        lambda comm: ex.analytic_problem(comm, 6, 4, CellType.quadrilateral), ex.goal_a(-0.5), {}),
+    "example 5.3, hexahedra": (
+        lambda comm: ex.obstacle_problem(comm, (1, 4, 4), cell_type=CellType.hexahedron),
+        ex.goal_obstacle(), {}),
 }
 
 
@@ -134,11 +141,12 @@ def test_band_of_every_cell_is_the_higher_order_estimate(case, monkeypatch):
             rec.destroy()
 
 
-def test_off_the_band_the_p2_solutions_are_the_patch_reconstructions(monkeypatch):
+@pytest.mark.parametrize("cell", [CellType.triangle, CellType.quadrilateral])
+def test_off_the_band_the_p2_solutions_are_the_patch_reconstructions(cell, monkeypatch):
     """The band's P2 dual and primal (3 layers) equal i_2h^(2) z_h and i_2h^(2) w_h on every
     node that a cell outside the band touches (u_D on Gamma_D), and differ from them inside."""
     monkeypatch.setattr(local_p2, "BAND_LAYERS", {2: 3})
-    with ds.solve(strip_problem(COMM, 16, 4)) as sol:
+    with ds.solve(strip_problem(COMM, 16, 4, cell)) as sol:
         forms = GoalForms(_goal, sol.u, sol.lam, sol.disc, None)
         z = solve_dual(sol.system, forms)
         rec = Reconstructor(sol.disc)
