@@ -5,18 +5,18 @@ resolved, the patch reconstruction i_2h^(2) of z_h and w_h misses the error near
 contact-violation and active-set terms weigh the multipliers' and the displacements' traces
 there); away from Gamma_C, where the discrete solutions are smooth, it serves. So the P2
 dual and primal of the final active set (the systems of ``weights="higher_order"``) are
-solved only on the band B of the cells within :data:`BAND_LAYERS` layers of Gamma_C, with the
-patch reconstructions i_2h^(2) z_h and i_2h^(2) w_h as Dirichlet data on the P2 nodes that a
-cell outside B touches:
+solved only on a band B of cells around the contact zone (:func:`band_cells`: every cell with a
+vertex on Gamma_C, and :data:`BAND_LAYERS` layers of cells around the facets where lambda_h does
+not vanish), with the patch reconstructions i_2h^(2) z_h and i_2h^(2) w_h as Dirichlet data on
+the P2 nodes that a cell outside B touches:
 
     z^(2) = i_2h^(2) z_h off the free nodes of B,   A^T z^(2) = J'(w_h) on them,
 
-and the same for w^(2) with the Newton step's right-hand side. Every multiplier row lies in B
-(its first layer is every cell with a vertex on Gamma_C), so the constrained nodes carry no
-contact row. Outside B the weights are then the patch weights; on B those of a P2 solve with
-data from the patch reconstruction. The stiffness matrix is assembled over B only (with the
-diagonal of the other rows), so the factorisation is that of the band, a slab along Gamma_C,
-not of the P2 system of the whole mesh.
+and the same for w^(2) with the Newton step's right-hand side. Every multiplier row lies in B,
+so the constrained nodes carry no contact row. Outside B the weights are then the patch
+weights; on B those of a P2 solve with data from the patch reconstruction. The stiffness
+matrix is assembled over B only (with the diagonal of the other rows), so the factorisation is
+that of the band, not of the P2 system of the whole mesh.
 """
 
 from __future__ import annotations
@@ -37,10 +37,12 @@ __all__ = ["BAND_LAYERS", "BAND_ORDERING", "ContactBand", "band_cells", "band_op
 
 #: Layers of cells around the contact zone on which ``weights="local"`` solves the P2 systems,
 #: per dimension (:func:`band_cells`). Measured with ``benchmarks/interval_coverage.py``: on the
-#: 2D indented block's unresolved levels 16 layers give intervals 3.3-8.2 times the error, as
-#: the P2 weights of the whole mesh did (2.9-5.8), 4 layers 7.6-46 times; in 3D the band's
-#: factorisation grows with its volume, and 4 layers (the 3D indentation of 98k cells: 4.9 s,
-#: 8 layers 13.7 s, 12 layers 71 s) keep its estimate within 7 % of the whole mesh's.
+#: 2D indented block's unresolved levels 16 layers give intervals 3.3-8.2 times the error, about
+#: as the P2 weights of the whole mesh did (2.9-5.8, 19 on one level), 4 layers 7.6-46 times. In
+#: 3D the band's factorisation grows with its volume (the indentation's level of 98k cells, a
+#: probe: 4 layers 4.9 s, 8 layers 13.7 s, 12 layers 71 s); with 4 layers the estimate is within
+#: 10 % of the whole mesh's (``benchmarks/band_weights_cost.py``: 9.7 % there, 9.1 % on 5.3's
+#: level of 49k cells), the intervals holding the references.
 BAND_LAYERS = {2: 16, 3: 4}
 
 
